@@ -1,0 +1,2 @@
+//! The `ortm` command-line tool.
+fn main() {}

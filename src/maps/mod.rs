@@ -1,0 +1,1 @@
+//! Offset transfer maps: crop, OpenEXR, index, CPU apply (Sec. 3, 5.1). Being written.
