@@ -1,0 +1,100 @@
+// Display pass: the mesh textured with a lightmap, seen by a perspective camera.
+// (lights.wgsl is prepended.) Mirror: src/cpu/display.rs. Host side: src/display.rs.
+//
+// Radiance L = B/π (B: lightmap radiosity, W/m², bilinear between texel centres) plus an
+// optional unshadowed Blinn-Phong specular term; then exposure, Reinhard L/(1+L) per
+// channel, sRGB encoding, written to an Rgba8Unorm target.
+//
+// Bindings (bind-group order = @binding order; must match `DisplayPass` in display.rs):
+//   group 0: 0 = View (uniform), 1 = lights (storage, read)
+//   group 1: 0 = lightmap (float texture, textureLoad; manual bilinear so RGBA32F needs no
+//            FLOAT32_FILTERABLE)
+
+const PI: f32 = 3.14159265358979;
+
+// Must match `DisplayView` in display.rs (112 bytes).
+struct View {
+    view_proj: mat4x4<f32>,
+    // xyz: camera position (m); w: exposure (multiplies radiance, W/(m²·sr) → display units).
+    eye_exposure: vec4<f32>,
+    lightmap_size: vec2<u32>,
+    light_count: u32,
+    specular_on: u32,
+    // x: specular reflectance k_s; y: Blinn-Phong exponent; zw unused.
+    specular: vec4<f32>,
+}
+
+@group(0) @binding(0) var<uniform> view: View;
+@group(0) @binding(1) var<storage, read> lights: array<GpuLight>;
+@group(1) @binding(0) var lightmap: texture_2d<f32>;
+
+// Vertex layout: must match `Vertex` in first_order.rs (32 bytes).
+struct VertexIn {
+    @location(0) position: vec3<f32>,
+    @location(1) normal: vec3<f32>,
+    @location(2) uv: vec2<f32>,
+}
+
+struct VertexOut {
+    @builtin(position) clip: vec4<f32>,
+    @location(0) world: vec3<f32>,
+    @location(1) normal: vec3<f32>,
+    @location(2) uv: vec2<f32>,
+}
+
+@vertex
+fn vs_main(v: VertexIn) -> VertexOut {
+    var out: VertexOut;
+    out.clip = view.view_proj * vec4<f32>(v.position, 1.0);
+    out.world = v.position;
+    out.normal = v.normal;
+    out.uv = v.uv;
+    return out;
+}
+
+// Bilinear lookup between texel centres: texel (x, y) has centre u = (x+0.5)/W,
+// v = 1 − (y+0.5)/H; coordinates clamp at the map border.
+fn bilinear(uv: vec2<f32>) -> vec3<f32> {
+    let size = vec2<f32>(view.lightmap_size);
+    let st = vec2<f32>(uv.x * size.x, (1.0 - uv.y) * size.y) - 0.5;
+    let i0 = floor(st);
+    let f = st - i0;
+    let hi = vec2<i32>(view.lightmap_size) - 1;
+    let a = clamp(vec2<i32>(i0), vec2<i32>(0), hi);
+    let b = clamp(vec2<i32>(i0) + 1, vec2<i32>(0), hi);
+    let c00 = textureLoad(lightmap, vec2<i32>(a.x, a.y), 0).rgb;
+    let c10 = textureLoad(lightmap, vec2<i32>(b.x, a.y), 0).rgb;
+    let c01 = textureLoad(lightmap, vec2<i32>(a.x, b.y), 0).rgb;
+    let c11 = textureLoad(lightmap, vec2<i32>(b.x, b.y), 0).rgb;
+    return mix(mix(c00, c10, f.x), mix(c01, c11, f.x), f.y);
+}
+
+// Linear → sRGB transfer function (IEC 61966-2-1).
+fn srgb_encode(c: vec3<f32>) -> vec3<f32> {
+    let lo = c * 12.92;
+    let hi = 1.055 * pow(c, vec3<f32>(1.0 / 2.4)) - 0.055;
+    return select(hi, lo, c <= vec3<f32>(0.0031308));
+}
+
+@fragment
+fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
+    var radiance = bilinear(in.uv) / PI;
+    if (view.specular_on != 0u) {
+        let n = normalize(in.normal);
+        let to_eye = normalize(view.eye_exposure.xyz - in.world);
+        let s = view.specular.y;
+        // Normalised Blinn-Phong: k_s·(s+8)/(8π)·(n·h)^s·E (E unshadowed).
+        for (var i = 0u; i < view.light_count; i++) {
+            let inc = light_incident(lights[i], in.world);
+            let cos_i = dot(n, inc.to_light);
+            if (cos_i > 0.0) {
+                let h = normalize(inc.to_light + to_eye);
+                let lobe = view.specular.x * (s + 8.0) / (8.0 * PI) * pow(max(dot(n, h), 0.0), s);
+                radiance += inc.e_normal * cos_i * lobe;
+            }
+        }
+    }
+    let l = max(radiance * view.eye_exposure.w, vec3<f32>(0.0));
+    let mapped = l / (1.0 + l);
+    return vec4<f32>(srgb_encode(mapped), 1.0);
+}

@@ -1,0 +1,85 @@
+// Transfer pass, blend path (paper Eq. 9): final = first_order + Σ_pieces atlas · first_order(t + Δt).
+// Mirror: src/cpu/transfer.rs. Host side: src/transfer.rs.
+//
+// Bindings (bind-group order = @binding order; must match `TransferPass` layouts in transfer.rs):
+//   group 0: binding 0 = Params (uniform), binding 1 = first-order lightmap (RGBA32F, textureLoad only)
+//   group 1: binding 0 = the atlas being drawn (RGBA32F, textureLoad only)
+// Coordinates: texel (x, y), y down, row 0 = v = 1; framebuffer pixel (x, y) is lightmap texel (x, y).
+
+// Must match `TransferParams` in transfer.rs (16 bytes).
+struct Params {
+    lightmap_size: vec2<u32>,
+    _pad: vec2<u32>,
+}
+
+@group(0) @binding(0) var<uniform> params: Params;
+@group(0) @binding(1) var first_order: texture_2d<f32>;
+@group(1) @binding(0) var atlas: texture_2d<f32>;
+
+// Per-instance attributes: must match `PieceInstance` in schedule.rs (32 bytes, locations 0–3).
+struct PieceIn {
+    @location(0) src: vec2<u32>,
+    @location(1) dst: vec2<u32>,
+    @location(2) size: vec2<u32>,
+    @location(3) offset: vec2<i32>,
+}
+
+struct PieceOut {
+    @builtin(position) clip: vec4<f32>,
+    // Atlas texel minus destination texel: atlas texel = lightmap texel + src_minus_dst.
+    @location(0) @interpolate(flat) src_minus_dst: vec2<i32>,
+    @location(1) @interpolate(flat) offset: vec2<i32>,
+}
+
+// Texel-space point (x right, y down, in texels) to clip space.
+fn texel_to_clip(p: vec2<f32>) -> vec4<f32> {
+    let size = vec2<f32>(params.lightmap_size);
+    return vec4<f32>(2.0 * p.x / size.x - 1.0, 1.0 - 2.0 * p.y / size.y, 0.0, 1.0);
+}
+
+// One quad (two triangles, 6 vertices) per piece covering texels [dst, dst + size):
+// the rasteriser's pixel-centre rule selects exactly those texels.
+@vertex
+fn vs_piece(@builtin(vertex_index) vi: u32, piece: PieceIn) -> PieceOut {
+    var corners = array<vec2<f32>, 6>(
+        vec2<f32>(0.0, 0.0), vec2<f32>(1.0, 0.0), vec2<f32>(0.0, 1.0),
+        vec2<f32>(0.0, 1.0), vec2<f32>(1.0, 0.0), vec2<f32>(1.0, 1.0),
+    );
+    let c = corners[vi];
+    var out: PieceOut;
+    out.clip = texel_to_clip(vec2<f32>(piece.dst) + c * vec2<f32>(piece.size));
+    out.src_minus_dst = vec2<i32>(piece.src) - vec2<i32>(piece.dst);
+    out.offset = piece.offset;
+    return out;
+}
+
+// First-order light at a texel, zero outside the map (Eq. 4: TB_o(t) = 0 for t ∉ T).
+fn first_order_at(t: vec2<i32>) -> vec3<f32> {
+    let size = vec2<i32>(params.lightmap_size);
+    if (any(t < vec2<i32>(0)) || any(t >= size)) {
+        return vec3<f32>(0.0);
+    }
+    return textureLoad(first_order, t, 0).rgb;
+}
+
+// Additive blend (One, One): alpha output 0 leaves coverage untouched.
+@fragment
+fn fs_piece(in: PieceOut) -> @location(0) vec4<f32> {
+    let t = vec2<i32>(floor(in.clip.xy));
+    let a = textureLoad(atlas, t + in.src_minus_dst, 0).rgb;
+    return vec4<f32>(a * first_order_at(t + in.offset), 0.0);
+}
+
+// Full-screen triangle that copies the first-order map (RGB and coverage alpha) into the
+// accumulation target before the pieces are blended on top.
+@vertex
+fn vs_fullscreen(@builtin(vertex_index) vi: u32) -> @builtin(position) vec4<f32> {
+    let x = f32(i32(vi & 1u) * 4 - 1);
+    let y = f32(i32(vi >> 1u) * 4 - 1);
+    return vec4<f32>(x, y, 0.0, 1.0);
+}
+
+@fragment
+fn fs_copy(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
+    return textureLoad(first_order, vec2<i32>(floor(pos.xy)), 0);
+}

@@ -1,0 +1,97 @@
+// Transfer pass, compute (gather) path: same result as transfer.wgsl, no blending, no atomics.
+// Mirror: src/cpu/transfer_gather.rs. Host side: src/transfer_gather.rs.
+//
+// cs_init:    acc[t] = first_order[t]                         (one invocation per texel)
+// cs_gather:  per atlas, one workgroup per non-empty 8×8 tile: each invocation owns one texel,
+//             sums the tile's pieces containing it, adds to acc (no other workgroup writes it)
+// cs_resolve: final[t] = acc[t]
+//
+// Bindings (bind-group order = @binding order; must match `GatherPass` layouts in transfer_gather.rs):
+//   group 0: 0 = Params (uniform), 1 = first-order map (texture, textureLoad),
+//            2 = acc (storage, read_write, W·H vec4), 3 = final map (storage texture, write)
+//   group 1: 0 = atlas (texture), 1 = instances (storage, read), 2 = tiles (storage, read),
+//            3 = entries (storage, read)
+
+// Must match `TILE_SIZE` in schedule.rs.
+const TILE_SIZE: u32 = 8u;
+
+// Must match `TransferParams` in transfer.rs (16 bytes).
+struct Params {
+    lightmap_size: vec2<u32>,
+    _pad: vec2<u32>,
+}
+
+// Must match `PieceInstance` in schedule.rs (32 bytes).
+struct PieceInstance {
+    src: vec2<u32>,
+    dst: vec2<u32>,
+    size: vec2<u32>,
+    offset: vec2<i32>,
+}
+
+// Must match `TileWork` in schedule.rs (16 bytes).
+struct TileWork {
+    tile: vec2<u32>,
+    first: u32,
+    count: u32,
+}
+
+@group(0) @binding(0) var<uniform> params: Params;
+@group(0) @binding(1) var first_order: texture_2d<f32>;
+@group(0) @binding(2) var<storage, read_write> acc: array<vec4<f32>>;
+@group(0) @binding(3) var final_map: texture_storage_2d<rgba32float, write>;
+
+@group(1) @binding(0) var atlas: texture_2d<f32>;
+@group(1) @binding(1) var<storage, read> instances: array<PieceInstance>;
+@group(1) @binding(2) var<storage, read> tiles: array<TileWork>;
+@group(1) @binding(3) var<storage, read> entries: array<u32>;
+
+fn first_order_at(t: vec2<i32>) -> vec3<f32> {
+    let size = vec2<i32>(params.lightmap_size);
+    if (any(t < vec2<i32>(0)) || any(t >= size)) {
+        return vec3<f32>(0.0);
+    }
+    return textureLoad(first_order, t, 0).rgb;
+}
+
+@compute @workgroup_size(8, 8)
+fn cs_init(@builtin(global_invocation_id) gid: vec3<u32>) {
+    if (any(gid.xy >= params.lightmap_size)) {
+        return;
+    }
+    acc[gid.y * params.lightmap_size.x + gid.x] = textureLoad(first_order, vec2<i32>(gid.xy), 0);
+}
+
+@compute @workgroup_size(TILE_SIZE, TILE_SIZE)
+fn cs_gather(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_id) lid: vec3<u32>) {
+    // 2D dispatch: workgroup (x, y) handles tile entry y·65535 + x (dimension limit 65535).
+    let idx = wid.y * 65535u + wid.x;
+    if (idx >= arrayLength(&tiles)) {
+        return;
+    }
+    let work = tiles[idx];
+    let t = work.tile * TILE_SIZE + lid.xy;
+    if (any(t >= params.lightmap_size)) {
+        return;
+    }
+    var sum = vec3<f32>(0.0);
+    for (var k = work.first; k < work.first + work.count; k++) {
+        let inst = instances[entries[k]];
+        let local = vec2<i32>(t) - vec2<i32>(inst.dst);
+        if (any(local < vec2<i32>(0)) || any(local >= vec2<i32>(inst.size))) {
+            continue;
+        }
+        let a = textureLoad(atlas, vec2<i32>(inst.src) + local, 0).rgb;
+        sum += a * first_order_at(vec2<i32>(t) + inst.offset);
+    }
+    let i = t.y * params.lightmap_size.x + t.x;
+    acc[i] = acc[i] + vec4<f32>(sum, 0.0);
+}
+
+@compute @workgroup_size(8, 8)
+fn cs_resolve(@builtin(global_invocation_id) gid: vec3<u32>) {
+    if (any(gid.xy >= params.lightmap_size)) {
+        return;
+    }
+    textureStore(final_map, vec2<i32>(gid.xy), acc[gid.y * params.lightmap_size.x + gid.x]);
+}

@@ -1,0 +1,393 @@
+//! Benchmarks of the passes on the current adapter, returned as plain data for the CLI to
+//! print as a table.
+//!
+//! # What is timed
+//! [`bench_frame`] times each pass of a [`Renderer`] frame separately (first order incl.
+//! shadow maps, transfer, dilation, display) and reports texel blends per second for the
+//! transfer pass (`FrameSchedule::texel_blends` per frame: one blend per piece texel, plus
+//! the initial copy). [`bench_blend_roofline`] times pure full-screen additive blends
+//! (`shaders/bench.wgsl`) into a target of the accumulation format: the roofline for the
+//! blend path on this adapter.
+//!
+//! # How
+//! With `TIMESTAMP_QUERY` + `TIMESTAMP_QUERY_INSIDE_ENCODERS` the GPU time between two
+//! timestamps around the recorded commands is used ([`TimingSource::GpuTimestamps`]);
+//! otherwise the wall time of submit + wait ([`TimingSource::WallClock`], which includes
+//! submission and synchronisation overhead). Every measurement is the median of
+//! `iterations` runs after one warm-up run; each run is its own submission.
+//!
+//! # Limits
+//! Software adapters (lavapipe) are orders of magnitude slower than GPUs; compare numbers
+//! only on the same adapter. At most 1024 iterations.
+
+use std::time::Instant;
+
+use crate::error::PassError;
+use crate::frame::{FrameParams, RenderScene, Renderer};
+use crate::gpu::Gpu;
+use crate::util;
+
+/// Where the times come from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TimingSource {
+    /// GPU timestamps around the commands.
+    GpuTimestamps,
+    /// Wall clock around submit + wait.
+    WallClock,
+}
+
+impl std::fmt::Display for TimingSource {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            TimingSource::GpuTimestamps => "GPU timestamps",
+            TimingSource::WallClock => "wall clock (submit + wait)",
+        })
+    }
+}
+
+/// One line of the table.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BenchRow {
+    /// What was timed.
+    pub name: String,
+    /// Median milliseconds per run.
+    pub ms: f64,
+    /// Texel blends per run (0 where not meaningful).
+    pub texel_blends: u64,
+    /// `texel_blends / seconds` (0 where not meaningful).
+    pub blends_per_s: f64,
+}
+
+impl BenchRow {
+    fn new(name: impl Into<String>, ms: f64, texel_blends: u64) -> Self {
+        Self {
+            name: name.into(),
+            ms,
+            texel_blends,
+            blends_per_s: if ms > 0.0 {
+                texel_blends as f64 / (ms * 1e-3)
+            } else {
+                0.0
+            },
+        }
+    }
+}
+
+/// A whole report.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BenchReport {
+    /// Adapter name and backend.
+    pub adapter: String,
+    /// How times were measured.
+    pub timing: TimingSource,
+    /// Iterations per measurement.
+    pub iterations: u32,
+    /// One row per pass, then the roofline.
+    pub rows: Vec<BenchRow>,
+}
+
+impl std::fmt::Display for BenchReport {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        writeln!(f, "adapter: {}", self.adapter)?;
+        writeln!(
+            f,
+            "timing:  {} (median of {})",
+            self.timing, self.iterations
+        )?;
+        writeln!(
+            f,
+            "{:<34} {:>10} {:>14} {:>14}",
+            "pass", "ms", "texel blends", "blends/s"
+        )?;
+        for r in &self.rows {
+            writeln!(
+                f,
+                "{:<34} {:>10.3} {:>14} {:>14.3e}",
+                r.name, r.ms, r.texel_blends, r.blends_per_s
+            )?;
+        }
+        Ok(())
+    }
+}
+
+/// Times `record` (which records commands into a fresh encoder) `iterations` times after a
+/// warm-up; returns the median in milliseconds.
+pub fn time_encoded(
+    gpu: &Gpu,
+    label: &str,
+    iterations: u32,
+    mut record: impl FnMut(&mut wgpu::CommandEncoder) -> Result<(), PassError>,
+) -> Result<(f64, TimingSource), PassError> {
+    let iterations = iterations.clamp(1, 1024);
+    let device = &gpu.device;
+    let new_encoder = || {
+        device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+            label: Some("ortm.bench.encoder"),
+        })
+    };
+    // Warm-up (pipeline compilation, first-use allocations).
+    let mut enc = new_encoder();
+    record(&mut enc)?;
+    gpu.submit_and_wait(label, enc)?;
+
+    let mut times = Vec::with_capacity(iterations as usize);
+    let source = if gpu.supports_timestamps() {
+        let qs = device.create_query_set(&wgpu::QuerySetDescriptor {
+            label: Some("ortm.bench.timestamps"),
+            ty: wgpu::QueryType::Timestamp,
+            count: 2,
+        });
+        let resolve = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("ortm.bench.resolve"),
+            size: 16,
+            usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        let read = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("ortm.bench.readback"),
+            size: 16,
+            usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+            mapped_at_creation: false,
+        });
+        let period_ns = gpu.queue.get_timestamp_period() as f64;
+        for _ in 0..iterations {
+            let mut enc = new_encoder();
+            enc.write_timestamp(&qs, 0);
+            record(&mut enc)?;
+            enc.write_timestamp(&qs, 1);
+            enc.resolve_query_set(&qs, 0..2, &resolve, 0);
+            enc.copy_buffer_to_buffer(&resolve, 0, &read, 0, 16);
+            gpu.submit_and_wait(label, enc)?;
+            let bytes = gpu.map_read(label, &read)?;
+            let t0 = u64::from_le_bytes(bytes[0..8].try_into().unwrap_or_default());
+            let t1 = u64::from_le_bytes(bytes[8..16].try_into().unwrap_or_default());
+            times.push(t1.saturating_sub(t0) as f64 * period_ns * 1e-6);
+        }
+        TimingSource::GpuTimestamps
+    } else {
+        for _ in 0..iterations {
+            let mut enc = new_encoder();
+            let start = Instant::now();
+            record(&mut enc)?;
+            gpu.submit_and_wait(label, enc)?;
+            times.push(start.elapsed().as_secs_f64() * 1e3);
+        }
+        TimingSource::WallClock
+    };
+    times.sort_by(f64::total_cmp);
+    Ok((times[times.len() / 2], source))
+}
+
+/// Pure additive blending: `draws` full-screen triangles into a `size` target of `format`.
+/// Texel blends per run = `size.x · size.y · draws`.
+pub fn bench_blend_roofline(
+    gpu: &Gpu,
+    size: [u32; 2],
+    format: wgpu::TextureFormat,
+    draws: u32,
+    iterations: u32,
+) -> Result<(BenchRow, TimingSource), PassError> {
+    gpu.check_texture_size("roofline target", size[0], size[1])?;
+    let device = &gpu.device;
+    let pipeline = gpu.scoped("ortm.bench.new", || {
+        let module = util::shader(
+            device,
+            "ortm.bench.shader",
+            include_str!("../shaders/bench.wgsl"),
+        );
+        let add = wgpu::BlendComponent {
+            src_factor: wgpu::BlendFactor::One,
+            dst_factor: wgpu::BlendFactor::One,
+            operation: wgpu::BlendOperation::Add,
+        };
+        device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("ortm.bench.roofline_pipeline"),
+            layout: None,
+            vertex: wgpu::VertexState {
+                module: &module,
+                entry_point: Some("vs_fullscreen"),
+                compilation_options: Default::default(),
+                buffers: &[],
+            },
+            primitive: Default::default(),
+            depth_stencil: None,
+            multisample: Default::default(),
+            fragment: Some(wgpu::FragmentState {
+                module: &module,
+                entry_point: Some("fs_const"),
+                compilation_options: Default::default(),
+                targets: &[Some(wgpu::ColorTargetState {
+                    format,
+                    blend: Some(wgpu::BlendState {
+                        color: add,
+                        alpha: add,
+                    }),
+                    write_mask: wgpu::ColorWrites::ALL,
+                })],
+            }),
+            multiview_mask: None,
+            cache: None,
+        })
+    })?;
+    let target = util::texture_2d(
+        device,
+        "ortm.bench.roofline_target",
+        size,
+        format,
+        wgpu::TextureUsages::RENDER_ATTACHMENT,
+    );
+    let view = util::view(&target);
+    let (ms, source) = time_encoded(gpu, "ortm.bench.roofline", iterations, |enc| {
+        let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("ortm.bench.roofline_pass"),
+            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                view: &view,
+                depth_slice: None,
+                resolve_target: None,
+                ops: wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
+                    store: wgpu::StoreOp::Store,
+                },
+            })],
+            depth_stencil_attachment: None,
+            timestamp_writes: None,
+            occlusion_query_set: None,
+            multiview_mask: None,
+        });
+        pass.set_pipeline(&pipeline);
+        for _ in 0..draws {
+            pass.draw(0..3, 0..1);
+        }
+        Ok(())
+    })?;
+    let blends = size[0] as u64 * size[1] as u64 * draws as u64;
+    Ok((
+        BenchRow::new(
+            format!("roofline: {draws}× full-screen blend {format:?}"),
+            ms,
+            blends,
+        ),
+        source,
+    ))
+}
+
+/// Times every pass of `renderer` on `scene`, then the roofline at the lightmap size with
+/// as many full-screen draws as the transfer pass's blends need.
+pub fn bench_frame(
+    gpu: &Gpu,
+    renderer: &Renderer,
+    scene: &RenderScene,
+    params: &FrameParams<'_>,
+    iterations: u32,
+) -> Result<BenchReport, PassError> {
+    use crate::dilate::DilateInputs;
+    use crate::display::DisplayInputs;
+    use crate::first_order::FirstOrderInputs;
+    use crate::transfer::{TransferInputs, TransferPath};
+
+    // One full frame first: fills the first-order and final maps the later passes read.
+    let mut enc = gpu.device.create_command_encoder(&Default::default());
+    let frame = renderer.encode(gpu, &mut enc, scene, params)?;
+    gpu.submit_and_wait("ortm.bench.frame", enc)?;
+    let fo_view = util::view(&frame.first_order_tex);
+    let final_view = util::view(&frame.final_lightmap_tex);
+    let dil_view = util::view(&frame.dilated_final_tex);
+
+    let mut rows = Vec::new();
+    let (ms, timing) = time_encoded(gpu, "ortm.bench.first_order", iterations, |enc| {
+        renderer
+            .first_order
+            .encode(
+                gpu,
+                enc,
+                &FirstOrderInputs {
+                    scene: &scene.first_order,
+                    lights: params.lights,
+                },
+            )
+            .map(|_| ())
+    })?;
+    rows.push(BenchRow::new("first order (+ shadow maps)", ms, 0));
+
+    let schedule = &scene.transfer.schedule;
+    let [w, h] = scene.lightmap_size;
+    let blends = schedule.texel_blends() + w as u64 * h as u64;
+    let path = renderer.transfer.options().path;
+    let (ms, _) = time_encoded(gpu, "ortm.bench.transfer", iterations, |enc| {
+        renderer.transfer.encode(
+            gpu,
+            enc,
+            &TransferInputs {
+                scene: &scene.transfer,
+                first_order: &fo_view,
+            },
+        );
+        Ok(())
+    })?;
+    let name = match path {
+        TransferPath::Blend => format!(
+            "transfer, blend {:?} ({} pieces)",
+            renderer.transfer.options().accum_format,
+            schedule
+                .batches
+                .iter()
+                .map(|b| b.instances.len())
+                .sum::<usize>()
+        ),
+        TransferPath::Compute => "transfer, compute gather".to_string(),
+    };
+    rows.push(BenchRow::new(name, ms, blends));
+
+    let (ms, _) = time_encoded(gpu, "ortm.bench.dilate", iterations, |enc| {
+        renderer.dilate.encode(
+            gpu,
+            enc,
+            &DilateInputs {
+                targets: &scene.dilate_final,
+                source: &final_view,
+            },
+        );
+        Ok(())
+    })?;
+    rows.push(BenchRow::new("dilate (final map)", ms, 0));
+
+    let (ms, _) = time_encoded(gpu, "ortm.bench.display", iterations, |enc| {
+        renderer
+            .display
+            .encode(
+                gpu,
+                enc,
+                &DisplayInputs {
+                    scene: &scene.display,
+                    final_lightmap: &dil_view,
+                    lightmap_size: scene.lightmap_size,
+                    first_order: Some(&dil_view),
+                    camera: params.camera,
+                    exposure: params.exposure,
+                    lights: params.lights,
+                    specular: params.specular,
+                },
+            )
+            .map(|_| ())
+    })?;
+    rows.push(BenchRow::new("display", ms, 0));
+
+    let draws = blends.div_ceil(w as u64 * h as u64).clamp(1, 4096) as u32;
+    let format = match path {
+        TransferPath::Blend => renderer.transfer.options().accum_format.texture_format(),
+        TransferPath::Compute => wgpu::TextureFormat::Rgba32Float,
+    };
+    let format = if format == wgpu::TextureFormat::Rgba32Float && !gpu.supports_float32_blend() {
+        wgpu::TextureFormat::Rgba16Float
+    } else {
+        format
+    };
+    let (row, _) = bench_blend_roofline(gpu, [w, h], format, draws, iterations)?;
+    rows.push(row);
+    Ok(BenchReport {
+        adapter: format!("{} ({:?})", gpu.adapter_info.name, gpu.adapter_info.backend),
+        timing,
+        iterations,
+        rows,
+    })
+}

@@ -1,0 +1,72 @@
+//! CPU mirror of the display pass's shading (`shaders/display.wgsl`): bilinear lightmap
+//! lookup, `L = B/π` (+ optional Blinn-Phong specular), exposure, Reinhard, sRGB, 8-bit.
+//! The rasterisation of the mesh itself is not mirrored.
+
+use glam::Vec3;
+
+use crate::cpu::first_order::light_incident;
+use crate::first_order::GpuLight;
+use crate::types::TexelImage;
+
+/// Bilinear lookup between texel centres with clamping (`bilinear` in display.wgsl).
+pub fn bilinear(map: &TexelImage, uv: [f32; 2]) -> [f32; 3] {
+    let (w, h) = (map.width as f32, map.height as f32);
+    let s = uv[0] * w - 0.5;
+    let t = (1.0 - uv[1]) * h - 0.5;
+    let (i0, j0) = (s.floor(), t.floor());
+    let (fx, fy) = (s - i0, t - j0);
+    let cx = |i: f32| (i as i32).clamp(0, map.width as i32 - 1) as u32;
+    let cy = |j: f32| (j as i32).clamp(0, map.height as i32 - 1) as u32;
+    let (ax, ay, bx, by) = (cx(i0), cy(j0), cx(i0 + 1.0), cy(j0 + 1.0));
+    let mut out = [0.0; 3];
+    for (c, o) in out.iter_mut().enumerate() {
+        let lerp = |a: f32, b: f32, f: f32| a + (b - a) * f;
+        let top = lerp(map.get(ax, ay)[c], map.get(bx, ay)[c], fx);
+        let bot = lerp(map.get(ax, by)[c], map.get(bx, by)[c], fx);
+        *o = lerp(top, bot, fy);
+    }
+    out
+}
+
+/// Normalised Blinn-Phong specular radiance `k_s·(s+8)/(8π)·(n·h)^s·E` summed over lights
+/// (unshadowed), in W/(m²·sr).
+pub fn specular(lights: &[GpuLight], p: Vec3, n: Vec3, eye: Vec3, ks: f32, shininess: f32) -> Vec3 {
+    let to_eye = (eye - p).normalize();
+    let mut out = Vec3::ZERO;
+    for l in lights {
+        let (to_light, e) = light_incident(l, p);
+        let cos_i = n.dot(to_light);
+        if cos_i > 0.0 {
+            let h = (to_light + to_eye).normalize();
+            let lobe = ks * (shininess + 8.0) / (8.0 * std::f32::consts::PI)
+                * n.dot(h).max(0.0).powf(shininess);
+            out += e * cos_i * lobe;
+        }
+    }
+    out
+}
+
+/// Linear → sRGB transfer function.
+pub fn srgb_encode(c: f32) -> f32 {
+    if c <= 0.003_130_8 {
+        c * 12.92
+    } else {
+        1.055 * c.powf(1.0 / 2.4) - 0.055
+    }
+}
+
+/// Display value of a radiance (W/(m²·sr)): exposure, Reinhard, sRGB, 8 bits.
+pub fn tonemap(radiance: [f32; 3], exposure: f32) -> [u8; 4] {
+    let mut out = [255u8; 4];
+    for c in 0..3 {
+        let l = (radiance[c] * exposure).max(0.0);
+        out[c] = (srgb_encode(l / (1.0 + l)) * 255.0).round() as u8;
+    }
+    out
+}
+
+/// Display value of a lightmap radiosity `B` (W/m²) without specular: `tonemap(B/π)`.
+pub fn shade(b: [f32; 3], exposure: f32) -> [u8; 4] {
+    let pi = std::f32::consts::PI;
+    tonemap([b[0] / pi, b[1] / pi, b[2] / pi], exposure)
+}

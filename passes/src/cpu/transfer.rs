@@ -1,0 +1,42 @@
+//! CPU mirror of the blend path of the transfer pass (`shaders/transfer.wgsl`).
+//!
+//! Same order of operations as the GPU: the final map starts as a copy of the first-order
+//! map (`fs_copy`), then every atlas batch in order, every piece in order, every texel of
+//! the piece adds `atlas[src + (i,j)] · first_order[dst + (i,j) + Δt]` (`fs_piece`), with
+//! first-order light read as zero outside the map. Alpha (coverage) is copied, never added
+//! to. Arithmetic is `f32`; the RGBA16F accumulation option of the GPU rounds after every
+//! blend and is compared against this mirror with a derived bound.
+
+use crate::schedule::FrameSchedule;
+use crate::types::{AtlasData, TexelImage};
+
+/// `final = first_order + Σ pieces` in blend order.
+pub fn transfer(
+    schedule: &FrameSchedule,
+    atlases: &[AtlasData],
+    first_order: &TexelImage,
+) -> TexelImage {
+    // fs_copy: the accumulation target starts as the first-order map (alpha = coverage).
+    let mut out = first_order.clone();
+    for batch in &schedule.batches {
+        let atlas = &atlases[batch.atlas as usize];
+        for inst in &batch.instances {
+            for j in 0..inst.size[1] {
+                for i in 0..inst.size[0] {
+                    // fs_piece: texel of the quad, its atlas texel and the offset read.
+                    let t = [inst.dst[0] + i, inst.dst[1] + j];
+                    let s = [inst.src[0] + i, inst.src[1] + j];
+                    let a = atlas.rgb[(s[1] * atlas.width + s[0]) as usize];
+                    let fo = first_order
+                        .get_or_zero(t[0] as i32 + inst.offset[0], t[1] as i32 + inst.offset[1]);
+                    // Additive blend, alpha untouched.
+                    let o = out.at_mut(t[0], t[1]);
+                    for c in 0..3 {
+                        o[c] += a[c] * fo[c];
+                    }
+                }
+            }
+        }
+    }
+    out
+}

@@ -1,0 +1,62 @@
+//! CPU mirror of the compute (gather) path of the transfer pass
+//! (`shaders/transfer_gather.wgsl`).
+//!
+//! `cs_init` copies first-order RGBA into an accumulation buffer; then per atlas, per
+//! non-empty tile, per texel of the tile, the texel sums the contributions of the tile's
+//! pieces that contain it (in list order) and adds the sum to the buffer (`cs_gather`);
+//! `cs_resolve` writes the buffer to the final texture.
+
+use crate::schedule::{AtlasTiles, TILE_SIZE};
+use crate::types::{AtlasData, TexelImage};
+
+/// `final = first_order + Σ pieces` in gather order.
+pub fn transfer_gather(
+    tiles: &[AtlasTiles],
+    atlases: &[AtlasData],
+    first_order: &TexelImage,
+) -> TexelImage {
+    // cs_init
+    let mut acc = first_order.clone();
+    for at in tiles {
+        let atlas = &atlases[at.atlas as usize];
+        for work in &at.tiles {
+            for ly in 0..TILE_SIZE {
+                for lx in 0..TILE_SIZE {
+                    // cs_gather: one invocation per texel of the tile.
+                    let t = [work.tile[0] * TILE_SIZE + lx, work.tile[1] * TILE_SIZE + ly];
+                    if t[0] >= acc.width || t[1] >= acc.height {
+                        continue;
+                    }
+                    let mut sum = [0.0f32; 3];
+                    for k in work.first..work.first + work.count {
+                        let inst = at.instances[at.entries[k as usize] as usize];
+                        let li = t[0] as i32 - inst.dst[0] as i32;
+                        let lj = t[1] as i32 - inst.dst[1] as i32;
+                        if li < 0
+                            || lj < 0
+                            || li >= inst.size[0] as i32
+                            || lj >= inst.size[1] as i32
+                        {
+                            continue;
+                        }
+                        let s = [inst.src[0] + li as u32, inst.src[1] + lj as u32];
+                        let a = atlas.rgb[(s[1] * atlas.width + s[0]) as usize];
+                        let fo = first_order.get_or_zero(
+                            t[0] as i32 + inst.offset[0],
+                            t[1] as i32 + inst.offset[1],
+                        );
+                        for c in 0..3 {
+                            sum[c] += a[c] * fo[c];
+                        }
+                    }
+                    let o = acc.at_mut(t[0], t[1]);
+                    for c in 0..3 {
+                        o[c] += sum[c];
+                    }
+                }
+            }
+        }
+    }
+    // cs_resolve: the buffer is the final map.
+    acc
+}

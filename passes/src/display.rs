@@ -1,0 +1,472 @@
+//! Display pass: the mesh textured with a lightmap, seen through a perspective camera,
+//! tonemapped into an offscreen RGBA8 image; optionally the paper's side-by-side layout
+//! (first-order | final, Sec. 5.3). `shaders/display.wgsl` (+ `shaders/lights.wgsl`),
+//! mirror [`crate::cpu::display`].
+//!
+//! # Data flow
+//! [`DisplayPass::prepare`] uploads the mesh and allocates the colour (`Rgba8Unorm`,
+//! linear storage of sRGB-encoded values) and depth targets. [`DisplayPass::encode`] writes
+//! the [`DisplayView`] uniform and draws the mesh once (or twice, into the left and right
+//! halves, for side-by-side). [`crate::gpu::Gpu::read_rgba8`] reads the image back.
+//!
+//! # Shading and units
+//! `B` (W/m², radiosity) is looked up bilinearly between texel centres (manual, so RGBA32F
+//! lightmaps need no filtering feature), turned into radiance `L = B/π` (W/(m²·sr)); the
+//! optional specular adds normalised Blinn-Phong `k_s·(s+8)/(8π)·(n·h)^s·E` per light,
+//! *unshadowed* (the shadow maps belong to the first-order pass). Then
+//! `L·exposure`, Reinhard `x/(1+x)` per channel, sRGB encoding.
+//!
+//! # Conventions
+//! Right-handed world, camera from [`Camera`] (look-at, vertical field of view, depth
+//! `[0, 1]`); image row 0 is the top. Both sides of every triangle are drawn. Use a dilated
+//! lightmap ([`crate::dilate`]) so chart borders do not bleed black.
+//!
+//! # Limits
+//! One `encode` per submit (the view uniform is written with `Queue::write_buffer`).
+
+use bytemuck::{Pod, Zeroable};
+use glam::camera::rh::proj::directx as proj_dx;
+use glam::camera::rh::view::look_at_mat4;
+use glam::{Mat4, Vec3};
+
+use crate::error::PassError;
+use crate::first_order::{Bounds, GpuLight, Vertex, pack_lights, vertex_layout};
+use crate::gpu::Gpu;
+use crate::types::{LightDesc, MeshData};
+use crate::util;
+
+/// Background colour of the image (sRGB-encoded RGBA8).
+pub const BACKGROUND: [u8; 4] = [16, 16, 20, 255];
+
+/// Settings fixed at creation.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct DisplayOptions {
+    /// Image width in pixels (each half is `width/2` in side-by-side mode).
+    pub width: u32,
+    /// Image height in pixels.
+    pub height: u32,
+    /// Draw first-order (left) and final (right) side by side.
+    pub side_by_side: bool,
+}
+
+impl Default for DisplayOptions {
+    fn default() -> Self {
+        Self {
+            width: 1280,
+            height: 720,
+            side_by_side: false,
+        }
+    }
+}
+
+/// A perspective camera (metres, degrees).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Camera {
+    /// Eye position.
+    pub eye: [f32; 3],
+    /// Point looked at.
+    pub target: [f32; 3],
+    /// Up direction (not parallel to `target − eye`).
+    pub up: [f32; 3],
+    /// Vertical field of view in degrees (0 < fov < 180).
+    pub fov_y_deg: f32,
+    /// Near clipping distance.
+    pub near: f32,
+    /// Far clipping distance.
+    pub far: f32,
+}
+
+impl Camera {
+    /// View-projection matrix for an `aspect` = width/height viewport (wgpu clip space).
+    pub fn view_proj(&self, aspect: f32) -> Mat4 {
+        proj_dx::perspective(self.fov_y_deg.to_radians(), aspect, self.near, self.far)
+            * look_at_mat4(self.eye.into(), self.target.into(), self.up.into())
+    }
+
+    fn validate(&self) -> Result<(), PassError> {
+        let dir = Vec3::from(self.target) - Vec3::from(self.eye);
+        let ok = dir.length() > 0.0
+            && dir.cross(Vec3::from(self.up)).length() > 1e-6 * dir.length()
+            && self.fov_y_deg > 0.0
+            && self.fov_y_deg < 180.0
+            && self.near > 0.0
+            && self.far > self.near;
+        if ok {
+            Ok(())
+        } else {
+            Err(PassError::InvalidInput {
+                what: "Camera".into(),
+                problem: "needs eye ≠ target, up not parallel to the view direction, \
+                          0 < fov_y_deg < 180 and 0 < near < far"
+                    .into(),
+            })
+        }
+    }
+}
+
+/// Optional Blinn-Phong highlight.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Specular {
+    /// Specular reflectance `k_s` (0–1).
+    pub strength: f32,
+    /// Blinn-Phong exponent `s`.
+    pub shininess: f32,
+}
+
+/// Uniform of `display.wgsl`. 112 bytes. Must match `View` there.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct DisplayView {
+    /// Column-major view-projection matrix.
+    pub view_proj: [f32; 16],
+    /// Eye xyz (m), exposure.
+    pub eye_exposure: [f32; 4],
+    /// Lightmap `[W, H]`.
+    pub lightmap_size: [u32; 2],
+    /// Lights in the buffer.
+    pub light_count: u32,
+    /// 1 = specular on.
+    pub specular_on: u32,
+    /// `k_s`, exponent, unused, unused.
+    pub specular: [f32; 4],
+}
+
+/// Maximum number of lights the specular term uses.
+pub const MAX_SPECULAR_LIGHTS: usize = 16;
+
+/// The display pass.
+#[derive(Debug)]
+pub struct DisplayPass {
+    options: DisplayOptions,
+    view_layout: wgpu::BindGroupLayout,
+    map_layout: wgpu::BindGroupLayout,
+    pipeline: wgpu::RenderPipeline,
+}
+
+/// Per-scene GPU data.
+#[derive(Debug)]
+pub struct DisplayScene {
+    bounds: Bounds,
+    vertices: wgpu::Buffer,
+    indices: wgpu::Buffer,
+    index_count: u32,
+    view: wgpu::Buffer,
+    lights: wgpu::Buffer,
+    view_group: wgpu::BindGroup,
+    color: wgpu::Texture,
+    depth: wgpu::Texture,
+}
+
+/// Per-frame inputs.
+#[derive(Clone, Copy, Debug)]
+pub struct DisplayInputs<'a> {
+    /// The prepared scene.
+    pub scene: &'a DisplayScene,
+    /// Final lightmap (dilated), any float RGBA format.
+    pub final_lightmap: &'a wgpu::TextureView,
+    /// Its `[W, H]`.
+    pub lightmap_size: [u32; 2],
+    /// First-order lightmap (dilated), required in side-by-side mode, same size.
+    pub first_order: Option<&'a wgpu::TextureView>,
+    /// The camera.
+    pub camera: Camera,
+    /// Multiplies radiance before tonemapping.
+    pub exposure: f32,
+    /// Lights for the specular term (ignored without `specular`).
+    pub lights: &'a [LightDesc],
+    /// Optional specular highlight.
+    pub specular: Option<Specular>,
+}
+
+/// Output of the pass.
+#[derive(Clone, Debug)]
+pub struct DisplayOutput {
+    /// `Rgba8Unorm` image holding sRGB-encoded values; owned by the scene.
+    pub color_tex: wgpu::Texture,
+}
+
+impl DisplayPass {
+    /// Builds the pipeline.
+    pub fn new(gpu: &Gpu, options: &DisplayOptions) -> Result<Self, PassError> {
+        gpu.check_texture_size("display image", options.width, options.height)?;
+        if options.side_by_side && options.width < 2 {
+            return Err(PassError::InvalidInput {
+                what: "DisplayOptions.width".into(),
+                problem: "side-by-side needs a width of at least 2 pixels".into(),
+            });
+        }
+        gpu.scoped("ortm.display.new", || {
+            let device = &gpu.device;
+            let source = concat!(
+                include_str!("../shaders/lights.wgsl"),
+                include_str!("../shaders/display.wgsl")
+            );
+            let module = util::shader(device, "ortm.display.shader", source);
+            let vf = wgpu::ShaderStages::VERTEX_FRAGMENT;
+            // Order = @binding order in display.wgsl.
+            let view_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                label: Some("ortm.display.view_layout"),
+                entries: &[
+                    util::uniform_entry(0, vf),
+                    util::storage_entry(1, wgpu::ShaderStages::FRAGMENT, true),
+                ],
+            });
+            let map_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                label: Some("ortm.display.lightmap_layout"),
+                entries: &[util::texture_entry(0, wgpu::ShaderStages::FRAGMENT)],
+            });
+            let pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                label: Some("ortm.display.pipeline_layout"),
+                bind_group_layouts: &[Some(&view_layout), Some(&map_layout)],
+                immediate_size: 0,
+            });
+            let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                label: Some("ortm.display.pipeline"),
+                layout: Some(&pl),
+                vertex: wgpu::VertexState {
+                    module: &module,
+                    entry_point: Some("vs_main"),
+                    compilation_options: Default::default(),
+                    buffers: &[Some(vertex_layout())],
+                },
+                primitive: wgpu::PrimitiveState {
+                    cull_mode: None,
+                    ..Default::default()
+                },
+                depth_stencil: Some(wgpu::DepthStencilState {
+                    format: wgpu::TextureFormat::Depth32Float,
+                    depth_write_enabled: Some(true),
+                    depth_compare: Some(wgpu::CompareFunction::Less),
+                    stencil: Default::default(),
+                    bias: Default::default(),
+                }),
+                multisample: Default::default(),
+                fragment: Some(wgpu::FragmentState {
+                    module: &module,
+                    entry_point: Some("fs_main"),
+                    compilation_options: Default::default(),
+                    targets: &[Some(wgpu::ColorTargetState {
+                        format: wgpu::TextureFormat::Rgba8Unorm,
+                        blend: None,
+                        write_mask: wgpu::ColorWrites::ALL,
+                    })],
+                }),
+                multiview_mask: None,
+                cache: None,
+            });
+            Self {
+                options: *options,
+                view_layout,
+                map_layout,
+                pipeline,
+            }
+        })
+    }
+
+    /// Uploads the mesh and allocates the colour and depth targets.
+    pub fn prepare(&self, gpu: &Gpu, mesh: &MeshData) -> Result<DisplayScene, PassError> {
+        mesh.validate()?;
+        let device = &gpu.device;
+        let verts: Vec<Vertex> = (0..mesh.positions_m.len())
+            .map(|i| Vertex {
+                position: mesh.positions_m[i],
+                normal: mesh.normals[i],
+                uv: mesh.lightmap_uvs[i],
+            })
+            .collect();
+        let vertices = util::buffer_init(
+            device,
+            "ortm.display.vertices",
+            bytemuck::cast_slice(&verts),
+            wgpu::BufferUsages::VERTEX,
+        );
+        let indices = util::buffer_init(
+            device,
+            "ortm.display.indices",
+            bytemuck::cast_slice(&mesh.indices),
+            wgpu::BufferUsages::INDEX,
+        );
+        let view = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("ortm.display.view"),
+            size: std::mem::size_of::<DisplayView>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let lights = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("ortm.display.lights"),
+            size: (std::mem::size_of::<GpuLight>() * MAX_SPECULAR_LIGHTS) as u64,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        // Order = @binding order in display.wgsl.
+        let view_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("ortm.display.view_bind_group"),
+            layout: &self.view_layout,
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: view.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: lights.as_entire_binding(),
+                },
+            ],
+        });
+        let size = [self.options.width, self.options.height];
+        let color = util::texture_2d(
+            device,
+            "ortm.display.color",
+            size,
+            wgpu::TextureFormat::Rgba8Unorm,
+            wgpu::TextureUsages::RENDER_ATTACHMENT
+                | wgpu::TextureUsages::COPY_SRC
+                | wgpu::TextureUsages::TEXTURE_BINDING,
+        );
+        let depth = util::texture_2d(
+            device,
+            "ortm.display.depth",
+            size,
+            wgpu::TextureFormat::Depth32Float,
+            wgpu::TextureUsages::RENDER_ATTACHMENT,
+        );
+        gpu.check("ortm.display.prepare")?;
+        Ok(DisplayScene {
+            bounds: Bounds::of(&mesh.positions_m),
+            vertices,
+            indices,
+            index_count: mesh.indices.len() as u32,
+            view,
+            lights,
+            view_group,
+            color,
+            depth,
+        })
+    }
+
+    /// Writes the view uniform and records the draw(s).
+    pub fn encode(
+        &self,
+        gpu: &Gpu,
+        encoder: &mut wgpu::CommandEncoder,
+        inputs: &DisplayInputs<'_>,
+    ) -> Result<DisplayOutput, PassError> {
+        inputs.camera.validate()?;
+        let scene = inputs.scene;
+        let (w, h) = (self.options.width, self.options.height);
+        let half_w = if self.options.side_by_side { w / 2 } else { w };
+        let (light_count, specular) = match inputs.specular {
+            Some(s) => {
+                if inputs.lights.len() > MAX_SPECULAR_LIGHTS {
+                    return Err(PassError::InvalidInput {
+                        what: "DisplayInputs.lights".into(),
+                        problem: format!(
+                            "{} lights; the specular term supports at most {MAX_SPECULAR_LIGHTS}",
+                            inputs.lights.len()
+                        ),
+                    });
+                }
+                let (gl, _) = pack_lights(inputs.lights, &scene.bounds, 1, u32::MAX)?;
+                if !gl.is_empty() {
+                    gpu.queue
+                        .write_buffer(&scene.lights, 0, bytemuck::cast_slice(&gl));
+                }
+                (gl.len() as u32, [s.strength, s.shininess, 0.0, 0.0])
+            }
+            None => (0, [0.0; 4]),
+        };
+        let e = inputs.camera.eye;
+        let view = DisplayView {
+            view_proj: inputs
+                .camera
+                .view_proj(half_w as f32 / h as f32)
+                .to_cols_array(),
+            eye_exposure: [e[0], e[1], e[2], inputs.exposure],
+            lightmap_size: inputs.lightmap_size,
+            light_count,
+            specular_on: inputs.specular.is_some() as u32,
+            specular,
+        };
+        gpu.queue
+            .write_buffer(&scene.view, 0, bytemuck::bytes_of(&view));
+        let map_group = |v: &wgpu::TextureView, label: &str| {
+            gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some(label),
+                layout: &self.map_layout,
+                entries: &[wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: wgpu::BindingResource::TextureView(v),
+                }],
+            })
+        };
+        // (viewport x, lightmap) per draw.
+        let mut draws = Vec::new();
+        if self.options.side_by_side {
+            let fo = inputs.first_order.ok_or_else(|| PassError::InvalidInput {
+                what: "DisplayInputs.first_order".into(),
+                problem: "side-by-side mode needs the first-order lightmap".into(),
+            })?;
+            draws.push((0, map_group(fo, "ortm.display.first_order_bind_group")));
+            draws.push((
+                half_w,
+                map_group(inputs.final_lightmap, "ortm.display.final_bind_group"),
+            ));
+        } else {
+            draws.push((
+                0,
+                map_group(inputs.final_lightmap, "ortm.display.final_bind_group"),
+            ));
+        }
+        let color_view = util::view(&scene.color);
+        let depth_view = util::view(&scene.depth);
+        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("ortm.display.pass"),
+            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                view: &color_view,
+                depth_slice: None,
+                resolve_target: None,
+                ops: wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(wgpu::Color {
+                        r: BACKGROUND[0] as f64 / 255.0,
+                        g: BACKGROUND[1] as f64 / 255.0,
+                        b: BACKGROUND[2] as f64 / 255.0,
+                        a: 1.0,
+                    }),
+                    store: wgpu::StoreOp::Store,
+                },
+            })],
+            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                view: &depth_view,
+                depth_ops: Some(wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(1.0),
+                    store: wgpu::StoreOp::Discard,
+                }),
+                stencil_ops: None,
+            }),
+            timestamp_writes: None,
+            occlusion_query_set: None,
+            multiview_mask: None,
+        });
+        pass.set_pipeline(&self.pipeline);
+        pass.set_bind_group(0, &scene.view_group, &[]);
+        pass.set_vertex_buffer(0, scene.vertices.slice(..));
+        pass.set_index_buffer(scene.indices.slice(..), wgpu::IndexFormat::Uint32);
+        for (x, group) in &draws {
+            pass.set_viewport(*x as f32, 0.0, half_w as f32, h as f32, 0.0, 1.0);
+            pass.set_bind_group(1, group, &[]);
+            pass.draw_indexed(0..scene.index_count, 0, 0..1);
+        }
+        drop(pass);
+        Ok(DisplayOutput {
+            color_tex: scene.color.clone(),
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn view_size_matches_wgsl() {
+        assert_eq!(std::mem::size_of::<super::DisplayView>(), 112);
+    }
+}

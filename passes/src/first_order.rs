@@ -1,0 +1,843 @@
+//! First-order pass: the mesh rasterised by its lightmap UVs into a `W×H` RGBA32F target,
+//! `B_o = ρ·E` per covered texel with shadow maps; `shaders/first_order.wgsl` (+
+//! `shaders/lights.wgsl`), mirror [`crate::cpu::first_order`].
+//!
+//! # Data flow
+//! Once: [`FirstOrderPass::new`] builds the pipelines; [`FirstOrderPass::prepare`] uploads
+//! the mesh (interleaved [`Vertex`]), the albedo map and allocates the shadow-map array and
+//! the output. Per frame: [`FirstOrderPass::encode`] writes the lights ([`GpuLight`]) and
+//! one view-projection matrix per shadow layer ([`shadow_layers`]), renders every shadow
+//! layer (depth only), then the lightmap: per fragment the interpolated world position and
+//! normal, `E = Σ_lights E_light·visibility`, output `(ρ·E, 1)`.
+//!
+//! # Lights (SI units)
+//! Point/spot `E = I·cosθ/d²` (spot × `smoothstep(cos outer, cos inner, cos α)`),
+//! directional `E = E⊥·cosθ`; `θ` against the interpolated, renormalised vertex normal.
+//! Irradiance in W/m², `B_o` in W/m² (radiosity).
+//!
+//! # Shadow maps
+//! One `Depth32Float` 2D array of `shadow_map_size²` layers shared by all lights:
+//! - point light: 6 layers, 90° perspective faces in the order +X, −X, +Y, −Y, +Z, −Z; the
+//!   lookup picks the face by the major axis (a cube map without cube-map conventions);
+//! - spot light: 1 perspective layer, half-angle = outer angle + 1° (≤ 89°);
+//! - directional light: 1 orthographic layer fitted to the mesh's bounding sphere.
+//!
+//! Perspective maps use `far` = 1.01 × the distance to the farthest corner of the mesh's
+//! bounding box and `near = far/1000`; geometry nearer than `near` to a light casts no
+//! shadow. Biases: lookups are offset along the normal by
+//! [`FirstOrderOptions::normal_offset_texels`] shadow texels (world size of a texel at that
+//! distance), and the depth pass adds a slope-scaled bias
+//! ([`FirstOrderOptions::slope_bias`]); comparisons use 2×2 hardware PCF (linear comparison
+//! sampler). Defaults (2048², 1.5 texels, slope 2.0) remove acne on surfaces lit at up to
+//! ~80° from the normal and keep peter-panning under ~2 shadow texels.
+//!
+//! # Conventions
+//! Clip position of a vertex is `(2u − 1, 2v − 1)`: `v = 1` is row 0, so framebuffer pixel
+//! `(x, y)` is lightmap texel `(x, y)` and the rasteriser's pixel-centre rule covers a texel
+//! exactly when its centre `((x+0.5)/W, 1 − (y+0.5)/H)` lies in a UV triangle (ties on
+//! shared edges go to one triangle by the top-left rule). Alpha: 1 covered, 0 not.
+//!
+//! # Limits
+//! Overlapping UV triangles: the last drawn wins. One `encode` per submit (light data is
+//! written with `Queue::write_buffer`). At most [`FirstOrderOptions::max_shadow_layers`]
+//! layers (a point light takes 6).
+
+use bytemuck::{Pod, Zeroable};
+use glam::camera::rh::proj::directx as proj_dx;
+use glam::camera::rh::view::look_to_mat4;
+use glam::{Mat4, Vec3};
+
+use crate::error::PassError;
+use crate::gpu::Gpu;
+use crate::types::{AlbedoMap, LightDesc, MeshData};
+use crate::util;
+
+/// Light kind codes; must match `LIGHT_*` in `shaders/lights.wgsl`.
+pub const LIGHT_POINT: u32 = 0;
+/// Spot light code.
+pub const LIGHT_SPOT: u32 = 1;
+/// Directional light code.
+pub const LIGHT_DIRECTIONAL: u32 = 2;
+
+/// Settings fixed at creation.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FirstOrderOptions {
+    /// Side of every shadow-map layer in texels.
+    pub shadow_map_size: u32,
+    /// Layers in the shadow-map array (6 per point light, 1 per spot/directional light).
+    pub max_shadow_layers: u32,
+    /// Normal offset of shadow lookups, in shadow texels.
+    pub normal_offset_texels: f32,
+    /// Slope-scaled depth bias of the shadow pass.
+    pub slope_bias: f32,
+}
+
+impl Default for FirstOrderOptions {
+    fn default() -> Self {
+        Self {
+            shadow_map_size: 2048,
+            max_shadow_layers: 16,
+            normal_offset_texels: 1.5,
+            slope_bias: 2.0,
+        }
+    }
+}
+
+/// Interleaved mesh vertex. 32 bytes.
+/// Must match `VertexIn` in `shaders/first_order.wgsl` (and `display.wgsl`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct Vertex {
+    /// Position in metres.
+    pub position: [f32; 3],
+    /// Unit normal.
+    pub normal: [f32; 3],
+    /// Lightmap UV.
+    pub uv: [f32; 2],
+}
+
+/// The vertex buffer layout of [`Vertex`] (locations 0, 1, 2).
+pub fn vertex_layout() -> wgpu::VertexBufferLayout<'static> {
+    const ATTRS: [wgpu::VertexAttribute; 3] =
+        wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Float32x2];
+    wgpu::VertexBufferLayout {
+        array_stride: std::mem::size_of::<Vertex>() as u64,
+        step_mode: wgpu::VertexStepMode::Vertex,
+        attributes: &ATTRS,
+    }
+}
+
+/// A light as the shaders see it. 80 bytes.
+/// Must match `GpuLight` in `shaders/lights.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuLight {
+    /// xyz position (m).
+    pub position: [f32; 4],
+    /// xyz unit spot axis or travel direction.
+    pub direction: [f32; 4],
+    /// rgb color·strength.
+    pub radiance: [f32; 4],
+    /// cos outer, cos inner, shadow texel per metre (perspective), shadow texel (m, ortho).
+    pub cone: [f32; 4],
+    /// `LIGHT_*` code.
+    pub kind: u32,
+    /// First shadow layer.
+    pub first_layer: u32,
+    /// Number of shadow layers.
+    pub layer_count: u32,
+    /// Padding.
+    pub _pad: u32,
+}
+
+/// Uniform of `first_order.wgsl`. 32 bytes. Must match `Params` there.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct FirstOrderParams {
+    /// Lightmap `[W, H]`.
+    pub lightmap_size: [u32; 2],
+    /// Number of valid entries in the light buffer.
+    pub light_count: u32,
+    /// Shadow-map side in texels.
+    pub shadow_size: u32,
+    /// Normal offset in shadow texels.
+    pub normal_offset_texels: f32,
+    /// Padding.
+    pub _pad: [f32; 3],
+}
+
+/// Axis-aligned bounds of the mesh (m).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Bounds {
+    /// Minimum corner.
+    pub min: Vec3,
+    /// Maximum corner.
+    pub max: Vec3,
+}
+
+impl Bounds {
+    /// Bounds of a point set (`[0, 0]` box if empty).
+    pub fn of(points: &[[f32; 3]]) -> Self {
+        let mut min = Vec3::splat(f32::INFINITY);
+        let mut max = Vec3::splat(f32::NEG_INFINITY);
+        for p in points {
+            min = min.min(Vec3::from(*p));
+            max = max.max(Vec3::from(*p));
+        }
+        if points.is_empty() {
+            min = Vec3::ZERO;
+            max = Vec3::ZERO;
+        }
+        Self { min, max }
+    }
+
+    /// Centre and radius of the bounding sphere through the corners (radius ≥ 1 mm).
+    pub fn sphere(&self) -> (Vec3, f32) {
+        let c = 0.5 * (self.min + self.max);
+        (c, (0.5 * (self.max - self.min).length()).max(1e-3))
+    }
+
+    /// Largest distance from `p` to a corner.
+    pub fn farthest_corner(&self, p: Vec3) -> f32 {
+        let mut d: f32 = 0.0;
+        for i in 0..8 {
+            let c = Vec3::new(
+                if i & 1 == 0 { self.min.x } else { self.max.x },
+                if i & 2 == 0 { self.min.y } else { self.max.y },
+                if i & 4 == 0 { self.min.z } else { self.max.z },
+            );
+            d = d.max(c.distance(p));
+        }
+        d
+    }
+}
+
+/// Forward directions of the point-light faces, +X, −X, +Y, −Y, +Z, −Z (must match
+/// `cube_face` in `shaders/first_order.wgsl`).
+pub fn point_face_dirs() -> [Vec3; 6] {
+    [
+        Vec3::X,
+        Vec3::NEG_X,
+        Vec3::Y,
+        Vec3::NEG_Y,
+        Vec3::Z,
+        Vec3::NEG_Z,
+    ]
+}
+
+/// An up vector not parallel to `dir`.
+fn up_for(dir: Vec3) -> Vec3 {
+    if dir.y.abs() > 0.9 { Vec3::Z } else { Vec3::Y }
+}
+
+/// The shader record of a light and its shadow layers' view-projection matrices
+/// (`first_layer` filled in by the caller).
+pub fn shadow_layers(
+    light: &LightDesc,
+    bounds: &Bounds,
+    shadow_size: u32,
+) -> (GpuLight, Vec<Mat4>) {
+    let size = shadow_size.max(1) as f32;
+    match *light {
+        LightDesc::Point {
+            position_m,
+            color,
+            intensity_w_sr,
+        } => {
+            let p = Vec3::from(position_m);
+            let far = bounds.farthest_corner(p) * 1.01 + 1e-3;
+            let near = (far * 1e-3).max(1e-5);
+            let proj = proj_dx::perspective(std::f32::consts::FRAC_PI_2, 1.0, near, far);
+            let mats = point_face_dirs()
+                .iter()
+                .map(|&d| proj * look_to_mat4(p, d, up_for(d)))
+                .collect();
+            let g = GpuLight {
+                position: [p.x, p.y, p.z, 0.0],
+                radiance: (Vec3::from(color) * intensity_w_sr).extend(0.0).into(),
+                cone: [-2.0, -1.0, 2.0 / size, 0.0],
+                kind: LIGHT_POINT,
+                layer_count: 6,
+                ..Default::default()
+            };
+            (g, mats)
+        }
+        LightDesc::Spot {
+            position_m,
+            direction,
+            color,
+            intensity_w_sr,
+            inner_deg,
+            outer_deg,
+        } => {
+            let p = Vec3::from(position_m);
+            let d = Vec3::from(direction).normalize();
+            let far = bounds.farthest_corner(p) * 1.01 + 1e-3;
+            let near = (far * 1e-3).max(1e-5);
+            let half = (outer_deg + 1.0).min(89.0).to_radians();
+            let proj = proj_dx::perspective(2.0 * half, 1.0, near, far);
+            let g = GpuLight {
+                position: [p.x, p.y, p.z, 0.0],
+                direction: d.extend(0.0).into(),
+                radiance: (Vec3::from(color) * intensity_w_sr).extend(0.0).into(),
+                // cos inner is kept above cos outer so smoothstep is defined.
+                cone: [
+                    outer_deg.to_radians().cos(),
+                    inner_deg
+                        .to_radians()
+                        .cos()
+                        .max(outer_deg.to_radians().cos() + 1e-6),
+                    2.0 * half.tan() / size,
+                    0.0,
+                ],
+                kind: LIGHT_SPOT,
+                layer_count: 1,
+                ..Default::default()
+            };
+            (g, vec![proj * look_to_mat4(p, d, up_for(d))])
+        }
+        LightDesc::Directional {
+            direction,
+            color,
+            irradiance_w_m2,
+        } => {
+            let d = Vec3::from(direction).normalize();
+            let (c, r) = bounds.sphere();
+            let eye = c - d * (2.0 * r);
+            let proj = proj_dx::orthographic(-r, r, -r, r, 0.5 * r, 3.5 * r);
+            let g = GpuLight {
+                direction: d.extend(0.0).into(),
+                radiance: (Vec3::from(color) * irradiance_w_m2).extend(0.0).into(),
+                cone: [-2.0, -1.0, 0.0, 2.0 * r / size],
+                kind: LIGHT_DIRECTIONAL,
+                layer_count: 1,
+                ..Default::default()
+            };
+            (g, vec![proj * look_to_mat4(eye, d, up_for(d))])
+        }
+    }
+}
+
+/// Validates `lights` and packs them with their shadow layers.
+pub fn pack_lights(
+    lights: &[LightDesc],
+    bounds: &Bounds,
+    shadow_size: u32,
+    max_layers: u32,
+) -> Result<(Vec<GpuLight>, Vec<Mat4>), PassError> {
+    let mut gl = Vec::with_capacity(lights.len());
+    let mut mats = Vec::new();
+    for (i, l) in lights.iter().enumerate() {
+        l.validate(i)?;
+        let (mut g, m) = shadow_layers(l, bounds, shadow_size);
+        g.first_layer = mats.len() as u32;
+        mats.extend(m);
+        gl.push(g);
+    }
+    if mats.len() as u32 > max_layers {
+        return Err(PassError::InvalidInput {
+            what: "lights".into(),
+            problem: format!(
+                "need {} shadow layers (6 per point light, 1 per spot/directional) but the \
+                 pass was created with max_shadow_layers = {max_layers}; raise it or use \
+                 fewer lights",
+                mats.len()
+            ),
+        });
+    }
+    Ok((gl, mats))
+}
+
+/// The first-order pass.
+#[derive(Debug)]
+pub struct FirstOrderPass {
+    options: FirstOrderOptions,
+    layout: wgpu::BindGroupLayout,
+    shadow_layout: wgpu::BindGroupLayout,
+    shadow_pipeline: wgpu::RenderPipeline,
+    lightmap_pipeline: wgpu::RenderPipeline,
+    sampler: wgpu::Sampler,
+}
+
+/// Per-scene GPU data.
+#[derive(Debug)]
+pub struct FirstOrderScene {
+    /// Lightmap `[W, H]`.
+    pub lightmap_size: [u32; 2],
+    /// Mesh bounds (for shadow frusta).
+    pub bounds: Bounds,
+    vertices: wgpu::Buffer,
+    indices: wgpu::Buffer,
+    index_count: u32,
+    params: wgpu::Buffer,
+    lights: wgpu::Buffer,
+    matrices: wgpu::Buffer,
+    shadow_layer_views: Vec<wgpu::TextureView>,
+    bind_group: wgpu::BindGroup,
+    shadow_bind_group: wgpu::BindGroup,
+    output: wgpu::Texture,
+}
+
+impl FirstOrderScene {
+    /// The mesh's vertex buffer ([`Vertex`] layout), shared with the display pass.
+    pub fn vertex_buffer(&self) -> &wgpu::Buffer {
+        &self.vertices
+    }
+    /// The mesh's `u32` index buffer.
+    pub fn index_buffer(&self) -> &wgpu::Buffer {
+        &self.indices
+    }
+    /// Number of indices.
+    pub fn index_count(&self) -> u32 {
+        self.index_count
+    }
+}
+
+/// Per-frame inputs.
+#[derive(Clone, Copy, Debug)]
+pub struct FirstOrderInputs<'a> {
+    /// The prepared scene.
+    pub scene: &'a FirstOrderScene,
+    /// This frame's lights.
+    pub lights: &'a [LightDesc],
+}
+
+/// Output of the pass.
+#[derive(Clone, Debug)]
+pub struct FirstOrderOutput {
+    /// RGBA32F `W×H`: RGB `B_o` in W/m², alpha = coverage. Owned by the scene.
+    pub first_order_tex: wgpu::Texture,
+}
+
+impl FirstOrderPass {
+    /// Builds the shadow and lightmap pipelines.
+    pub fn new(gpu: &Gpu, options: &FirstOrderOptions) -> Result<Self, PassError> {
+        if options.shadow_map_size == 0 || options.max_shadow_layers == 0 {
+            return Err(PassError::InvalidInput {
+                what: "FirstOrderOptions".into(),
+                problem: "shadow_map_size and max_shadow_layers must be ≥ 1".into(),
+            });
+        }
+        gpu.check_texture_size(
+            "shadow map",
+            options.shadow_map_size,
+            options.shadow_map_size,
+        )?;
+        let layer_limit = gpu.device.limits().max_texture_array_layers;
+        if options.max_shadow_layers > layer_limit {
+            return Err(PassError::TooLarge {
+                what: "FirstOrderOptions.max_shadow_layers".into(),
+                size: options.max_shadow_layers as u64,
+                limit: layer_limit as u64,
+            });
+        }
+        gpu.scoped("ortm.first_order.new", || {
+            let device = &gpu.device;
+            let source = concat!(
+                include_str!("../shaders/lights.wgsl"),
+                include_str!("../shaders/first_order.wgsl")
+            );
+            let module = util::shader(device, "ortm.first_order.shader", source);
+            let vf = wgpu::ShaderStages::VERTEX_FRAGMENT;
+            let fs = wgpu::ShaderStages::FRAGMENT;
+            // Order = @binding order in first_order.wgsl.
+            let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                label: Some("ortm.first_order.layout"),
+                entries: &[
+                    util::uniform_entry(0, vf),
+                    util::storage_entry(1, fs, true),
+                    util::storage_entry(2, vf, true),
+                    util::texture_entry(3, fs),
+                    wgpu::BindGroupLayoutEntry {
+                        binding: 4,
+                        visibility: fs,
+                        ty: wgpu::BindingType::Texture {
+                            sample_type: wgpu::TextureSampleType::Depth,
+                            view_dimension: wgpu::TextureViewDimension::D2Array,
+                            multisampled: false,
+                        },
+                        count: None,
+                    },
+                    wgpu::BindGroupLayoutEntry {
+                        binding: 5,
+                        visibility: fs,
+                        ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Comparison),
+                        count: None,
+                    },
+                ],
+            });
+            let pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                label: Some("ortm.first_order.pipeline_layout"),
+                bind_group_layouts: &[Some(&layout)],
+                immediate_size: 0,
+            });
+            // The shadow pass writes the shadow maps, so it cannot bind them: its group 0
+            // holds only binding 2 (the layer matrices), same slot as in the main layout.
+            let shadow_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                label: Some("ortm.first_order.shadow_layout"),
+                entries: &[util::storage_entry(2, wgpu::ShaderStages::VERTEX, true)],
+            });
+            let shadow_pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                label: Some("ortm.first_order.shadow_pipeline_layout"),
+                bind_group_layouts: &[Some(&shadow_layout)],
+                immediate_size: 0,
+            });
+            let shadow_pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                label: Some("ortm.first_order.shadow_pipeline"),
+                layout: Some(&shadow_pl),
+                vertex: wgpu::VertexState {
+                    module: &module,
+                    entry_point: Some("vs_shadow"),
+                    compilation_options: Default::default(),
+                    buffers: &[Some(vertex_layout())],
+                },
+                primitive: wgpu::PrimitiveState {
+                    cull_mode: None,
+                    ..Default::default()
+                },
+                depth_stencil: Some(wgpu::DepthStencilState {
+                    format: wgpu::TextureFormat::Depth32Float,
+                    depth_write_enabled: Some(true),
+                    depth_compare: Some(wgpu::CompareFunction::Less),
+                    stencil: Default::default(),
+                    bias: wgpu::DepthBiasState {
+                        constant: 0,
+                        slope_scale: options.slope_bias,
+                        clamp: 0.0,
+                    },
+                }),
+                multisample: Default::default(),
+                fragment: None,
+                multiview_mask: None,
+                cache: None,
+            });
+            let lightmap_pipeline =
+                device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                    label: Some("ortm.first_order.lightmap_pipeline"),
+                    layout: Some(&pl),
+                    vertex: wgpu::VertexState {
+                        module: &module,
+                        entry_point: Some("vs_lightmap"),
+                        compilation_options: Default::default(),
+                        buffers: &[Some(vertex_layout())],
+                    },
+                    primitive: wgpu::PrimitiveState {
+                        cull_mode: None,
+                        ..Default::default()
+                    },
+                    depth_stencil: None,
+                    multisample: Default::default(),
+                    fragment: Some(wgpu::FragmentState {
+                        module: &module,
+                        entry_point: Some("fs_lightmap"),
+                        compilation_options: Default::default(),
+                        targets: &[Some(wgpu::ColorTargetState {
+                            format: wgpu::TextureFormat::Rgba32Float,
+                            blend: None,
+                            write_mask: wgpu::ColorWrites::ALL,
+                        })],
+                    }),
+                    multiview_mask: None,
+                    cache: None,
+                });
+            let sampler = device.create_sampler(&wgpu::SamplerDescriptor {
+                label: Some("ortm.first_order.shadow_sampler"),
+                address_mode_u: wgpu::AddressMode::ClampToEdge,
+                address_mode_v: wgpu::AddressMode::ClampToEdge,
+                mag_filter: wgpu::FilterMode::Linear,
+                min_filter: wgpu::FilterMode::Linear,
+                compare: Some(wgpu::CompareFunction::LessEqual),
+                ..Default::default()
+            });
+            Self {
+                options: *options,
+                layout,
+                shadow_layout,
+                shadow_pipeline,
+                lightmap_pipeline,
+                sampler,
+            }
+        })
+    }
+
+    /// The options the pass was created with.
+    pub fn options(&self) -> &FirstOrderOptions {
+        &self.options
+    }
+
+    /// Uploads the mesh and albedo, allocates shadow maps and the output.
+    pub fn prepare(
+        &self,
+        gpu: &Gpu,
+        mesh: &MeshData,
+        albedo: &AlbedoMap,
+    ) -> Result<FirstOrderScene, PassError> {
+        mesh.validate()?;
+        let size = [albedo.width, albedo.height];
+        gpu.check_texture_size("lightmap (AlbedoMap)", size[0], size[1])?;
+        let n = size[0] as usize * size[1] as usize;
+        if albedo.rgb.len() != n {
+            return Err(PassError::BadLength {
+                what: "AlbedoMap.rgb".into(),
+                expected: n,
+                got: albedo.rgb.len(),
+                hint: "width·height reflectances".into(),
+            });
+        }
+        let device = &gpu.device;
+        let verts: Vec<Vertex> = (0..mesh.positions_m.len())
+            .map(|i| Vertex {
+                position: mesh.positions_m[i],
+                normal: mesh.normals[i],
+                uv: mesh.lightmap_uvs[i],
+            })
+            .collect();
+        let vertices = util::buffer_init(
+            device,
+            "ortm.first_order.vertices",
+            bytemuck::cast_slice(&verts),
+            wgpu::BufferUsages::VERTEX,
+        );
+        let indices = util::buffer_init(
+            device,
+            "ortm.first_order.indices",
+            bytemuck::cast_slice(&mesh.indices),
+            wgpu::BufferUsages::INDEX,
+        );
+        let rgba: Vec<[f32; 4]> = albedo.rgb.iter().map(|c| [c[0], c[1], c[2], 1.0]).collect();
+        let albedo_tex = gpu.create_rgba32f_texture(
+            "ortm.first_order.albedo",
+            size[0],
+            size[1],
+            &rgba,
+            wgpu::TextureUsages::TEXTURE_BINDING,
+        )?;
+        let layers = self.options.max_shadow_layers;
+        let params = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("ortm.first_order.params"),
+            size: std::mem::size_of::<FirstOrderParams>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let lights = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("ortm.first_order.lights"),
+            size: (std::mem::size_of::<GpuLight>() as u32 * layers) as u64,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let matrices = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("ortm.first_order.layer_matrices"),
+            size: 64 * layers as u64,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let s = self.options.shadow_map_size;
+        let shadow = device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("ortm.first_order.shadow_maps"),
+            size: wgpu::Extent3d {
+                width: s,
+                height: s,
+                depth_or_array_layers: layers,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: wgpu::TextureFormat::Depth32Float,
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
+            view_formats: &[],
+        });
+        let shadow_layer_views = (0..layers)
+            .map(|l| {
+                shadow.create_view(&wgpu::TextureViewDescriptor {
+                    label: Some(&format!("ortm.first_order.shadow_layer{l}")),
+                    dimension: Some(wgpu::TextureViewDimension::D2),
+                    base_array_layer: l,
+                    array_layer_count: Some(1),
+                    ..Default::default()
+                })
+            })
+            .collect();
+        let shadow_array_view = shadow.create_view(&wgpu::TextureViewDescriptor {
+            label: Some("ortm.first_order.shadow_array"),
+            dimension: Some(wgpu::TextureViewDimension::D2Array),
+            ..Default::default()
+        });
+        let albedo_view = util::view(&albedo_tex);
+        // Order = @binding order in first_order.wgsl.
+        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("ortm.first_order.bind_group"),
+            layout: &self.layout,
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: params.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: lights.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 2,
+                    resource: matrices.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 3,
+                    resource: wgpu::BindingResource::TextureView(&albedo_view),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 4,
+                    resource: wgpu::BindingResource::TextureView(&shadow_array_view),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 5,
+                    resource: wgpu::BindingResource::Sampler(&self.sampler),
+                },
+            ],
+        });
+        let shadow_bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("ortm.first_order.shadow_bind_group"),
+            layout: &self.shadow_layout,
+            entries: &[wgpu::BindGroupEntry {
+                binding: 2,
+                resource: matrices.as_entire_binding(),
+            }],
+        });
+        let output = util::texture_2d(
+            device,
+            "ortm.first_order.first_order_lightmap",
+            size,
+            wgpu::TextureFormat::Rgba32Float,
+            wgpu::TextureUsages::RENDER_ATTACHMENT
+                | wgpu::TextureUsages::TEXTURE_BINDING
+                | wgpu::TextureUsages::COPY_SRC,
+        );
+        gpu.check("ortm.first_order.prepare")?;
+        Ok(FirstOrderScene {
+            lightmap_size: size,
+            bounds: Bounds::of(&mesh.positions_m),
+            vertices,
+            indices,
+            index_count: mesh.indices.len() as u32,
+            params,
+            lights,
+            matrices,
+            shadow_layer_views,
+            bind_group,
+            shadow_bind_group,
+            output,
+        })
+    }
+
+    /// Writes this frame's lights and records the shadow and lightmap passes.
+    pub fn encode(
+        &self,
+        gpu: &Gpu,
+        encoder: &mut wgpu::CommandEncoder,
+        inputs: &FirstOrderInputs<'_>,
+    ) -> Result<FirstOrderOutput, PassError> {
+        let scene = inputs.scene;
+        let (lights, mats) = pack_lights(
+            inputs.lights,
+            &scene.bounds,
+            self.options.shadow_map_size,
+            self.options.max_shadow_layers,
+        )?;
+        let params = FirstOrderParams {
+            lightmap_size: scene.lightmap_size,
+            light_count: lights.len() as u32,
+            shadow_size: self.options.shadow_map_size,
+            normal_offset_texels: self.options.normal_offset_texels,
+            _pad: [0.0; 3],
+        };
+        gpu.queue
+            .write_buffer(&scene.params, 0, bytemuck::bytes_of(&params));
+        if !lights.is_empty() {
+            gpu.queue
+                .write_buffer(&scene.lights, 0, bytemuck::cast_slice(&lights));
+            let m: Vec<[f32; 16]> = mats.iter().map(|m| m.to_cols_array()).collect();
+            gpu.queue
+                .write_buffer(&scene.matrices, 0, bytemuck::cast_slice(&m));
+        }
+        for (layer, view) in scene.shadow_layer_views.iter().enumerate().take(mats.len()) {
+            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some(&format!("ortm.first_order.shadow_pass{layer}")),
+                color_attachments: &[],
+                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                    view,
+                    depth_ops: Some(wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(1.0),
+                        store: wgpu::StoreOp::Store,
+                    }),
+                    stencil_ops: None,
+                }),
+                timestamp_writes: None,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            pass.set_pipeline(&self.shadow_pipeline);
+            pass.set_bind_group(0, &scene.shadow_bind_group, &[]);
+            pass.set_vertex_buffer(0, scene.vertices.slice(..));
+            pass.set_index_buffer(scene.indices.slice(..), wgpu::IndexFormat::Uint32);
+            let l = layer as u32;
+            pass.draw_indexed(0..scene.index_count, 0, l..l + 1);
+        }
+        let target = util::view(&scene.output);
+        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("ortm.first_order.lightmap_pass"),
+            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                view: &target,
+                depth_slice: None,
+                resolve_target: None,
+                ops: wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
+                    store: wgpu::StoreOp::Store,
+                },
+            })],
+            depth_stencil_attachment: None,
+            timestamp_writes: None,
+            occlusion_query_set: None,
+            multiview_mask: None,
+        });
+        pass.set_pipeline(&self.lightmap_pipeline);
+        pass.set_bind_group(0, &scene.bind_group, &[]);
+        pass.set_vertex_buffer(0, scene.vertices.slice(..));
+        pass.set_index_buffer(scene.indices.slice(..), wgpu::IndexFormat::Uint32);
+        pass.draw_indexed(0..scene.index_count, 0, 0..1);
+        drop(pass);
+        Ok(FirstOrderOutput {
+            first_order_tex: scene.output.clone(),
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn shared_struct_sizes() {
+        assert_eq!(std::mem::size_of::<GpuLight>(), 80);
+        assert_eq!(std::mem::size_of::<FirstOrderParams>(), 32);
+        assert_eq!(std::mem::size_of::<Vertex>(), 32);
+    }
+
+    #[test]
+    fn point_faces_see_their_axis_and_bound_the_scene() {
+        // The centre of face k's image is its forward axis; every bbox corner projects
+        // into [0, 1] depth on the face whose major axis it lies along.
+        let b = Bounds {
+            min: Vec3::new(-1.0, 0.0, -1.0),
+            max: Vec3::new(1.0, 0.5, 1.0),
+        };
+        let light = LightDesc::Point {
+            position_m: [0.2, 1.0, 0.1],
+            color: [1.0; 3],
+            intensity_w_sr: 1.0,
+        };
+        let (_, mats) = shadow_layers(&light, &b, 256);
+        let p = Vec3::new(0.2, 1.0, 0.1);
+        for (k, d) in point_face_dirs().iter().enumerate() {
+            let c = mats[k].project_point3(p + *d * 0.5);
+            assert!(c.x.abs() < 1e-5 && c.y.abs() < 1e-5, "face {k}: {c}");
+            assert!((0.0..=1.0).contains(&c.z));
+        }
+        let far_corner = Vec3::new(-1.0, 0.0, -1.0);
+        let c = mats[1].project_point3(far_corner); // −X major? |dx|=1.2 > |dz|=1.1 > |dy|=1
+        assert!(
+            c.x.abs() <= 1.0 && c.y.abs() <= 1.0 && (0.0..=1.0).contains(&c.z),
+            "{c}"
+        );
+    }
+
+    #[test]
+    fn too_many_layers_is_an_error() {
+        let b = Bounds::of(&[[0.0; 3], [1.0; 3]]);
+        let p = LightDesc::Point {
+            position_m: [0.0, 2.0, 0.0],
+            color: [1.0; 3],
+            intensity_w_sr: 1.0,
+        };
+        assert!(pack_lights(&[p, p], &b, 64, 12).is_ok());
+        assert!(pack_lights(&[p, p, p], &b, 64, 12).is_err());
+    }
+}

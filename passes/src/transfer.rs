@@ -1,0 +1,502 @@
+//! Transfer pass: the final lightmap from the first-order one (paper Eq. 9),
+//! `final[t] = first_order[t] + Σ_pieces atlas[src + (t − dst)] · first_order[t + Δt]`.
+//!
+//! # Data flow
+//! Once: [`TransferPass::new`] builds pipelines for the chosen [`TransferPath`];
+//! [`TransferPass::prepare`] uploads the atlases and turns the pieces into plain per-atlas
+//! work with [`crate::schedule::build_schedule`] (blend) and
+//! [`crate::schedule::build_tiles`] (compute). Per frame: [`TransferPass::encode`] records
+//! the work reading the first-order texture and writing [`TransferOutput::final_lightmap_tex`].
+//!
+//! - **Blend path** (`shaders/transfer.wgsl`, the paper's method): a full-screen draw copies
+//!   first-order RGBA (alpha = coverage) into the accumulation target; then per atlas one
+//!   instanced draw of all its pieces — a quad per piece rasterised at `dst`, reading the
+//!   atlas and first-order texels with `textureLoad`, blended additively (One + One).
+//! - **Compute path** (`shaders/transfer_gather.wgsl`, [`crate::transfer_gather`]): per atlas
+//!   one dispatch, one workgroup per non-empty 8×8 tile gathering the pieces covering it into
+//!   an RGBA32F storage buffer; no blending, no atomics. Same result up to float summation
+//!   order.
+//!
+//! # Accumulation format
+//! [`AccumFormat::Rgba32Float`] needs the `FLOAT32_BLENDABLE` feature in the blend path
+//! (lavapipe and most desktop GPUs have it; [`TransferOptions::best_for`] checks).
+//! [`AccumFormat::Rgba16Float`] is always blendable but rounds after every blend: with unit
+//! roundoff `u = 2⁻¹¹` and `n` blends into a texel, the error is at most
+//! `≈ (n + 1)·u·Σ|terms|` (each partial sum rounded once, plus the rounding of each term),
+//! i.e. ~1e-3 relative after one or two blends and ~1e-2 after ~20 — plus half-float's
+//! range (max 65504 W/m²). See `docs/render.md` for measured error and speed.
+//!
+//! # Conventions and units
+//! Texel `(x, y)`, `y` down, row 0 = `v = 1`; `Δt` in texels. Lightmaps in W/m² (radiosity),
+//! atlas values dimensionless. The output keeps the first-order alpha (coverage).
+//!
+//! # Limits
+//! Atlases are uploaded as RGBA32F (16 bytes per texel). Each atlas must fit the device's
+//! 2D texture limit.
+
+use bytemuck::{Pod, Zeroable};
+
+use crate::error::PassError;
+use crate::gpu::Gpu;
+use crate::schedule::{FrameSchedule, build_schedule};
+use crate::transfer_gather::{GatherPass, GatherScene};
+use crate::types::{AtlasData, TransferPiece};
+use crate::util;
+
+/// Which implementation accumulates the pieces.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum TransferPath {
+    /// Instanced quads with additive blending (the paper's method).
+    #[default]
+    Blend,
+    /// Compute shader gathering per tile (no blending).
+    Compute,
+}
+
+/// Format of the blend path's accumulation target (and so of its final lightmap).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum AccumFormat {
+    /// 32-bit float; needs `FLOAT32_BLENDABLE`.
+    #[default]
+    Rgba32Float,
+    /// 16-bit float; always blendable, ~3 decimal digits.
+    Rgba16Float,
+}
+
+impl AccumFormat {
+    /// The wgpu texture format.
+    pub fn texture_format(self) -> wgpu::TextureFormat {
+        match self {
+            AccumFormat::Rgba32Float => wgpu::TextureFormat::Rgba32Float,
+            AccumFormat::Rgba16Float => wgpu::TextureFormat::Rgba16Float,
+        }
+    }
+}
+
+/// Settings fixed at creation.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct TransferOptions {
+    /// Blend or compute accumulation.
+    pub path: TransferPath,
+    /// Accumulation format of the blend path (the compute path always uses RGBA32F).
+    pub accum_format: AccumFormat,
+}
+
+impl TransferOptions {
+    /// Blend path in RGBA32F when the device can blend it, else RGBA16F.
+    pub fn best_for(gpu: &Gpu) -> Self {
+        Self {
+            path: TransferPath::Blend,
+            accum_format: if gpu.supports_float32_blend() {
+                AccumFormat::Rgba32Float
+            } else {
+                AccumFormat::Rgba16Float
+            },
+        }
+    }
+}
+
+/// Uniform of both transfer shaders. 16 bytes.
+/// Must match `Params` in `shaders/transfer.wgsl` and `shaders/transfer_gather.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Pod, Zeroable)]
+pub struct TransferParams {
+    /// Lightmap `[width, height]`.
+    pub lightmap_size: [u32; 2],
+    /// Padding to 16 bytes.
+    pub _pad: [u32; 2],
+}
+
+/// Blend-path pipelines.
+#[derive(Debug)]
+struct BlendPipelines {
+    /// group 0: params + first-order texture.
+    frame_layout: wgpu::BindGroupLayout,
+    /// group 1: atlas.
+    atlas_layout: wgpu::BindGroupLayout,
+    copy: wgpu::RenderPipeline,
+    piece: wgpu::RenderPipeline,
+}
+
+/// The transfer pass (either path).
+#[derive(Debug)]
+pub struct TransferPass {
+    options: TransferOptions,
+    blend: Option<BlendPipelines>,
+    gather: Option<GatherPass>,
+}
+
+/// Per-scene GPU data: atlases, the schedule and its buffers, the output texture.
+#[derive(Debug)]
+pub struct TransferScene {
+    /// The frame's work as plain data.
+    pub schedule: FrameSchedule,
+    params: wgpu::Buffer,
+    atlas_views: Vec<wgpu::TextureView>,
+    /// Instance buffer per batch (blend path).
+    instance_buffers: Vec<wgpu::Buffer>,
+    /// Compute-path data.
+    gather: Option<GatherScene>,
+    final_tex: wgpu::Texture,
+}
+
+/// Per-frame inputs.
+#[derive(Clone, Copy, Debug)]
+pub struct TransferInputs<'a> {
+    /// Prepared scene.
+    pub scene: &'a TransferScene,
+    /// First-order lightmap (RGBA, alpha = coverage), the size given to `prepare`.
+    pub first_order: &'a wgpu::TextureView,
+}
+
+/// Output of the pass.
+#[derive(Clone, Debug)]
+pub struct TransferOutput {
+    /// `first_order + Σ transfer` (RGB W/m², alpha = coverage), owned by the scene and
+    /// overwritten every frame.
+    pub final_lightmap_tex: wgpu::Texture,
+}
+
+impl TransferPass {
+    /// Builds the pipelines of `options.path`.
+    ///
+    /// Errors: [`PassError::MissingFeature`] for RGBA32F blending without
+    /// `FLOAT32_BLENDABLE`; [`PassError::Gpu`] when pipeline creation fails.
+    pub fn new(gpu: &Gpu, options: &TransferOptions) -> Result<Self, PassError> {
+        if options.path == TransferPath::Blend
+            && options.accum_format == AccumFormat::Rgba32Float
+            && !gpu.supports_float32_blend()
+        {
+            return Err(PassError::MissingFeature {
+                option: "TransferOptions.accum_format = Rgba32Float".into(),
+                feature: "FLOAT32_BLENDABLE".into(),
+                adapter: gpu.adapter_info.name.clone(),
+                fallback: "AccumFormat::Rgba16Float or TransferPath::Compute".into(),
+            });
+        }
+        match options.path {
+            TransferPath::Blend => {
+                let blend = gpu.scoped("ortm.transfer.new", || {
+                    Self::blend_pipelines(&gpu.device, options.accum_format.texture_format())
+                })?;
+                Ok(Self {
+                    options: *options,
+                    blend: Some(blend),
+                    gather: None,
+                })
+            }
+            TransferPath::Compute => Ok(Self {
+                options: *options,
+                blend: None,
+                gather: Some(GatherPass::new(gpu)?),
+            }),
+        }
+    }
+
+    /// The options the pass was created with.
+    pub fn options(&self) -> &TransferOptions {
+        &self.options
+    }
+
+    fn blend_pipelines(device: &wgpu::Device, format: wgpu::TextureFormat) -> BlendPipelines {
+        let module = util::shader(
+            device,
+            "ortm.transfer.shader",
+            include_str!("../shaders/transfer.wgsl"),
+        );
+        let fs = wgpu::ShaderStages::FRAGMENT;
+        // Order = @binding order in transfer.wgsl.
+        let frame_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("ortm.transfer.frame_layout"),
+            entries: &[
+                util::uniform_entry(0, wgpu::ShaderStages::VERTEX_FRAGMENT),
+                util::texture_entry(1, fs),
+            ],
+        });
+        let atlas_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("ortm.transfer.atlas_layout"),
+            entries: &[util::texture_entry(0, fs)],
+        });
+        let copy_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("ortm.transfer.copy_pipeline_layout"),
+            bind_group_layouts: &[Some(&frame_layout)],
+            immediate_size: 0,
+        });
+        let piece_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("ortm.transfer.piece_pipeline_layout"),
+            bind_group_layouts: &[Some(&frame_layout), Some(&atlas_layout)],
+            immediate_size: 0,
+        });
+        let copy = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("ortm.transfer.copy_pipeline"),
+            layout: Some(&copy_layout),
+            vertex: wgpu::VertexState {
+                module: &module,
+                entry_point: Some("vs_fullscreen"),
+                compilation_options: Default::default(),
+                buffers: &[],
+            },
+            primitive: wgpu::PrimitiveState::default(),
+            depth_stencil: None,
+            multisample: wgpu::MultisampleState::default(),
+            fragment: Some(wgpu::FragmentState {
+                module: &module,
+                entry_point: Some("fs_copy"),
+                compilation_options: Default::default(),
+                targets: &[Some(wgpu::ColorTargetState {
+                    format,
+                    blend: None,
+                    write_mask: wgpu::ColorWrites::ALL,
+                })],
+            }),
+            multiview_mask: None,
+            cache: None,
+        });
+        let additive = wgpu::BlendComponent {
+            src_factor: wgpu::BlendFactor::One,
+            dst_factor: wgpu::BlendFactor::One,
+            operation: wgpu::BlendOperation::Add,
+        };
+        let piece = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("ortm.transfer.piece_pipeline"),
+            layout: Some(&piece_layout),
+            vertex: wgpu::VertexState {
+                module: &module,
+                entry_point: Some("vs_piece"),
+                compilation_options: Default::default(),
+                // Must match `PieceInstance` (schedule.rs) and `PieceIn` (transfer.wgsl).
+                buffers: &[Some(wgpu::VertexBufferLayout {
+                    array_stride: std::mem::size_of::<crate::schedule::PieceInstance>() as u64,
+                    step_mode: wgpu::VertexStepMode::Instance,
+                    attributes: &wgpu::vertex_attr_array![
+                        0 => Uint32x2, 1 => Uint32x2, 2 => Uint32x2, 3 => Sint32x2
+                    ],
+                })],
+            },
+            primitive: wgpu::PrimitiveState {
+                cull_mode: None,
+                ..Default::default()
+            },
+            depth_stencil: None,
+            multisample: wgpu::MultisampleState::default(),
+            fragment: Some(wgpu::FragmentState {
+                module: &module,
+                entry_point: Some("fs_piece"),
+                compilation_options: Default::default(),
+                targets: &[Some(wgpu::ColorTargetState {
+                    format,
+                    blend: Some(wgpu::BlendState {
+                        color: additive,
+                        alpha: additive,
+                    }),
+                    write_mask: wgpu::ColorWrites::ALL,
+                })],
+            }),
+            multiview_mask: None,
+            cache: None,
+        });
+        BlendPipelines {
+            frame_layout,
+            atlas_layout,
+            copy,
+            piece,
+        }
+    }
+
+    /// Uploads atlases, validates and schedules the pieces, allocates the output.
+    pub fn prepare(
+        &self,
+        gpu: &Gpu,
+        lightmap_size: [u32; 2],
+        atlases: &[AtlasData],
+        pieces: &[TransferPiece],
+    ) -> Result<TransferScene, PassError> {
+        gpu.check_texture_size("lightmap", lightmap_size[0], lightmap_size[1])?;
+        let mut sizes = Vec::with_capacity(atlases.len());
+        for (i, a) in atlases.iter().enumerate() {
+            let n = a.width as usize * a.height as usize;
+            if a.rgb.len() != n {
+                return Err(PassError::BadLength {
+                    what: format!("atlases[{i}].rgb"),
+                    expected: n,
+                    got: a.rgb.len(),
+                    hint: "width·height RGB texels".into(),
+                });
+            }
+            sizes.push([a.width, a.height]);
+        }
+        let schedule = build_schedule(lightmap_size, &sizes, pieces)?;
+        let device = &gpu.device;
+        let mut atlas_views = Vec::with_capacity(atlases.len());
+        for (i, a) in atlases.iter().enumerate() {
+            let rgba: Vec<[f32; 4]> = a.rgb.iter().map(|c| [c[0], c[1], c[2], 0.0]).collect();
+            let tex = gpu.create_rgba32f_texture(
+                &format!("ortm.transfer.atlas{i}"),
+                a.width,
+                a.height,
+                &rgba,
+                wgpu::TextureUsages::TEXTURE_BINDING,
+            )?;
+            atlas_views.push(util::view(&tex));
+        }
+        let params = util::buffer_init(
+            device,
+            "ortm.transfer.params",
+            bytemuck::bytes_of(&TransferParams {
+                lightmap_size,
+                _pad: [0; 2],
+            }),
+            wgpu::BufferUsages::UNIFORM,
+        );
+        let (instance_buffers, gather, final_tex) = match self.options.path {
+            TransferPath::Blend => {
+                let bufs = schedule
+                    .batches
+                    .iter()
+                    .map(|b| {
+                        util::buffer_init(
+                            device,
+                            &format!("ortm.transfer.instances.atlas{}", b.atlas),
+                            bytemuck::cast_slice(&b.instances),
+                            wgpu::BufferUsages::VERTEX,
+                        )
+                    })
+                    .collect();
+                let tex = util::texture_2d(
+                    device,
+                    "ortm.transfer.final_lightmap",
+                    lightmap_size,
+                    self.options.accum_format.texture_format(),
+                    wgpu::TextureUsages::RENDER_ATTACHMENT
+                        | wgpu::TextureUsages::TEXTURE_BINDING
+                        | wgpu::TextureUsages::COPY_SRC,
+                );
+                (bufs, None, tex)
+            }
+            TransferPath::Compute => {
+                let g = self
+                    .gather
+                    .as_ref()
+                    .ok_or_else(|| PassError::InvalidInput {
+                        what: "TransferPass".into(),
+                        problem: "compute path without its pipelines (internal bug)".into(),
+                    })?;
+                let (scene, tex) = g.prepare(gpu, lightmap_size, &schedule, &params)?;
+                (Vec::new(), Some(scene), tex)
+            }
+        };
+        gpu.check("ortm.transfer.prepare")?;
+        Ok(TransferScene {
+            schedule,
+            params,
+            atlas_views,
+            instance_buffers,
+            gather,
+            final_tex,
+        })
+    }
+
+    /// Records the frame's transfer work into `encoder`. `inputs.scene` must come from
+    /// this pass's [`TransferPass::prepare`] (a scene of the other path records nothing).
+    pub fn encode(
+        &self,
+        gpu: &Gpu,
+        encoder: &mut wgpu::CommandEncoder,
+        inputs: &TransferInputs<'_>,
+    ) -> TransferOutput {
+        let device = &gpu.device;
+        let scene = inputs.scene;
+        if let (Some(g), Some(gs)) = (&self.gather, &scene.gather) {
+            g.encode(device, encoder, gs, inputs.first_order, &scene.atlas_views);
+        } else if let Some(bp) = &self.blend {
+            self.encode_blend(bp, device, encoder, inputs);
+        }
+        TransferOutput {
+            final_lightmap_tex: scene.final_tex.clone(),
+        }
+    }
+
+    fn encode_blend(
+        &self,
+        bp: &BlendPipelines,
+        device: &wgpu::Device,
+        encoder: &mut wgpu::CommandEncoder,
+        inputs: &TransferInputs<'_>,
+    ) {
+        let scene = inputs.scene;
+        // Order = @binding order in transfer.wgsl.
+        let frame_bg = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("ortm.transfer.frame_bind_group"),
+            layout: &bp.frame_layout,
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: scene.params.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: wgpu::BindingResource::TextureView(inputs.first_order),
+                },
+            ],
+        });
+        let atlas_bgs: Vec<wgpu::BindGroup> = scene
+            .schedule
+            .batches
+            .iter()
+            .map(|b| {
+                device.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some(&format!("ortm.transfer.atlas{}_bind_group", b.atlas)),
+                    layout: &bp.atlas_layout,
+                    entries: &[wgpu::BindGroupEntry {
+                        binding: 0,
+                        resource: wgpu::BindingResource::TextureView(
+                            &scene.atlas_views[b.atlas as usize],
+                        ),
+                    }],
+                })
+            })
+            .collect();
+        let target = util::view(&scene.final_tex);
+        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("ortm.transfer.blend_pass"),
+            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                view: &target,
+                depth_slice: None,
+                resolve_target: None,
+                ops: wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
+                    store: wgpu::StoreOp::Store,
+                },
+            })],
+            depth_stencil_attachment: None,
+            timestamp_writes: None,
+            occlusion_query_set: None,
+            multiview_mask: None,
+        });
+        pass.set_bind_group(0, &frame_bg, &[]);
+        pass.set_pipeline(&bp.copy);
+        pass.draw(0..3, 0..1);
+        pass.set_pipeline(&bp.piece);
+        for ((batch, bg), buf) in scene
+            .schedule
+            .batches
+            .iter()
+            .zip(&atlas_bgs)
+            .zip(&scene.instance_buffers)
+        {
+            pass.set_bind_group(1, bg, &[]);
+            pass.set_vertex_buffer(0, buf.slice(..));
+            pass.draw(0..6, 0..batch.instances.len() as u32);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::TransferParams;
+
+    #[test]
+    fn params_size_matches_wgsl() {
+        assert_eq!(std::mem::size_of::<TransferParams>(), 16);
+    }
+}

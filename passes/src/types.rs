@@ -1,0 +1,296 @@
+//! Plain input and output types of the passes: meshes, albedo, lights, transfer atlases and
+//! pieces, and read-back texel images. No GPU objects here; the `ortm` CLI converts its own
+//! types into these (the `passes` crate does not depend on `ortm`).
+//!
+//! # Conventions
+//! - Units: metres for positions, W/sr for point/spot intensities, W/m² for directional
+//!   irradiance (measured perpendicular to the light's travel direction) and for lightmaps
+//!   (radiosity `B = π·L_out`, linear RGB). Albedo and transfer values are dimensionless.
+//! - Images are row-major, row 0 first; a `W×H` map's texel `(x, y)` has its centre at
+//!   `u = (x + 0.5)/W`, `v = 1 − (y + 0.5)/H`, so row 0 is `v = 1` (as in image files and in
+//!   wgpu framebuffers).
+//! - Offsets `Δt = (dx, dy)` are in texels, `+dy` goes *down* the image.
+//! - A texel is *covered* when its centre lies inside a UV triangle of the mesh; passes store
+//!   coverage in alpha (1 covered, 0.5 filled by gutter dilation, 0 empty).
+
+use crate::error::PassError;
+
+/// A triangle mesh with one lightmap UV set.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct MeshData {
+    /// Vertex positions in metres (world space).
+    pub positions_m: Vec<[f32; 3]>,
+    /// Vertex normals (unit length, world space); interpolated and renormalised per texel.
+    pub normals: Vec<[f32; 3]>,
+    /// Lightmap UVs in `[0, 1]²`, `v = 1` is row 0 of the lightmap.
+    pub lightmap_uvs: Vec<[f32; 2]>,
+    /// Triangle list, three indices per triangle, counter-clockwise seen from the front.
+    pub indices: Vec<u32>,
+}
+
+impl MeshData {
+    /// Checks array lengths, index ranges and finiteness.
+    pub fn validate(&self) -> Result<(), PassError> {
+        let n = self.positions_m.len();
+        if self.normals.len() != n {
+            return Err(PassError::BadLength {
+                what: "MeshData.normals".into(),
+                expected: n,
+                got: self.normals.len(),
+                hint: "one normal per position".into(),
+            });
+        }
+        if self.lightmap_uvs.len() != n {
+            return Err(PassError::BadLength {
+                what: "MeshData.lightmap_uvs".into(),
+                expected: n,
+                got: self.lightmap_uvs.len(),
+                hint: "one lightmap UV per position".into(),
+            });
+        }
+        if self.indices.is_empty() || !self.indices.len().is_multiple_of(3) {
+            return Err(PassError::InvalidInput {
+                what: "MeshData.indices".into(),
+                problem: format!(
+                    "has {} entries; it must be a non-empty triangle list (a multiple of 3)",
+                    self.indices.len()
+                ),
+            });
+        }
+        if let Some((i, &ix)) = self
+            .indices
+            .iter()
+            .enumerate()
+            .find(|&(_, &ix)| ix as usize >= n)
+        {
+            return Err(PassError::InvalidInput {
+                what: format!("MeshData.indices[{i}]"),
+                problem: format!("is {ix} but there are only {n} vertices"),
+            });
+        }
+        let bad = self
+            .positions_m
+            .iter()
+            .chain(&self.normals)
+            .flatten()
+            .chain(self.lightmap_uvs.iter().flatten())
+            .any(|v| !v.is_finite());
+        if bad {
+            return Err(PassError::InvalidInput {
+                what: "MeshData".into(),
+                problem: "contains a NaN or infinite position, normal or UV".into(),
+            });
+        }
+        Ok(())
+    }
+}
+
+/// Diffuse reflectance ρ per lightmap texel (`B_o = ρ·E`); for subsurface materials the
+/// profile's total diffuse reflectance. Same layout as the lightmap.
+#[derive(Clone, Debug, PartialEq)]
+pub struct AlbedoMap {
+    /// Width in texels (= lightmap width).
+    pub width: u32,
+    /// Height in texels (= lightmap height).
+    pub height: u32,
+    /// `width·height` linear RGB reflectances in `[0, 1]`, row 0 is `v = 1`.
+    pub rgb: Vec<[f32; 3]>,
+}
+
+impl AlbedoMap {
+    /// A map with the same reflectance everywhere.
+    pub fn uniform(width: u32, height: u32, rho: [f32; 3]) -> Self {
+        Self {
+            width,
+            height,
+            rgb: vec![rho; width as usize * height as usize],
+        }
+    }
+}
+
+/// A light of the first-order pass. `color` is a linear RGB tint (usually in `[0, 1]`) that
+/// multiplies the scalar strength.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum LightDesc {
+    /// Isotropic point light: `E = I·cosθ/d²`.
+    Point {
+        /// Position in metres.
+        position_m: [f32; 3],
+        /// RGB tint.
+        color: [f32; 3],
+        /// Radiant intensity in W/sr.
+        intensity_w_sr: f32,
+    },
+    /// Spot light: a point light times `smoothstep(cos outer, cos inner, cos α)`, α the angle
+    /// from the axis.
+    Spot {
+        /// Position in metres.
+        position_m: [f32; 3],
+        /// Axis (direction the light points to); need not be normalised.
+        direction: [f32; 3],
+        /// RGB tint.
+        color: [f32; 3],
+        /// Radiant intensity on the axis in W/sr.
+        intensity_w_sr: f32,
+        /// Full-intensity half-angle in degrees.
+        inner_deg: f32,
+        /// Cut-off half-angle in degrees (`> inner_deg`, `< 90`).
+        outer_deg: f32,
+    },
+    /// Directional light: `E = E⊥·cosθ`.
+    Directional {
+        /// Travel direction of the light (from the light towards the scene).
+        direction: [f32; 3],
+        /// RGB tint.
+        color: [f32; 3],
+        /// Irradiance on a surface perpendicular to the light, W/m².
+        irradiance_w_m2: f32,
+    },
+}
+
+impl LightDesc {
+    /// Checks finiteness and ranges; `index` names the light in messages.
+    pub fn validate(&self, index: usize) -> Result<(), PassError> {
+        let what = format!("lights[{index}]");
+        let (vals, strength): (Vec<f32>, f32) = match *self {
+            LightDesc::Point {
+                position_m,
+                color,
+                intensity_w_sr,
+            } => (
+                position_m.into_iter().chain(color).collect(),
+                intensity_w_sr,
+            ),
+            LightDesc::Spot {
+                position_m,
+                direction,
+                color,
+                intensity_w_sr,
+                inner_deg,
+                outer_deg,
+            } => {
+                if !(0.0..90.0).contains(&outer_deg) || !(0.0..=outer_deg).contains(&inner_deg) {
+                    return Err(PassError::InvalidInput {
+                        what,
+                        problem: format!(
+                            "spot angles inner {inner_deg}°, outer {outer_deg}° must satisfy \
+                             0 ≤ inner ≤ outer < 90"
+                        ),
+                    });
+                }
+                (
+                    position_m
+                        .into_iter()
+                        .chain(direction)
+                        .chain(color)
+                        .collect(),
+                    intensity_w_sr,
+                )
+            }
+            LightDesc::Directional {
+                direction,
+                color,
+                irradiance_w_m2,
+            } => (
+                direction.into_iter().chain(color).collect(),
+                irradiance_w_m2,
+            ),
+        };
+        if vals.iter().any(|v| !v.is_finite()) || !strength.is_finite() || strength < 0.0 {
+            return Err(PassError::InvalidInput {
+                what,
+                problem: "has a NaN/infinite field or a negative strength".into(),
+            });
+        }
+        if let LightDesc::Spot { direction, .. } | LightDesc::Directional { direction, .. } = *self
+            && direction.iter().map(|d| d * d).sum::<f32>() < 1e-12
+        {
+            return Err(PassError::InvalidInput {
+                what,
+                problem: "direction is the zero vector; give the direction the light travels"
+                    .into(),
+            });
+        }
+        Ok(())
+    }
+}
+
+/// One transfer atlas (paper Sec. 5.2): many transfer-map pieces packed in one texture.
+/// Values are dimensionless transfer coefficients, linear RGB.
+#[derive(Clone, Debug, PartialEq)]
+pub struct AtlasData {
+    /// Width in texels.
+    pub width: u32,
+    /// Height in texels.
+    pub height: u32,
+    /// `width·height` RGB values, row-major, row 0 first.
+    pub rgb: Vec<[f32; 3]>,
+}
+
+/// A rectangle of an atlas and where it applies (paper Eq. 9):
+/// `final[dst + (i,j)] += atlas[src + (i,j)] · first_order[dst + (i,j) + Δt]` for
+/// `0 ≤ i < w`, `0 ≤ j < h`, with `first_order = 0` outside the map.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct TransferPiece {
+    /// Index into the atlas list.
+    pub atlas: u32,
+    /// Left column of the rectangle in the atlas.
+    pub src_x: u32,
+    /// Top row of the rectangle in the atlas.
+    pub src_y: u32,
+    /// Width of the rectangle in texels.
+    pub w: u32,
+    /// Height of the rectangle in texels.
+    pub h: u32,
+    /// Lightmap column receiving the rectangle's left column.
+    pub dst_x: u32,
+    /// Lightmap row receiving the rectangle's top row.
+    pub dst_y: u32,
+    /// Offset `Δt = (dx, dy)` in texels (`+dy` down): where first-order light is read.
+    pub offset: [i32; 2],
+}
+
+/// An RGBA float image read back from the GPU (or produced by a CPU mirror). RGB in the
+/// units of the map (W/m² for lightmaps), alpha = coverage.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TexelImage {
+    /// Width in texels.
+    pub width: u32,
+    /// Height in texels.
+    pub height: u32,
+    /// `width·height` RGBA values, row-major, row 0 first.
+    pub rgba: Vec<[f32; 4]>,
+}
+
+impl TexelImage {
+    /// An all-zero image.
+    pub fn new(width: u32, height: u32) -> Self {
+        Self {
+            width,
+            height,
+            rgba: vec![[0.0; 4]; width as usize * height as usize],
+        }
+    }
+
+    /// Value at `(x, y)`.
+    #[inline]
+    pub fn get(&self, x: u32, y: u32) -> [f32; 4] {
+        self.rgba[y as usize * self.width as usize + x as usize]
+    }
+
+    /// Value at signed `(x, y)`, or zero outside the image.
+    #[inline]
+    pub fn get_or_zero(&self, x: i32, y: i32) -> [f32; 4] {
+        if x < 0 || y < 0 || x >= self.width as i32 || y >= self.height as i32 {
+            [0.0; 4]
+        } else {
+            self.get(x as u32, y as u32)
+        }
+    }
+
+    /// Mutable value at `(x, y)`.
+    #[inline]
+    pub fn at_mut(&mut self, x: u32, y: u32) -> &mut [f32; 4] {
+        &mut self.rgba[y as usize * self.width as usize + x as usize]
+    }
+}

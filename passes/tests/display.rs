@@ -1,0 +1,285 @@
+//! Display pass: exact shading of uniform lightmaps against the CPU mirror, the
+//! side-by-side layout, the specular term at a known pixel, and an end-to-end frame
+//! (first order → dilate → display) whose lit side is brighter.
+
+mod common;
+
+use common::gpu;
+use glam::Vec3;
+use passes::cpu::display::{shade, specular, tonemap};
+use passes::demo::floor_and_box;
+use passes::dilate::{DilateInputs, DilateOptions, DilatePass};
+use passes::display::{BACKGROUND, Camera, DisplayInputs, DisplayOptions, DisplayPass, Specular};
+use passes::first_order::{
+    Bounds, FirstOrderInputs, FirstOrderOptions, FirstOrderPass, pack_lights,
+};
+use passes::{Gpu, LightDesc, MeshData};
+
+fn uniform_map(gpu: &Gpu, b: [f32; 3]) -> wgpu::TextureView {
+    let tex = gpu
+        .create_rgba32f_texture(
+            "test.uniform_map",
+            64,
+            64,
+            &vec![[b[0], b[1], b[2], 1.0]; 64 * 64],
+            wgpu::TextureUsages::TEXTURE_BINDING,
+        )
+        .unwrap();
+    tex.create_view(&Default::default())
+}
+
+fn oblique_camera() -> Camera {
+    Camera {
+        eye: [2.0, 2.0, 3.0],
+        target: [0.0, 0.2, 0.0],
+        up: [0.0, 1.0, 0.0],
+        fov_y_deg: 45.0,
+        near: 0.05,
+        far: 20.0,
+    }
+}
+
+fn render(
+    gpu: &Gpu,
+    mesh: &MeshData,
+    options: DisplayOptions,
+    inputs: impl FnOnce(&passes::display::DisplayScene, &mut dyn FnMut(&DisplayInputs<'_>)),
+) -> image::RgbaImage {
+    let pass = DisplayPass::new(gpu, &options).unwrap();
+    let scene = pass.prepare(gpu, mesh).unwrap();
+    let mut enc = gpu.device.create_command_encoder(&Default::default());
+    let mut out = None;
+    inputs(&scene, &mut |i| {
+        out = Some(pass.encode(gpu, &mut enc, i).unwrap())
+    });
+    let out = out.unwrap();
+    gpu.submit_and_wait("test.display", enc).unwrap();
+    gpu.read_rgba8("test.display", &out.color_tex).unwrap()
+}
+
+fn close(a: [u8; 4], b: [u8; 4], tol: i32) -> bool {
+    a.iter()
+        .zip(&b)
+        .all(|(x, y)| (*x as i32 - *y as i32).abs() <= tol)
+}
+
+#[test]
+fn uniform_lightmap_and_side_by_side_shade_exactly() {
+    let gpu = gpu();
+    let (mesh, _) = floor_and_box(64);
+    let (b1, b2) = ([2.0, 1.0, 0.5], [0.3, 3.0, 9.0]);
+    let (v1, v2) = (uniform_map(&gpu, b1), uniform_map(&gpu, b2));
+    let (s1, s2) = (shade(b1, 1.5), shade(b2, 1.5));
+    let img = render(
+        &gpu,
+        &mesh,
+        DisplayOptions {
+            width: 128,
+            height: 64,
+            side_by_side: true,
+        },
+        |scene, draw| {
+            draw(&DisplayInputs {
+                scene,
+                final_lightmap: &v2,
+                lightmap_size: [64, 64],
+                first_order: Some(&v1),
+                camera: oblique_camera(),
+                exposure: 1.5,
+                lights: &[],
+                specular: None,
+            })
+        },
+    );
+    let mut mesh_px = [0usize; 2];
+    for y in 0..64 {
+        for x in 0..64 {
+            let l = img.get_pixel(x, y).0;
+            let r = img.get_pixel(x + 64, y).0;
+            // Same camera in both halves: same coverage.
+            assert_eq!(
+                l == BACKGROUND,
+                r == BACKGROUND,
+                "coverage differs at ({x}, {y})"
+            );
+            if l != BACKGROUND {
+                assert!(close(l, s1, 1), "left ({x}, {y}) {l:?} vs {s1:?}");
+                assert!(close(r, s2, 1), "right ({x}, {y}) {r:?} vs {s2:?}");
+                mesh_px[0] += 1;
+            }
+        }
+    }
+    assert!(
+        mesh_px[0] > 64 * 64 / 8,
+        "mesh covers too little: {mesh_px:?}"
+    );
+}
+
+#[test]
+fn specular_highlight_matches_mirror_at_centre() {
+    // Camera straight above the floor centre... the box is there, so look at a floor
+    // point beside it: eye above (−0.6, 0, −0.6), directional light straight down: at the
+    // centre pixel h = n and the highlight is maximal.
+    let gpu = gpu();
+    let (mesh, _) = floor_and_box(64);
+    let b = [0.5, 0.5, 0.5];
+    let map = uniform_map(&gpu, b);
+    let target = [-0.6, 0.0, -0.6];
+    let eye = [-0.6, 1.5, -0.6];
+    let lights = [LightDesc::Directional {
+        direction: [0.0, -1.0, 0.0],
+        color: [1.0; 3],
+        irradiance_w_m2: 2.0,
+    }];
+    let spec = Specular {
+        strength: 0.04,
+        shininess: 32.0,
+    };
+    let img = render(
+        &gpu,
+        &mesh,
+        DisplayOptions {
+            width: 33,
+            height: 33,
+            side_by_side: false,
+        },
+        |scene, draw| {
+            draw(&DisplayInputs {
+                scene,
+                final_lightmap: &map,
+                lightmap_size: [64, 64],
+                first_order: None,
+                camera: Camera {
+                    eye,
+                    target,
+                    up: [0.0, 0.0, -1.0],
+                    fov_y_deg: 30.0,
+                    near: 0.05,
+                    far: 10.0,
+                },
+                exposure: 1.0,
+                lights: &lights,
+                specular: Some(spec),
+            })
+        },
+    );
+    let (gl, _) = pack_lights(&lights, &Bounds::of(&mesh.positions_m), 1, 99).unwrap();
+    let s = specular(
+        &gl,
+        Vec3::from(target),
+        Vec3::Y,
+        Vec3::from(eye),
+        spec.strength,
+        spec.shininess,
+    );
+    let pi = std::f32::consts::PI;
+    let want = tonemap([b[0] / pi + s.x, b[1] / pi + s.y, b[2] / pi + s.z], 1.0);
+    let got = img.get_pixel(16, 16).0;
+    assert!(close(got, want, 2), "centre {got:?} vs {want:?}");
+    // And the highlight is visible: brighter than the diffuse-only value.
+    assert!(got[0] > shade(b, 1.0)[0] + 5);
+}
+
+#[test]
+fn end_to_end_frame_lit_side_is_brighter() {
+    let gpu = gpu();
+    let (mesh, albedo) = floor_and_box(64);
+    // A point light low over the +x edge of the floor.
+    let lights = [LightDesc::Point {
+        position_m: [0.9, 0.6, 0.0],
+        color: [1.0; 3],
+        intensity_w_sr: 1.0,
+    }];
+    let fo_pass = FirstOrderPass::new(
+        &gpu,
+        &FirstOrderOptions {
+            shadow_map_size: 256,
+            max_shadow_layers: 6,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let fo_scene = fo_pass.prepare(&gpu, &mesh, &albedo).unwrap();
+    let dil = DilatePass::new(&gpu, &DilateOptions::default()).unwrap();
+    let targets = dil.prepare(&gpu, [64, 64]).unwrap();
+    let disp = DisplayPass::new(
+        &gpu,
+        &DisplayOptions {
+            width: 96,
+            height: 96,
+            side_by_side: false,
+        },
+    )
+    .unwrap();
+    let d_scene = disp.prepare(&gpu, &mesh).unwrap();
+
+    let mut enc = gpu.device.create_command_encoder(&Default::default());
+    let fo = fo_pass
+        .encode(
+            &gpu,
+            &mut enc,
+            &FirstOrderInputs {
+                scene: &fo_scene,
+                lights: &lights,
+            },
+        )
+        .unwrap();
+    let fo_view = fo.first_order_tex.create_view(&Default::default());
+    let dilated = dil.encode(
+        &gpu,
+        &mut enc,
+        &DilateInputs {
+            targets: &targets,
+            source: &fo_view,
+        },
+    );
+    let dview = dilated.dilated_tex.create_view(&Default::default());
+    // Looking down at the floor with image-right = +x.
+    let camera = Camera {
+        eye: [0.0, 3.0, 0.0],
+        target: [0.0, 0.0, 0.0],
+        up: [0.0, 0.0, -1.0],
+        fov_y_deg: 45.0,
+        near: 0.05,
+        far: 10.0,
+    };
+    let out = disp
+        .encode(
+            &gpu,
+            &mut enc,
+            &DisplayInputs {
+                scene: &d_scene,
+                final_lightmap: &dview,
+                lightmap_size: [64, 64],
+                first_order: None,
+                camera,
+                exposure: 4.0,
+                lights: &lights,
+                specular: None,
+            },
+        )
+        .unwrap();
+    gpu.submit_and_wait("test.frame", enc).unwrap();
+    let img = gpu.read_rgba8("test.frame", &out.color_tex).unwrap();
+
+    let mean = |x0: u32, x1: u32| {
+        let mut s = 0.0;
+        let mut n = 0.0;
+        for y in 0..96 {
+            for x in x0..x1 {
+                let p = img.get_pixel(x, y).0;
+                if p != BACKGROUND {
+                    s += p[0] as f64 + p[1] as f64 + p[2] as f64;
+                    n += 1.0;
+                }
+            }
+        }
+        assert!(n > 100.0, "columns {x0}..{x1}: too few mesh pixels ({n})");
+        s / n
+    };
+    let (left, right) = (mean(0, 32), mean(64, 96));
+    assert!(
+        right > left + 30.0,
+        "lit (+x) side {right} not brighter than {left}"
+    );
+}

@@ -1,0 +1,94 @@
+//! The frame script ([`passes::frame::Renderer`]) and the benchmark report on the demo
+//! scene, and device loss turning into an error.
+
+mod common;
+
+use common::gpu;
+use passes::bench::{TimingSource, bench_frame};
+use passes::demo::{blur_transfer, demo_lights, floor_and_box};
+use passes::display::{Camera, DisplayOptions};
+use passes::first_order::FirstOrderOptions;
+use passes::frame::{FrameParams, Renderer, RendererOptions};
+use passes::transfer::TransferOptions;
+use passes::{PassError, cpu};
+
+#[test]
+fn renderer_final_map_matches_mirror_and_bench_reports_every_pass() {
+    let gpu = gpu();
+    let size = 64;
+    let options = RendererOptions {
+        first_order: FirstOrderOptions {
+            shadow_map_size: 256,
+            max_shadow_layers: 8,
+            ..Default::default()
+        },
+        transfer: TransferOptions::best_for(&gpu),
+        display: DisplayOptions {
+            width: 64,
+            height: 32,
+            side_by_side: true,
+        },
+        ..Default::default()
+    };
+    let renderer = Renderer::new(&gpu, &options).unwrap();
+    let (mesh, albedo) = floor_and_box(size);
+    let (atlases, pieces) = blur_transfer([size, size], 2, 1, 0.02);
+    let scene = renderer
+        .prepare(&gpu, &mesh, &albedo, &atlases, &pieces)
+        .unwrap();
+    let lights = demo_lights();
+
+    let (fo, fin) = renderer.render_lightmaps(&gpu, &scene, &lights).unwrap();
+    let want = cpu::transfer::transfer(&scene.transfer.schedule, &atlases, &fo);
+    let mut brighter = 0;
+    for (g, w) in fin.rgba.iter().zip(&want.rgba) {
+        for c in 0..4 {
+            assert!(
+                (g[c] - w[c]).abs() <= 1e-3 * w[c].abs().max(1e-3),
+                "{g:?} vs {w:?}"
+            );
+        }
+    }
+    for (f, o) in fin.rgba.iter().zip(&fo.rgba) {
+        brighter += (f[0] > o[0]) as usize;
+    }
+    assert!(
+        brighter > 1000,
+        "the transfer must add light ({brighter} texels)"
+    );
+
+    let params = FrameParams {
+        lights: &lights,
+        camera: Camera {
+            eye: [2.0, 2.0, 3.0],
+            target: [0.0; 3],
+            up: [0.0, 1.0, 0.0],
+            fov_y_deg: 45.0,
+            near: 0.05,
+            far: 20.0,
+        },
+        exposure: 1.0,
+        specular: None,
+    };
+    let report = bench_frame(&gpu, &renderer, &scene, &params, 2).unwrap();
+    assert_eq!(report.rows.len(), 5);
+    let expected_blends = scene.transfer.schedule.texel_blends() + (size * size) as u64;
+    assert_eq!(report.rows[1].texel_blends, expected_blends);
+    assert_eq!(
+        report.timing == TimingSource::GpuTimestamps,
+        gpu.supports_timestamps()
+    );
+    for r in &report.rows {
+        assert!(r.ms.is_finite() && r.ms >= 0.0, "{r:?}");
+    }
+    assert!(report.to_string().contains("roofline"));
+}
+
+#[test]
+fn lost_device_is_an_error_not_a_hang() {
+    let gpu = gpu();
+    gpu.device.destroy();
+    let enc = gpu.device.create_command_encoder(&Default::default());
+    let err = gpu.submit_and_wait("test.after_destroy", enc).unwrap_err();
+    assert!(matches!(err, PassError::DeviceLost { .. }), "{err}");
+}

@@ -1,0 +1,286 @@
+//! GPU-vs-CPU tests of the transfer pass (blend path in RGBA32F and RGBA16F, compute path)
+//! on random atlases, pieces and first-order maps, and of the CPU mirrors against a direct
+//! per-texel evaluation of paper Eq. 9.
+
+mod common;
+
+use common::{Rng, gpu};
+use passes::cpu;
+use passes::schedule::{build_schedule, build_tiles};
+use passes::transfer::{AccumFormat, TransferInputs, TransferOptions, TransferPass, TransferPath};
+use passes::{AtlasData, TexelImage, TransferPiece};
+
+struct Case {
+    size: [u32; 2],
+    atlases: Vec<AtlasData>,
+    pieces: Vec<TransferPiece>,
+    first_order: TexelImage,
+}
+
+fn random_case(seed: u64) -> Case {
+    let mut r = Rng::new(seed);
+    let size = [61u32, 47u32];
+    let mut first_order = TexelImage::new(size[0], size[1]);
+    for px in &mut first_order.rgba {
+        let covered = r.f32() < 0.8;
+        *px = if covered {
+            [10.0 * r.f32(), 5.0 * r.f32(), r.f32(), 1.0]
+        } else {
+            [0.0; 4]
+        };
+    }
+    let atlas_sizes = [[32u32, 32u32], [16, 40], [24, 8]];
+    let atlases: Vec<AtlasData> = atlas_sizes
+        .iter()
+        .map(|&[w, h]| AtlasData {
+            width: w,
+            height: h,
+            rgb: (0..w * h)
+                .map(|_| [0.2 * r.f32(), 0.2 * r.f32(), 0.2 * r.f32()])
+                .collect(),
+        })
+        .collect();
+    let mut pieces = Vec::new();
+    for _ in 0..60 {
+        let a = r.range(0, 2) as usize;
+        let [aw, ah] = atlas_sizes[a];
+        let w = r.range(1, aw.min(size[0]) as i64) as u32;
+        let h = r.range(1, ah.min(size[1]) as i64) as u32;
+        pieces.push(TransferPiece {
+            atlas: a as u32,
+            src_x: r.range(0, (aw - w) as i64) as u32,
+            src_y: r.range(0, (ah - h) as i64) as u32,
+            w,
+            h,
+            dst_x: r.range(0, (size[0] - w) as i64) as u32,
+            dst_y: r.range(0, (size[1] - h) as i64) as u32,
+            offset: [r.range(-30, 30) as i32, r.range(-30, 30) as i32],
+        });
+    }
+    Case {
+        size,
+        atlases,
+        pieces,
+        first_order,
+    }
+}
+
+/// Eq. 9 evaluated texel by texel, independent of the schedule: for each t, the sum over
+/// all pieces containing t. Also returns, per texel, Σ|terms| (incl. first order) and the
+/// number of pieces touching it, for the half-float bound.
+fn reference(c: &Case) -> (TexelImage, Vec<(f32, u32)>) {
+    let mut out = c.first_order.clone();
+    let mut mag = Vec::new();
+    for y in 0..c.size[1] {
+        for x in 0..c.size[0] {
+            let mut abs_sum = c.first_order.get(x, y)[..3]
+                .iter()
+                .cloned()
+                .fold(0.0, f32::max);
+            let mut n = 0;
+            for p in &c.pieces {
+                if x < p.dst_x || y < p.dst_y || x >= p.dst_x + p.w || y >= p.dst_y + p.h {
+                    continue;
+                }
+                let at = &c.atlases[p.atlas as usize];
+                let s = (p.src_y + y - p.dst_y) * at.width + p.src_x + x - p.dst_x;
+                let a = at.rgb[s as usize];
+                let fo = c
+                    .first_order
+                    .get_or_zero(x as i32 + p.offset[0], y as i32 + p.offset[1]);
+                let o = out.at_mut(x, y);
+                for ch in 0..3 {
+                    o[ch] += a[ch] * fo[ch];
+                    abs_sum = abs_sum.max(o[ch].abs());
+                }
+                n += 1;
+            }
+            mag.push((abs_sum, n));
+        }
+    }
+    (out, mag)
+}
+
+fn run_gpu(c: &Case, options: TransferOptions) -> TexelImage {
+    let gpu = gpu();
+    let pass = TransferPass::new(&gpu, &options).unwrap();
+    let scene = pass.prepare(&gpu, c.size, &c.atlases, &c.pieces).unwrap();
+    let fo_tex = gpu
+        .create_rgba32f_texture(
+            "test.first_order",
+            c.size[0],
+            c.size[1],
+            &c.first_order.rgba,
+            wgpu::TextureUsages::TEXTURE_BINDING,
+        )
+        .unwrap();
+    let fo_view = fo_tex.create_view(&Default::default());
+    let mut enc = gpu.device.create_command_encoder(&Default::default());
+    let out = pass.encode(
+        &gpu,
+        &mut enc,
+        &TransferInputs {
+            scene: &scene,
+            first_order: &fo_view,
+        },
+    );
+    gpu.submit_and_wait("test.transfer", enc).unwrap();
+    gpu.read_texel_image("test.final", &out.final_lightmap_tex)
+        .unwrap()
+}
+
+/// Max over texels/channels of |a − b| / max(|b|, floor).
+fn assert_close(got: &TexelImage, want: &TexelImage, rel: f32, floor: f32, what: &str) {
+    assert_eq!((got.width, got.height), (want.width, want.height));
+    for (i, (g, w)) in got.rgba.iter().zip(&want.rgba).enumerate() {
+        for ch in 0..4 {
+            let err = (g[ch] - w[ch]).abs();
+            assert!(
+                err <= rel * w[ch].abs().max(floor),
+                "{what}: texel {i} channel {ch}: got {} want {}",
+                g[ch],
+                w[ch]
+            );
+        }
+    }
+}
+
+#[test]
+fn cpu_mirrors_match_direct_eq9() {
+    for seed in 1..4 {
+        let c = random_case(seed);
+        let (want, _) = reference(&c);
+        let sizes: Vec<[u32; 2]> = c.atlases.iter().map(|a| [a.width, a.height]).collect();
+        let s = build_schedule(c.size, &sizes, &c.pieces).unwrap();
+        let blend = cpu::transfer::transfer(&s, &c.atlases, &c.first_order);
+        let gather =
+            cpu::transfer_gather::transfer_gather(&build_tiles(&s), &c.atlases, &c.first_order);
+        assert_close(&blend, &want, 1e-5, 1e-3, "cpu blend");
+        assert_close(&gather, &want, 1e-5, 1e-3, "cpu gather");
+    }
+}
+
+#[test]
+fn exact_single_piece() {
+    // 3×2 map, one 2×1 piece at dst (1,0) reading Δt = (−1, 1), and one piece reading
+    // outside the map (must add nothing).
+    let mut fo = TexelImage::new(3, 2);
+    for (i, px) in fo.rgba.iter_mut().enumerate() {
+        *px = [i as f32 + 1.0, 2.0 * i as f32, 1.0, 1.0];
+    }
+    let atlas = AtlasData {
+        width: 2,
+        height: 1,
+        rgb: vec![[0.5, 0.25, 1.0], [2.0, 1.0, 0.0]],
+    };
+    let pieces = [
+        TransferPiece {
+            atlas: 0,
+            src_x: 0,
+            src_y: 0,
+            w: 2,
+            h: 1,
+            dst_x: 1,
+            dst_y: 0,
+            offset: [-1, 1],
+        },
+        TransferPiece {
+            atlas: 0,
+            src_x: 0,
+            src_y: 0,
+            w: 1,
+            h: 1,
+            dst_x: 0,
+            dst_y: 0,
+            offset: [0, 5],
+        },
+    ];
+    let c = Case {
+        size: [3, 2],
+        atlases: vec![atlas],
+        pieces: pieces.to_vec(),
+        first_order: fo.clone(),
+    };
+    let mut want = fo.clone();
+    // t=(1,0) reads (0,1) = index 3 → [4,6,1]; atlas (0,0) = [0.5,0.25,1].
+    want.at_mut(1, 0)[0] += 0.5 * 4.0;
+    want.at_mut(1, 0)[1] += 0.25 * 6.0;
+    want.at_mut(1, 0)[2] += 1.0;
+    // t=(2,0) reads (1,1) = index 4 → [5,8,1]; atlas (1,0) = [2,1,0].
+    want.at_mut(2, 0)[0] += 10.0;
+    want.at_mut(2, 0)[1] += 8.0;
+    for path in [TransferPath::Blend, TransferPath::Compute] {
+        let got = run_gpu(
+            &c,
+            TransferOptions {
+                path,
+                accum_format: AccumFormat::Rgba32Float,
+            },
+        );
+        assert_eq!(got, want, "{path:?}");
+    }
+}
+
+#[test]
+fn blend_rgba32f_matches_cpu() {
+    let c = random_case(7);
+    let (want, _) = reference(&c);
+    let got = run_gpu(
+        &c,
+        TransferOptions {
+            path: TransferPath::Blend,
+            accum_format: AccumFormat::Rgba32Float,
+        },
+    );
+    assert_close(&got, &want, 1e-3, 1e-3, "blend rgba32f");
+}
+
+#[test]
+fn compute_path_matches_cpu_and_blend() {
+    let c = random_case(11);
+    let (want, _) = reference(&c);
+    let got = run_gpu(
+        &c,
+        TransferOptions {
+            path: TransferPath::Compute,
+            accum_format: AccumFormat::Rgba32Float,
+        },
+    );
+    assert_close(&got, &want, 1e-3, 1e-3, "compute");
+    let blend = run_gpu(
+        &c,
+        TransferOptions {
+            path: TransferPath::Blend,
+            accum_format: AccumFormat::Rgba32Float,
+        },
+    );
+    assert_close(&got, &blend, 1e-5, 1e-3, "compute vs blend");
+}
+
+#[test]
+fn blend_rgba16f_within_half_float_bound() {
+    // Each of the n blends (and the copy and each product) rounds to binary16 with relative
+    // error ≤ u = 2⁻¹¹, so |err| ≤ (2n + 2)·u·max|partial sum| + 2⁻²⁴ per texel.
+    let c = random_case(13);
+    let (want, mag) = reference(&c);
+    let got = run_gpu(
+        &c,
+        TransferOptions {
+            path: TransferPath::Blend,
+            accum_format: AccumFormat::Rgba16Float,
+        },
+    );
+    let u = 2f32.powi(-11);
+    for (i, ((g, w), (m, n))) in got.rgba.iter().zip(&want.rgba).zip(&mag).enumerate() {
+        let bound = (2 * n + 2) as f32 * u * m + 2f32.powi(-24);
+        for ch in 0..3 {
+            assert!(
+                (g[ch] - w[ch]).abs() <= bound,
+                "texel {i} ch {ch}: got {} want {} bound {bound} (n = {n})",
+                g[ch],
+                w[ch]
+            );
+        }
+        assert_eq!(g[3], w[3], "coverage alpha must be copied exactly");
+    }
+}

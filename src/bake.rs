@@ -1,0 +1,522 @@
+//! The bake: from a scene to a directory of offset transfer maps (paper Sec. 3, 3.1, 5.1).
+//!
+//! # Data flow
+//! scene → [`TexelGrid`] → [`Transport`] (BVH, coarse remainder) → offset selection
+//! ([`crate::offsets`], importance-sampled or jittered grid) → Voronoi cells and `TVA` →
+//! one transfer map per offset, `TR(t, t+Δt)·TVA(t, Δt)` (Eq. 10) → cropped OpenEXR files and
+//! `index.json` ([`crate::maps`]).
+//!
+//! # Transfer map values
+//! With `R(t, t')` the transfer of [`crate::transport`] (dimensionless, it already contains the
+//! sender's area `A(t')`), the per-unit-area transfer is `TR(t, t') = R(t, t') / A(t')` and the
+//! map of offset `Δt` holds, for every receiver `t` whose sender `t + Δt` is covered,
+//! `TR(t, t + Δt) · TVA(t, Δt)`, `TVA(t, Δt) = Σ_{v ∈ V(Δt)} A(t + v)` (Eq. 8). The
+//! subsurface term's point mass at `t' = t` (the `−1` of `X ρ̄⁻¹ − I`, light that leaves elsewhere)
+//! is not per unit area: it is added as is to the map of `Δt = (0, 0)`, whose Voronoi cell holds
+//! the zero offset. When every integer offset is selected each cell is `{Δt}`, `TVA = A(t + Δt)`,
+//! and the maps reproduce `R` exactly (tested).
+//!
+//! # Importance
+//! The transference of an offset (the data points of the importance density) is the maximum
+//! (or average, [`ImportanceMetric`]) over receivers of the largest channel of `|R(t, t+Δt)|`,
+//! evaluated on an evenly strided subset of at most [`BakeSettings::selection_receivers`]
+//! receivers.
+//!
+//! # Resuming
+//! Maps are written one by one, atomically, stamped with the bake key (scene hash + settings);
+//! the selected offsets are saved in `selection.json`. A rerun with the same scene and settings
+//! keeps every valid finished map and recomputes only the rest; `index.json` is written last, so
+//! a directory with an index is a complete bake.
+
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+
+use glam::{IVec2, Vec3};
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+use sha2::{Digest, Sha256};
+
+use crate::Lightmap;
+use crate::maps::{self, BakeIndex, BakeKey, LightmapSize, MapsError, TransferMap};
+use crate::offsets::{self, ImportanceMetric, OffsetError, SelectionSettings};
+use crate::scene::Scene;
+use crate::texels::{TexelError, TexelGrid};
+use crate::transport::{Effects, Transport};
+
+/// How offsets are chosen.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum Selector {
+    /// Importance sampling of the Delaunay C0 density (the paper's method).
+    #[default]
+    Importance,
+    /// One jittered sample per cell of a regular grid (the paper's rejected baseline).
+    JitteredGrid,
+}
+
+/// Every setting that influences the bake's output (stored in the index).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct BakeSettings {
+    /// Lightmap width and height, texels.
+    pub size: (u32, u32),
+    /// Number of offsets (transfer maps), `(0, 0)` included.
+    pub offsets: usize,
+    /// Effects included in the transfer.
+    pub effects: Effects,
+    /// Random seed (selection).
+    pub seed: u64,
+    /// Offset selector.
+    pub selector: Selector,
+    /// Transference metric.
+    pub metric: ImportanceMetric,
+    /// Seed grid per axis (≈ `seed_grid²` seed offsets).
+    pub seed_grid: u32,
+    /// Refinement iterations of the importance density.
+    pub refinement_iterations: usize,
+    /// Draws between rebuilds of the density.
+    pub rebuild_every: usize,
+    /// Cluster size (texels per side) of the coarse higher-order solve.
+    pub coarse_block: u32,
+    /// Receivers sampled per offset when estimating its transference.
+    pub selection_receivers: usize,
+}
+
+impl Default for BakeSettings {
+    fn default() -> Self {
+        Self {
+            size: (256, 256),
+            offsets: 100,
+            effects: Effects::default(),
+            seed: 1,
+            selector: Selector::Importance,
+            metric: ImportanceMetric::Max,
+            seed_grid: 10,
+            refinement_iterations: 1000,
+            rebuild_every: 20,
+            coarse_block: 8,
+            selection_receivers: 4096,
+        }
+    }
+}
+
+/// Errors of the bake.
+#[derive(Debug, thiserror::Error)]
+pub enum BakeError {
+    /// The UV layout could not be rasterized.
+    #[error(transparent)]
+    Texels(#[from] TexelError),
+    /// Offset selection failed.
+    #[error("offset selection: {0}")]
+    Offsets(#[from] OffsetError),
+    /// Writing or reading maps failed.
+    #[error(transparent)]
+    Maps(#[from] MapsError),
+    /// A file could not be written.
+    #[error("cannot write '{path}': {source}")]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// Cause.
+        source: std::io::Error,
+    },
+    /// Stopped by the user; finished maps are kept.
+    #[error(
+        "interrupted after {done} of {total} maps; finished maps are kept — rerun the same command \
+         to resume"
+    )]
+    Interrupted {
+        /// Maps finished.
+        done: usize,
+        /// Maps planned.
+        total: usize,
+    },
+    /// Settings that cannot work.
+    #[error("invalid bake setting: {0}")]
+    Settings(String),
+}
+
+/// Progress events of a bake, for a progress display.
+#[derive(Clone, Debug)]
+pub enum BakeEvent {
+    /// A phase starts with `total` steps.
+    Phase {
+        /// Phase name.
+        name: &'static str,
+        /// Steps.
+        total: u64,
+    },
+    /// `n` more steps of the current phase are done.
+    Advance(u64),
+    /// A line of information.
+    Message(String),
+}
+
+/// Result of a bake.
+#[derive(Clone, Debug)]
+pub struct BakeSummary {
+    /// Maps in the index.
+    pub maps: usize,
+    /// Maps reused from an interrupted run.
+    pub reused: usize,
+    /// Seconds per phase: transport set-up, selection, maps.
+    pub seconds: [f64; 3],
+    /// Covered texels.
+    pub texels: usize,
+    /// Stored (cropped) texels over all maps.
+    pub stored_texels: u64,
+}
+
+/// A stable hash of everything in the scene that the bake depends on (geometry, UVs, materials,
+/// lightmap size; not the lights).
+pub fn scene_hash(scene: &Scene) -> String {
+    let mut h = Sha256::new();
+    let m = &scene.mesh;
+    for p in &m.positions_m {
+        for c in p.to_array() {
+            h.update(c.to_le_bytes());
+        }
+    }
+    for uv in &m.uvs {
+        h.update(uv.x.to_le_bytes());
+        h.update(uv.y.to_le_bytes());
+    }
+    for n in &m.normals {
+        for c in n.to_array() {
+            h.update(c.to_le_bytes());
+        }
+    }
+    for t in &m.triangles {
+        for k in 0..3 {
+            h.update(t.position[k].to_le_bytes());
+            h.update(t.uv[k].to_le_bytes());
+            h.update(t.normal[k].to_le_bytes());
+        }
+        h.update(t.material.to_le_bytes());
+    }
+    h.update(format!("{:?}", scene.materials).as_bytes());
+    h.update(format!("{}", scene.allow_uv_overlap).as_bytes());
+    h.finalize().iter().map(|b| format!("{b:02x}")).collect()
+}
+
+/// Receivers (texel indices) used to estimate transference: every covered texel, or an evenly
+/// strided subset of at most `max` of them.
+pub fn selection_receivers(grid: &TexelGrid, max: usize) -> Vec<u32> {
+    let n = grid.texels.len();
+    let stride = n.div_ceil(max.max(1)).max(1);
+    (0..n as u32).step_by(stride).collect()
+}
+
+/// Transference of `offset`: max (or mean) over `receivers` of the largest channel of
+/// `|R(t, t + Δt)|` (0 where the sender is uncovered).
+pub fn transference(
+    transport: &Transport,
+    grid: &TexelGrid,
+    receivers: &[u32],
+    offset: IVec2,
+    metric: ImportanceMetric,
+) -> f64 {
+    let values = receivers.iter().filter_map(|&i| {
+        let t = &grid.texels[i as usize];
+        let j = grid.at(t.x as i32 + offset.x, t.y as i32 + offset.y)?;
+        let r = transport.r(i, j);
+        Some(r[0].abs().max(r[1].abs()).max(r[2].abs()) as f64)
+    });
+    match metric {
+        ImportanceMetric::Max => values.fold(0.0, f64::max),
+        ImportanceMetric::Average => values.sum::<f64>() / receivers.len().max(1) as f64,
+    }
+}
+
+/// The values of one transfer map over the full lightmap (see the module docs) and its
+/// importance (largest channel of `|R|` over the map).
+pub fn compute_map_values(
+    transport: &Transport,
+    grid: &TexelGrid,
+    offset: IVec2,
+    tva: &[f32],
+    contains_origin: bool,
+) -> (Lightmap, f64) {
+    let (w, h) = (grid.width, grid.height);
+    let rows: Vec<(Vec<[f32; 3]>, f64)> = (0..h)
+        .into_par_iter()
+        .map(|y| {
+            let mut row = vec![[0.0f32; 3]; w as usize];
+            let mut imp = 0.0f64;
+            for x in 0..w {
+                let Some(i) = grid.at(x as i32, y as i32) else {
+                    continue;
+                };
+                let Some(j) = grid.at(x as i32 + offset.x, y as i32 + offset.y) else {
+                    continue;
+                };
+                let mut r = Vec3::from_array(transport.r(i, j));
+                imp = imp.max(r.abs().max_element() as f64);
+                let delta = if i == j && transport.is_translucent(i) { 1.0 } else { 0.0 };
+                r += Vec3::splat(delta);
+                let a_j = transport.patches[j as usize].area_m2;
+                let mut v = r / a_j * tva[(y * w + x) as usize];
+                if contains_origin {
+                    v -= Vec3::splat(delta);
+                }
+                row[x as usize] = v.to_array();
+            }
+            (row, imp)
+        })
+        .collect();
+    let mut map = Lightmap::new(w, h);
+    let mut importance = 0.0f64;
+    for (y, (row, imp)) in rows.into_iter().enumerate() {
+        let start = y * w as usize;
+        map.data[start..start + w as usize].copy_from_slice(&row);
+        importance = importance.max(imp);
+    }
+    (map, importance)
+}
+
+/// Offsets chosen by a selection, with the data needed for the report.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct SelectionRecord {
+    /// Bake key the selection belongs to.
+    pub bake_key: String,
+    /// Selected offsets `(dx, dy)`.
+    pub offsets: Vec<[i32; 2]>,
+    /// Evaluated data points `(dx, dy, transference)` of the importance density.
+    pub data_points: Vec<[f64; 3]>,
+}
+
+/// Chooses the offsets (importance-sampled or jittered grid).
+pub fn select_offsets(
+    transport: &Transport,
+    grid: &TexelGrid,
+    settings: &BakeSettings,
+    events: &(dyn Fn(BakeEvent) + Sync),
+) -> Result<(Vec<IVec2>, Vec<[f64; 3]>), BakeError> {
+    let (w, h) = (grid.width, grid.height);
+    match settings.selector {
+        Selector::JitteredGrid => Ok((
+            offsets::select_jittered_grid(w, h, settings.offsets, settings.seed)?,
+            Vec::new(),
+        )),
+        Selector::Importance => {
+            let receivers = selection_receivers(grid, settings.selection_receivers);
+            let sel = SelectionSettings {
+                seed_grid: settings.seed_grid,
+                refinement_iterations: settings.refinement_iterations,
+                rebuild_every: settings.rebuild_every,
+                final_count: settings.offsets,
+                metric: settings.metric,
+                seed: settings.seed,
+            };
+            let total = (settings.seed_grid as u64).pow(2) + 1 + settings.refinement_iterations as u64;
+            events(BakeEvent::Phase {
+                name: "selecting offsets",
+                total,
+            });
+            let selection = offsets::select_importance(
+                &sel,
+                w,
+                h,
+                |batch| {
+                    let v: Vec<f64> = batch
+                        .par_iter()
+                        .map(|&o| transference(transport, grid, &receivers, o, settings.metric))
+                        .collect();
+                    events(BakeEvent::Advance(batch.len() as u64));
+                    v
+                },
+                |_, _, _| {},
+            )?;
+            let points = selection
+                .data_points
+                .iter()
+                .map(|(p, v)| [p.x, p.y, *v])
+                .collect();
+            Ok((selection.offsets, points))
+        }
+    }
+}
+
+/// Computes the transfer maps of `offsets` in memory (no files): the core of the bake, used
+/// directly by tests. `events` receives one `Advance` per map.
+pub fn bake_maps(
+    transport: &Transport,
+    grid: &TexelGrid,
+    offset_list: &[IVec2],
+    events: &(dyn Fn(BakeEvent) + Sync),
+) -> Result<Vec<TransferMap>, BakeError> {
+    let plan = MapPlan::new(grid, offset_list)?;
+    (0..offset_list.len())
+        .map(|k| {
+            let m = plan.map(transport, grid, k)?;
+            events(BakeEvent::Advance(1));
+            Ok(m)
+        })
+        .collect()
+}
+
+/// Voronoi cells and areas of a set of offsets, ready to generate maps one by one.
+pub struct MapPlan {
+    offsets: Vec<IVec2>,
+    cells: offsets::DiscreteCells,
+    areas: Vec<f64>,
+    area_map: Vec<f32>,
+}
+
+impl MapPlan {
+    /// Computes the clipped Voronoi cells (areas) and the discrete cells (for TVA).
+    pub fn new(grid: &TexelGrid, offset_list: &[IVec2]) -> Result<Self, BakeError> {
+        let (w, h) = (grid.width, grid.height);
+        let polys = offsets::clipped_cell_polygons(offset_list, w, h)?;
+        Ok(Self {
+            offsets: offset_list.to_vec(),
+            cells: offsets::discrete_cells(offset_list, w, h)?,
+            areas: polys.real_areas(),
+            area_map: grid.area_map(),
+        })
+    }
+
+    /// The `k`-th map.
+    pub fn map(&self, transport: &Transport, grid: &TexelGrid, k: usize) -> Result<TransferMap, BakeError> {
+        let runs = &self.cells.real[k];
+        let tva = offsets::tva_map(&self.area_map, grid.width, grid.height, runs)?;
+        let contains_origin = runs
+            .iter()
+            .any(|r| r.dy == 0 && r.dx_start <= 0 && 0 <= r.dx_end_inclusive);
+        let (values, importance) =
+            compute_map_values(transport, grid, self.offsets[k], &tva, contains_origin);
+        Ok(TransferMap::from_full(
+            self.offsets[k],
+            self.areas[k],
+            importance,
+            &values,
+        )?)
+    }
+}
+
+fn write_json_atomic<T: Serialize>(path: &Path, value: &T) -> Result<(), BakeError> {
+    let io = |source| BakeError::Io {
+        path: path.to_owned(),
+        source,
+    };
+    let tmp = path.with_file_name(format!(
+        ".{}.tmp",
+        path.file_name().and_then(|n| n.to_str()).unwrap_or("file")
+    ));
+    let text = serde_json::to_vec_pretty(value).map_err(|e| io(std::io::Error::other(e)))?;
+    std::fs::write(&tmp, text).map_err(io)?;
+    std::fs::rename(&tmp, path).map_err(io)
+}
+
+/// Bakes `scene` into `dir` (resumable; see the module docs). `cancel` is polled between maps.
+pub fn bake(
+    scene: &Scene,
+    settings: &BakeSettings,
+    dir: &Path,
+    events: &(dyn Fn(BakeEvent) + Sync),
+    cancel: &AtomicBool,
+) -> Result<BakeSummary, BakeError> {
+    if settings.offsets == 0 {
+        return Err(BakeError::Settings("--offsets must be at least 1".into()));
+    }
+    let (w, h) = settings.size;
+    let t0 = std::time::Instant::now();
+    std::fs::create_dir_all(dir).map_err(|source| BakeError::Io {
+        path: dir.to_owned(),
+        source,
+    })?;
+    let grid = TexelGrid::build_with_size(scene, w, h)?;
+    let hash = scene_hash(scene);
+    let settings_json = serde_json::to_value(settings).expect("settings serialise");
+    let key = BakeKey::new(&hash, &settings_json);
+    events(BakeEvent::Message(format!(
+        "{} covered texels at {w}x{h}; building the transport (BVH, coarse solve, {}² texel clusters)",
+        grid.texels.len(),
+        settings.coarse_block
+    )));
+    let transport = Transport::new(scene, &grid, settings.effects, settings.coarse_block);
+    let t_transport = t0.elapsed().as_secs_f64();
+
+    // Offsets: reuse a saved selection of the same bake.
+    let sel_path = dir.join("selection.json");
+    let saved: Option<SelectionRecord> = std::fs::read(&sel_path)
+        .ok()
+        .and_then(|b| serde_json::from_slice(&b).ok())
+        .filter(|s: &SelectionRecord| s.bake_key == key.as_str());
+    let (offset_list, points) = match saved {
+        Some(s) => {
+            events(BakeEvent::Message("reusing the saved offset selection".into()));
+            (
+                s.offsets.iter().map(|o| IVec2::from_array(*o)).collect(),
+                s.data_points,
+            )
+        }
+        None => {
+            let (o, p) = select_offsets(&transport, &grid, settings, events)?;
+            write_json_atomic(
+                &sel_path,
+                &SelectionRecord {
+                    bake_key: key.as_str().to_owned(),
+                    offsets: o.iter().map(|v| v.to_array()).collect(),
+                    data_points: p.clone(),
+                },
+            )?;
+            (o, p)
+        }
+    };
+    let t_select = t0.elapsed().as_secs_f64() - t_transport;
+
+    let plan = MapPlan::new(&grid, &offset_list)?;
+    let scan = maps::scan_finished_maps(dir, &key, w, h)?;
+    for p in &scan.stale_temp {
+        let _ = std::fs::remove_file(p);
+    }
+    let total = offset_list.len();
+    events(BakeEvent::Phase {
+        name: "writing transfer maps",
+        total: total as u64,
+    });
+    let mut entries = Vec::with_capacity(total);
+    let mut reused = 0;
+    let mut stored = 0u64;
+    for (k, &offset) in offset_list.iter().enumerate() {
+        if let Some(e) = scan.finished.get(&(k as u32))
+            && e.offset == offset.to_array()
+        {
+            entries.push(e.clone());
+            stored += e.rects.iter().map(|r| r.area()).sum::<u64>();
+            reused += 1;
+            events(BakeEvent::Advance(1));
+            continue;
+        }
+        if cancel.load(Ordering::Relaxed) {
+            return Err(BakeError::Interrupted { done: k, total });
+        }
+        let map = plan.map(&transport, &grid, k)?;
+        stored += map.stored_texels();
+        entries.push(maps::write_map_file(dir, k as u32, &map, &key)?);
+        events(BakeEvent::Advance(1));
+    }
+    let importance: Vec<f64> = entries.iter().map(|e| e.importance).collect();
+    let index = BakeIndex::new(
+        LightmapSize {
+            width: w,
+            height: h,
+        },
+        hash,
+        settings_json,
+        entries,
+    );
+    crate::report::write_bake_report(dir, &grid, &offset_list, &importance, &points)
+        .map_err(|e| BakeError::Io {
+            path: dir.join("report"),
+            source: std::io::Error::other(e.to_string()),
+        })?;
+    index.write(dir)?;
+    Ok(BakeSummary {
+        maps: total,
+        reused,
+        seconds: [t_transport, t_select, t0.elapsed().as_secs_f64() - t_transport - t_select],
+        texels: grid.texels.len(),
+        stored_texels: stored,
+    })
+}
