@@ -10,12 +10,15 @@
 //! Units are SI throughout: metres, W/sr (point and spot lights), W/m² (directional lights,
 //! lightmaps). See `docs/ARCHITECTURE.md` for the file layout.
 
+pub mod atlas;
 pub mod bake;
+pub mod eval;
 pub mod lighting;
 pub mod lightmap;
 pub mod maps;
 pub mod offsets;
 pub mod raycast;
+pub mod render;
 pub mod report;
 pub mod scene;
 pub mod texels;

@@ -1,5 +1,6 @@
 //! Subcommands of the `ortm` tool.
 
+mod bake;
 mod inspect;
 mod solve;
 
@@ -21,6 +22,8 @@ pub struct Cli {
 enum Command {
     /// Mesh and chart statistics, coverage, overlaps, and a PNG of the texel charts.
     Inspect(inspect::Args),
+    /// Bake offset transfer maps (OpenEXR + index.json) for a scene; resumable.
+    Bake(bake::Args),
     /// Exact dense solve (small lightmaps): first-order, final and indirect lightmaps as PNG.
     Solve(solve::Args),
 }
@@ -30,6 +33,7 @@ pub fn run(cli: Cli) -> Result<()> {
     match cli.command {
         Command::Inspect(a) => inspect::run(a),
         Command::Solve(a) => solve::run(a),
+        Command::Bake(a) => bake::run(a),
     }
 }
 
@@ -37,7 +41,13 @@ pub fn run(cli: Cli) -> Result<()> {
 /// `size` overrides the lightmap size (square).
 pub fn load_scene(arg: &str, size: Option<u32>) -> Result<Scene> {
     let mut scene = match arg {
-        "cornell" => ortm::scene::cornell::cornell_box(size.unwrap_or(64)),
+        "cornell" => {
+            if size.is_some_and(|s| s < 32) {
+                anyhow::bail!("the built-in cornell scene needs --size 32 or more (its charts have 2-texel gutters)");
+            }
+            ortm::scene::cornell::cornell_box(size.unwrap_or(64))
+        }
+        "head" => head_scene()?,
         path => ortm::scene::file::load_scene(&PathBuf::from(path))
             .with_context(|| format!("loading scene '{path}'"))?,
     };
@@ -54,4 +64,43 @@ pub fn load_scene(arg: &str, size: Option<u32>) -> Result<Scene> {
 pub fn ensure_dir(dir: &std::path::Path) -> Result<()> {
     std::fs::create_dir_all(dir)
         .with_context(|| format!("cannot create output folder '{}'", dir.display()))
+}
+
+/// Where the scanned head lives: `$ORTM_HEAD_OBJ`, else `../shared/faces/head.obj` beside the
+/// checkout (the file is CC BY 3.0 and never copied into this repository).
+pub fn head_obj_path() -> PathBuf {
+    std::env::var_os("ORTM_HEAD_OBJ")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/faces/head.obj")))
+}
+
+/// The built-in `head` scene: the scanned head at 0.34 m per model unit (≈ 155 mm wide), skin
+/// (Jensen et al. 2001 "skin1" dipole), 256² lightmap, a point light in front of the face.
+/// Head scan © Lee Perry-Smith / Infinite Realities, CC BY 3.0.
+pub fn head_scene() -> Result<Scene> {
+    use ortm::scene::{Albedo, Light, Material};
+    let path = head_obj_path();
+    let (mesh, _names, _warnings) = ortm::scene::obj::load_obj(&path, 0.34).with_context(|| {
+        format!(
+            "loading the head scan '{}' (set ORTM_HEAD_OBJ to its path; it is \"Infinite, 3D Head \
+             Scan\" by Lee Perry-Smith, McGuire Computer Graphics Archive)",
+            path.display()
+        )
+    })?;
+    Ok(Scene {
+        name: "head".into(),
+        mesh,
+        materials: vec![Material {
+            name: "skin".into(),
+            albedo: Albedo::Constant(glam::Vec3::new(0.8, 0.6, 0.5)),
+            subsurface: ortm::scene::subsurface_preset("skin1"),
+        }],
+        lights: vec![Light::Point {
+            position_m: glam::Vec3::new(0.1, 0.1, 0.4),
+            color: glam::Vec3::ONE,
+            intensity_w_sr: 2.0,
+        }],
+        lightmap_size: (256, 256),
+        allow_uv_overlap: false,
+    })
 }

@@ -12,7 +12,7 @@
 //! 3. Consumers read the index with [`BakeIndex::read`] and the maps with
 //!    [`BakeIndex::load_maps`] (size and SHA-256 checked), or a single file with
 //!    [`read_map_file`].
-//! 4. [`apply`] evaluates `B(t) = B_o(t) + Σ_maps map(t)·B_o(t+Δt)` (Eq. 9 plus the first-order
+//! 4. [`apply()`] evaluates `B(t) = B_o(t) + Σ_maps map(t)·B_o(t+Δt)` (Eq. 9 plus the first-order
 //!    term) on the CPU; it is the reference the GPU renderer is checked against.
 //!
 //! # Units and conventions
@@ -197,7 +197,7 @@ pub enum MapsError {
     IndexFormat {
         /// The index file.
         path: PathBuf,
-        /// The value found (or "<missing>").
+        /// The value found (or `<missing>`).
         found: String,
     },
 
@@ -210,7 +210,7 @@ pub enum MapsError {
     IndexVersion {
         /// The index file.
         path: PathBuf,
-        /// The version found (as written, or "<missing>").
+        /// The version found (as written, or `<missing>`).
         found: String,
     },
 

@@ -183,18 +183,17 @@ fn faces() -> Vec<Face> {
     out
 }
 
-/// A placed chart: texel rectangle `[x, x+w) × [y, y+h)` (y down), and whether the face is
-/// rotated (its `e2` runs along the chart's width).
+/// A placed chart: the texel rectangle `[x, x+w) × [y, y+h)` (y down, row 0 is v = 1).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct ChartRect {
+struct ChartRect {
     /// Left texel column.
-    pub x: u32,
+    x: u32,
     /// Top texel row.
-    pub y: u32,
+    y: u32,
     /// Width in texels.
-    pub w: u32,
+    w: u32,
     /// Height in texels.
-    pub h: u32,
+    h: u32,
 }
 
 /// Chart sizes in texels at `texels_per_m`: each side rounded up, at least

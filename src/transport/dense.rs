@@ -135,6 +135,25 @@ impl DenseTransport {
         out
     }
 
+    /// Exact final radiosity for several first-order lightings at once (one LU per channel).
+    pub fn solve_many(&self, b_os: &[Vec<Vec3>]) -> Vec<Vec<Vec3>> {
+        let k = b_os.len();
+        let mut out = vec![vec![Vec3::ZERO; self.n]; k];
+        for ch in 0..3 {
+            let x = self.exitance(ch);
+            let m = self.system(&x);
+            let e = Mat::from_fn(self.n, k, |j, c| b_os[c][j][ch] as f64 * self.inv_rho(j, ch));
+            let rhs = &x * &e;
+            let b = m.partial_piv_lu().solve(&rhs);
+            for (c, o) in out.iter_mut().enumerate() {
+                for i in 0..self.n {
+                    o[i][ch] = b[(i, c)] as f32;
+                }
+            }
+        }
+        out
+    }
+
     /// The full transfer `R = M⁻¹ X ρ̄⁻¹ − I` per channel (`R[(i, j)]` = fraction of `B_o(j)`
     /// added to `B(i)`); columns of black patches (ρ̄ = 0, never lit) are zero.
     pub fn transfer(&self) -> [Mat<f64>; 3] {
