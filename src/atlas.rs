@@ -1317,10 +1317,10 @@ mod tests {
             map((1, 0), &[(0, 0, 8, 3), (20, 10, 5, 2)], 1.0),
             map((-2, 3), &[(4, 6, 3, 4)], 100.0),
         ];
-        let set = build_atlas_set(&maps, 8, 8).unwrap();
+        let set = build_atlas_set(&maps, 8, 4).unwrap();
         set.validate().unwrap();
         assert_eq!(set.lightmap_size, (32, 16));
-        // 24 + 10 + 12 = 46 texels: one 8×8 atlas is not enough, two are.
+        // 24 + 10 + 12 = 46 texels: one 8×4 atlas is not enough, two are.
         assert_eq!(set.atlases.len(), 2);
         let mut covered = 0;
         for p in &set.pieces {
@@ -1337,7 +1337,7 @@ mod tests {
         assert_eq!(covered, 46);
         let st = set.stats();
         assert_eq!((st.atlases, st.maps, st.texels), (2, 2, 46));
-        assert!((st.fill_ratio - 46.0 / 128.0).abs() < 1e-12);
+        assert!((st.fill_ratio - 46.0 / 64.0).abs() < 1e-12);
         assert_eq!(st.pieces, set.pieces.len());
     }
 

@@ -273,6 +273,62 @@ pub fn compute_map_values(
     (map, importance)
 }
 
+/// Cells with at most this many integer offsets are integrated exactly (see [`MapPlan::map`]).
+pub const EXACT_CELL_MAX: usize = 48;
+
+/// The values of one transfer map integrated exactly over its Voronoi cell:
+/// `Σ_{v ∈ V(Δt)} R(t, t + v)` for every receiver `t` whose sender `t + Δt` is covered. Exact
+/// for any cell (it includes the subsurface point mass and the near-singular self term), at a
+/// cost of one `R` evaluation per cell member and receiver.
+pub fn compute_map_values_exact(
+    transport: &Transport,
+    grid: &TexelGrid,
+    offset: IVec2,
+    runs: &[offsets::RowRun],
+) -> (Lightmap, f64) {
+    let (w, h) = (grid.width, grid.height);
+    let rows: Vec<(Vec<[f32; 3]>, f64)> = (0..h)
+        .into_par_iter()
+        .map(|y| {
+            let mut row = vec![[0.0f32; 3]; w as usize];
+            let mut imp = 0.0f64;
+            for x in 0..w {
+                let Some(i) = grid.at(x as i32, y as i32) else {
+                    continue;
+                };
+                if grid.at(x as i32 + offset.x, y as i32 + offset.y).is_none() {
+                    continue;
+                }
+                let mut sum = [0.0f64; 3];
+                for run in runs {
+                    for dx in run.dx_start..=run.dx_end_inclusive {
+                        let Some(j) = grid.at(x as i32 + dx, y as i32 + run.dy) else {
+                            continue;
+                        };
+                        let r = transport.r(i, j);
+                        if dx == offset.x && run.dy == offset.y {
+                            imp = imp.max(r[0].abs().max(r[1].abs()).max(r[2].abs()) as f64);
+                        }
+                        for c in 0..3 {
+                            sum[c] += r[c] as f64;
+                        }
+                    }
+                }
+                row[x as usize] = [sum[0] as f32, sum[1] as f32, sum[2] as f32];
+            }
+            (row, imp)
+        })
+        .collect();
+    let mut map = Lightmap::new(w, h);
+    let mut importance = 0.0f64;
+    for (y, (row, imp)) in rows.into_iter().enumerate() {
+        let start = y * w as usize;
+        map.data[start..start + w as usize].copy_from_slice(&row);
+        importance = importance.max(imp);
+    }
+    (map, importance)
+}
+
 /// Offsets chosen by a selection, with the data needed for the report.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct SelectionRecord {
@@ -376,14 +432,25 @@ impl MapPlan {
     }
 
     /// The `k`-th map.
+    ///
+    /// Small cells (at most [`EXACT_CELL_MAX`] integer offsets) and the cell holding the zero
+    /// offset are integrated exactly ([`compute_map_values_exact`]): near `Δt = 0` the transfer is
+    /// far from coherent in `Δt` — the subsurface profile and the form factors of neighbouring
+    /// texels peak there and the texel's own term is a point mass — so the paper's
+    /// `TR(t, t+Δt)·TVA(t, Δt)` (one sample times the cell's area) would over-weight the peak by
+    /// the cell's size. Larger cells, where the transfer is smooth, use Eq. 10 as in the paper.
     pub fn map(&self, transport: &Transport, grid: &TexelGrid, k: usize) -> Result<TransferMap, BakeError> {
         let runs = &self.cells.real[k];
-        let tva = offsets::tva_map(&self.area_map, grid.width, grid.height, runs)?;
         let contains_origin = runs
             .iter()
             .any(|r| r.dy == 0 && r.dx_start <= 0 && 0 <= r.dx_end_inclusive);
-        let (values, importance) =
-            compute_map_values(transport, grid, self.offsets[k], &tva, contains_origin);
+        let members: usize = runs.iter().map(|r| r.len()).sum();
+        let (values, importance) = if contains_origin || members <= EXACT_CELL_MAX {
+            compute_map_values_exact(transport, grid, self.offsets[k], runs)
+        } else {
+            let tva = offsets::tva_map(&self.area_map, grid.width, grid.height, runs)?;
+            compute_map_values(transport, grid, self.offsets[k], &tva, false)
+        };
         Ok(TransferMap::from_full(
             self.offsets[k],
             self.areas[k],

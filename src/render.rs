@@ -41,7 +41,7 @@ use passes::{AlbedoMap, AtlasData, LightDesc, MeshData, PassError, TexelImage, T
 
 use crate::Lightmap;
 use crate::atlas::{ATLAS_INDEX_FILE_NAME, AtlasError, AtlasSet};
-use crate::maps::{BakeIndex, INDEX_FILE_NAME, MapsError};
+use crate::maps::{BakeIndex, INDEX_FILE_NAME, MapsError, TransferMap};
 use crate::scene::{Light, Mesh, Scene};
 use crate::texels::TexelGrid;
 
@@ -381,6 +381,37 @@ pub fn check_scene(
         });
     }
     Ok(())
+}
+
+/// Synthetic transfer maps for benchmarks, with the crops a real bake of the same scene
+/// would get when every pair of covered texels exchanges light: the map of offset `Δt` is
+/// non-zero at receiver `t` exactly when both `t` and `t + Δt` are covered texels of `grid`
+/// (value `0.01·ρ(t)/(1 + |Δt|²)`, dimensionless), then cropped by
+/// [`TransferMap::from_full`] like a baked map. A real bake's maps are zero where
+/// visibility or the kernels vanish, so these are an upper bound on its stored texels (with
+/// multiple bounces, nearly tight: the paper's 3 atlases for 50 maps of 256² imply maps
+/// filled to ≈ 85 %).
+pub fn synthetic_transfer_maps(
+    grid: &TexelGrid,
+    offsets: &[glam::IVec2],
+) -> Result<Vec<TransferMap>, MapsError> {
+    let (w, h) = (grid.width, grid.height);
+    let albedo = grid.albedo_map();
+    let n = offsets.len().max(1) as f64;
+    offsets
+        .iter()
+        .map(|&o| {
+            let mut full = Lightmap::new(w, h);
+            let k = 0.01 / (1.0 + o.length_squared() as f32);
+            for t in &grid.texels {
+                if grid.at(t.x as i32 + o.x, t.y as i32 + o.y).is_some() {
+                    let rho = albedo.get(t.x, t.y);
+                    full.set(t.x, t.y, rho.map(|c| (c * k).max(1e-6)));
+                }
+            }
+            TransferMap::from_full(o, 1.0 / n, k as f64, &full)
+        })
+        .collect()
 }
 
 /// The RGB part of a read-back texel image as a [`Lightmap`] (alpha, the coverage, dropped).

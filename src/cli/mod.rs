@@ -1,7 +1,12 @@
 //! Subcommands of the `ortm` tool.
 
 mod bake;
+mod bench;
+mod bench_render;
+mod bin;
+mod demo;
 mod inspect;
+mod render;
 mod solve;
 
 use std::path::PathBuf;
@@ -20,20 +25,56 @@ pub struct Cli {
 
 #[derive(Subcommand, Debug)]
 enum Command {
+    /// The main job on the built-in Cornell box: inspect, exact solve, bake, bin, render.
+    Demo(demo::Args),
     /// Mesh and chart statistics, coverage, overlaps, and a PNG of the texel charts.
     Inspect(inspect::Args),
     /// Bake offset transfer maps (OpenEXR + index.json) for a scene; resumable.
     Bake(bake::Args),
+    /// Pack a bake's transfer maps into texture atlases (OpenEXR + atlases.json + PNGs).
+    Bin(bin::Args),
+    /// Benchmarks printed as tables: `transport`, `bake`, `render`.
+    Bench(BenchArgs),
     /// Exact dense solve (small lightmaps): first-order, final and indirect lightmaps as PNG.
     Solve(solve::Args),
+    /// Relight a bake on the GPU: frame PNG, final and first-order lightmaps (OpenEXR).
+    Render(render::Args),
+}
+
+/// `ortm bench render …` (a subcommand with its own options) or `ortm bench transport|bake`.
+#[derive(clap::Args, Debug)]
+#[command(args_conflicts_with_subcommands = true, subcommand_negates_reqs = true)]
+struct BenchArgs {
+    #[command(subcommand)]
+    sub: Option<BenchCommand>,
+    #[command(flatten)]
+    other: Option<bench::Args>,
+}
+
+/// `ortm bench …` subcommands with their own options.
+#[derive(Subcommand, Debug)]
+enum BenchCommand {
+    /// Per-pass GPU frame times for the paper's Table 1 configurations (head).
+    Render(bench_render::Args),
 }
 
 /// Runs a parsed command line.
 pub fn run(cli: Cli) -> Result<()> {
     match cli.command {
+        Command::Demo(a) => demo::run(a),
         Command::Inspect(a) => inspect::run(a),
         Command::Solve(a) => solve::run(a),
         Command::Bake(a) => bake::run(a),
+        Command::Bench(BenchArgs {
+            sub: Some(BenchCommand::Render(a)),
+            ..
+        }) => bench_render::run(a),
+        Command::Bench(BenchArgs {
+            other: Some(a), ..
+        }) => bench::run(a),
+        Command::Bench(_) => anyhow::bail!("ortm bench: name a benchmark: transport, bake or render"),
+        Command::Bin(a) => bin::run(a),
+        Command::Render(a) => render::run(a),
     }
 }
 
