@@ -57,7 +57,9 @@ use serde::{Deserialize, Serialize};
 
 use crate::Lightmap;
 use crate::maps::exr_io::{sha256_hex, write_atomic};
-use crate::maps::{INDEX_FILE_NAME, INDEX_FORMAT, LightmapSize, MAX_TEXELS, MapsError, TransferMap};
+use crate::maps::{
+    INDEX_FILE_NAME, INDEX_FORMAT, LightmapSize, MAX_TEXELS, MapsError, TransferMap,
+};
 
 /// File name of the atlas index inside an atlas directory.
 pub const ATLAS_INDEX_FILE_NAME: &str = "atlases.json";
@@ -452,9 +454,8 @@ pub fn build_atlas_set_with_stats(
             data.push(&c.data);
         }
     }
-    let map_index = |mi: usize| {
-        u32::try_from(mi).map_err(|_| AtlasError::TooManyCrops { count: maps.len() })
-    };
+    let map_index =
+        |mi: usize| u32::try_from(mi).map_err(|_| AtlasError::TooManyCrops { count: maps.len() });
     let packing = binning::pack(&rects, atlas_w, atlas_h)?;
     let atlases = binning::blit(&packing, &data)?;
     let mut pieces = Vec::with_capacity(packing.placements.len());
@@ -883,7 +884,11 @@ fn decode_atlas(
 /// # Errors
 /// [`AtlasError::InvalidSet`] for an inconsistent set or a malformed key, [`AtlasError::Io`],
 /// [`AtlasError::Exr`].
-pub fn write_atlas_set(dir: &Path, set: &AtlasSet, bake_key: &str) -> Result<AtlasIndex, AtlasError> {
+pub fn write_atlas_set(
+    dir: &Path,
+    set: &AtlasSet,
+    bake_key: &str,
+) -> Result<AtlasIndex, AtlasError> {
     set.validate()?;
     if !is_hex_digest(bake_key) {
         return Err(AtlasError::InvalidSet {
@@ -977,7 +982,8 @@ pub fn read_atlas_index(dir: &Path) -> Result<AtlasIndex, AtlasError> {
     let obj = value
         .as_object_mut()
         .ok_or_else(|| bad("the top level is not a JSON object".into()))?;
-    let found = |v: Option<serde_json::Value>| v.map_or_else(|| "<missing>".into(), |v| v.to_string());
+    let found =
+        |v: Option<serde_json::Value>| v.map_or_else(|| "<missing>".into(), |v| v.to_string());
     match obj.remove("format") {
         Some(serde_json::Value::String(f)) if f == ATLAS_INDEX_FORMAT => {}
         other => {
@@ -1012,7 +1018,10 @@ pub fn read_atlas_index(dir: &Path) -> Result<AtlasIndex, AtlasError> {
             });
         }
         if !names.insert(a.file.as_str()) {
-            return Err(bad(format!("atlases[{i}]: file {:?} appears twice", a.file)));
+            return Err(bad(format!(
+                "atlases[{i}]: file {:?} appears twice",
+                a.file
+            )));
         }
         if !is_hex_digest(&a.sha256) {
             return Err(bad(format!(
@@ -1328,7 +1337,8 @@ mod tests {
             assert_eq!(p.offset, m.offset.to_array());
             for j in 0..p.h {
                 for i in 0..p.w {
-                    let a = set.atlases[p.atlas as usize][((p.src_y + j) * 8 + p.src_x + i) as usize];
+                    let a =
+                        set.atlases[p.atlas as usize][((p.src_y + j) * 8 + p.src_x + i) as usize];
                     assert_eq!(a, m.value_at(p.dst_x + i, p.dst_y + j));
                     covered += 1;
                 }
@@ -1343,7 +1353,10 @@ mod tests {
 
     #[test]
     fn build_rejects_bad_input() {
-        assert!(matches!(build_atlas_set(&[], 8, 8), Err(AtlasError::NoMaps)));
+        assert!(matches!(
+            build_atlas_set(&[], 8, 8),
+            Err(AtlasError::NoMaps)
+        ));
         let a = map((0, 0), &[(0, 0, 2, 2)], 1.0);
         assert!(matches!(
             build_atlas_set(std::slice::from_ref(&a), 6, 8),
@@ -1358,7 +1371,10 @@ mod tests {
 
     #[test]
     fn validate_catches_overlaps_and_bad_offsets() {
-        let maps = vec![map((1, 0), &[(0, 0, 4, 2)], 1.0), map((0, 1), &[(0, 4, 4, 2)], 2.0)];
+        let maps = vec![
+            map((1, 0), &[(0, 0, 4, 2)], 1.0),
+            map((0, 1), &[(0, 4, 4, 2)], 2.0),
+        ];
         let set = build_atlas_set(&maps, 4, 4).unwrap();
         set.validate().unwrap();
         let mut s = set.clone();

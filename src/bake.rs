@@ -251,7 +251,11 @@ pub fn compute_map_values(
                 };
                 let mut r = Vec3::from_array(transport.r(i, j));
                 imp = imp.max(r.abs().max_element() as f64);
-                let delta = if i == j && transport.is_translucent(i) { 1.0 } else { 0.0 };
+                let delta = if i == j && transport.is_translucent(i) {
+                    1.0
+                } else {
+                    0.0
+                };
                 r += Vec3::splat(delta);
                 let a_j = transport.patches[j as usize].area_m2;
                 let mut v = r / a_j * tva[(y * w + x) as usize];
@@ -363,7 +367,8 @@ pub fn select_offsets(
                 metric: settings.metric,
                 seed: settings.seed,
             };
-            let total = (settings.seed_grid as u64).pow(2) + 1 + settings.refinement_iterations as u64;
+            let total =
+                (settings.seed_grid as u64).pow(2) + 1 + settings.refinement_iterations as u64;
             events(BakeEvent::Phase {
                 name: "selecting offsets",
                 total,
@@ -439,7 +444,12 @@ impl MapPlan {
     /// texels peak there and the texel's own term is a point mass — so the paper's
     /// `TR(t, t+Δt)·TVA(t, Δt)` (one sample times the cell's area) would over-weight the peak by
     /// the cell's size. Larger cells, where the transfer is smooth, use Eq. 10 as in the paper.
-    pub fn map(&self, transport: &Transport, grid: &TexelGrid, k: usize) -> Result<TransferMap, BakeError> {
+    pub fn map(
+        &self,
+        transport: &Transport,
+        grid: &TexelGrid,
+        k: usize,
+    ) -> Result<TransferMap, BakeError> {
         let runs = &self.cells.real[k];
         let contains_origin = runs
             .iter()
@@ -511,7 +521,9 @@ pub fn bake(
         .filter(|s: &SelectionRecord| s.bake_key == key.as_str());
     let (offset_list, points) = match saved {
         Some(s) => {
-            events(BakeEvent::Message("reusing the saved offset selection".into()));
+            events(BakeEvent::Message(
+                "reusing the saved offset selection".into(),
+            ));
             (
                 s.offsets.iter().map(|o| IVec2::from_array(*o)).collect(),
                 s.data_points,
@@ -573,16 +585,21 @@ pub fn bake(
         settings_json,
         entries,
     );
-    crate::report::write_bake_report(dir, &grid, &offset_list, &importance, &points)
-        .map_err(|e| BakeError::Io {
+    crate::report::write_bake_report(dir, &grid, &offset_list, &importance, &points).map_err(
+        |e| BakeError::Io {
             path: dir.join("report"),
             source: std::io::Error::other(e.to_string()),
-        })?;
+        },
+    )?;
     index.write(dir)?;
     Ok(BakeSummary {
         maps: total,
         reused,
-        seconds: [t_transport, t_select, t0.elapsed().as_secs_f64() - t_transport - t_select],
+        seconds: [
+            t_transport,
+            t_select,
+            t0.elapsed().as_secs_f64() - t_transport - t_select,
+        ],
         texels: grid.texels.len(),
         stored_texels: stored,
     })

@@ -73,12 +73,7 @@ impl Visibility {
             return true;
         }
         let dir = d / len;
-        let ray = Ray::new(
-            Vec3A::from(p),
-            Vec3A::from(dir),
-            epsilon_m,
-            len - epsilon_m,
-        );
+        let ray = Ray::new(Vec3A::from(p), Vec3A::from(dir), epsilon_m, len - epsilon_m);
         self.bvh.ray_traverse_miss(ray, |ray, id| {
             self.triangles[self.bvh.primitive_indices[id] as usize].intersect(ray)
         })

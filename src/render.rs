@@ -341,7 +341,11 @@ pub fn load_bake_atlases(
         None
     };
     if has_atlases {
-        return Ok((index, crate::atlas::read_atlas_set(dir)?, AtlasSource::Files));
+        return Ok((
+            index,
+            crate::atlas::read_atlas_set(dir)?,
+            AtlasSource::Files,
+        ));
     }
     let index = index.ok_or_else(|| RenderError::NotABake {
         dir: dir.to_owned(),
@@ -767,7 +771,10 @@ mod tests {
                     mesh.positions_m[tri.position[k] as usize].to_array()
                 );
                 assert_eq!(d.lightmap_uvs[v], mesh.uvs[tri.uv[k] as usize].to_array());
-                assert_eq!(d.normals[v], mesh.normals[tri.normal[k] as usize].to_array());
+                assert_eq!(
+                    d.normals[v],
+                    mesh.normals[tri.normal[k] as usize].to_array()
+                );
             }
         }
     }
@@ -823,9 +830,15 @@ mod tests {
     #[test]
     fn camera_and_size_specs() {
         let c = parse_camera("0,1,3:0,1,0", 40.0, 0.5).unwrap();
-        assert_eq!((c.eye, c.target, c.fov_y_deg), ([0.0, 1.0, 3.0], [0.0, 1.0, 0.0], 40.0));
+        assert_eq!(
+            (c.eye, c.target, c.fov_y_deg),
+            ([0.0, 1.0, 3.0], [0.0, 1.0, 0.0], 40.0)
+        );
         assert!(c.near > 0.0 && c.far >= 4.0 && c.near < c.far);
-        assert_eq!(parse_camera("0,1,3:0,1,0:25", 40.0, 0.5).unwrap().fov_y_deg, 25.0);
+        assert_eq!(
+            parse_camera("0,1,3:0,1,0:25", 40.0, 0.5).unwrap().fov_y_deg,
+            25.0
+        );
         assert!(parse_camera("0,1,0:0,0,0", 40.0, 0.5).is_err());
         assert!(parse_camera("0,0,0:0,0,0", 40.0, 0.5).is_err());
         assert!(parse_camera("0,1,3:0,1,0:180", 40.0, 0.5).is_err());
@@ -852,7 +865,10 @@ mod tests {
             let half_y = 20f32.to_radians();
             let half_x = (half_y.tan() * aspect).atan();
             assert!(ang <= half_y.min(half_x) + 1e-5, "aspect {aspect}");
-            assert!(ang >= 0.99 * half_y.min(half_x), "not tight, aspect {aspect}");
+            assert!(
+                ang >= 0.99 * half_y.min(half_x),
+                "not tight, aspect {aspect}"
+            );
             assert!(c.near < d.length() - r && c.far > d.length() + r);
         }
     }

@@ -64,7 +64,11 @@ pub fn lightmap_image(map: &Lightmap, white: f32) -> RgbImage {
     let white = if white > 0.0 { white } else { 1.0 };
     RgbImage::from_fn(map.width, map.height, |x, y| {
         let p = map.get(x, y);
-        Rgb([srgb8(p[0] / white), srgb8(p[1] / white), srgb8(p[2] / white)])
+        Rgb([
+            srgb8(p[0] / white),
+            srgb8(p[1] / white),
+            srgb8(p[2] / white),
+        ])
     })
 }
 
@@ -200,7 +204,11 @@ pub fn write_bake_report(
         heat(t)
     });
     for p in &pts {
-        dot(&mut img, glam::DVec2::new(p.0.x / w, p.0.y / h), Rgb([160, 160, 160]));
+        dot(
+            &mut img,
+            glam::DVec2::new(p.0.x / w, p.0.y / h),
+            Rgb([160, 160, 160]),
+        );
     }
     save_png(&img, &dir.join("report_density.png"))
 }

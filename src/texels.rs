@@ -180,7 +180,9 @@ fn charts(scene: &Scene) -> (Vec<u32>, usize) {
         let uv = scene.mesh.uvs[tri.uv[k] as usize];
         (tri.position[k], uv.x.to_bits(), uv.y.to_bits())
     };
-    let mut edges: HashMap<((u32, u32, u32), (u32, u32, u32)), u32> = HashMap::new();
+    // An edge end point: (position index, UV bits); an edge: its two sorted end points.
+    type EdgeEnd = (u32, u32, u32);
+    let mut edges: HashMap<(EdgeEnd, EdgeEnd), u32> = HashMap::new();
     for t in 0..tris.len() {
         for k in 0..3 {
             let (a, b) = (key(t, k), key(t, (k + 1) % 3));
@@ -197,10 +199,10 @@ fn charts(scene: &Scene) -> (Vec<u32>, usize) {
     }
     let mut ids = HashMap::new();
     let mut out = vec![0u32; tris.len()];
-    for t in 0..tris.len() {
+    for (t, o) in out.iter_mut().enumerate() {
         let r = find(&mut parent, t as u32);
         let n = ids.len() as u32;
-        out[t] = *ids.entry(r).or_insert(n);
+        *o = *ids.entry(r).or_insert(n);
     }
     (out, ids.len())
 }
@@ -227,7 +229,8 @@ impl TexelGrid {
                 (q.x as f64, q.y as f64)
             });
             // Orientation: make E = (b−a)×(p−a) positive inside.
-            let area2 = (p[1].0 - p[0].0) * (p[2].1 - p[0].1) - (p[1].1 - p[0].1) * (p[2].0 - p[0].0);
+            let area2 =
+                (p[1].0 - p[0].0) * (p[2].1 - p[0].1) - (p[1].1 - p[0].1) * (p[2].0 - p[0].0);
             if area2 == 0.0 || !area2.is_finite() {
                 tris_without += 1;
                 continue;
@@ -303,7 +306,8 @@ impl TexelGrid {
                     overlapping += 1;
                 }
                 let tri = &mesh.triangles[ti as usize];
-                let pos: [Vec3; 3] = std::array::from_fn(|k| mesh.positions_m[tri.position[k] as usize]);
+                let pos: [Vec3; 3] =
+                    std::array::from_fn(|k| mesh.positions_m[tri.position[k] as usize]);
                 let uvs: [Vec2; 3] = std::array::from_fn(|k| mesh.uvs[tri.uv[k] as usize]);
                 let nrm: [Vec3; 3] = std::array::from_fn(|k| mesh.normals[tri.normal[k] as usize]);
                 let position_m = pos[0] * b[0] + pos[1] * b[1] + pos[2] * b[2];
@@ -313,7 +317,8 @@ impl TexelGrid {
                 let normal = (nrm[0] * b[0] + nrm[1] * b[1] + nrm[2] * b[2])
                     .try_normalize()
                     .unwrap_or(face_normal);
-                let t: [Vec2; 3] = std::array::from_fn(|k| uv_to_texel_space(uvs[k], width, height));
+                let t: [Vec2; 3] =
+                    std::array::from_fn(|k| uv_to_texel_space(uvs[k], width, height));
                 let texel_area = 0.5 * ((t[1] - t[0]).perp_dot(t[2] - t[0])).abs();
                 let area_m2 = world_area / texel_area;
                 let uv = uvs[0] * b[0] + uvs[1] * b[1] + uvs[2] * b[2];

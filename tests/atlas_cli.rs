@@ -67,15 +67,28 @@ fn bin_writes_readable_atlases_and_pictures() {
         out.as_os_str(),
     ]);
     let stdout = String::from_utf8_lossy(&o.stdout);
-    assert!(o.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&o.stderr));
+    assert!(
+        o.status.success(),
+        "{stdout}\n{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
     let set = read_atlas_set(&out).unwrap();
     assert_eq!(set.atlas_size, (32, 64));
     let stored: u64 = maps.iter().map(TransferMap::stored_texels).sum();
     assert_eq!(set.atlases.len() as u64, stored.div_ceil(32 * 64));
-    assert!(stdout.contains(&format!("atlases      {} of 32x64", set.atlases.len())), "{stdout}");
-    assert!(stdout.contains(&format!("texels       {stored}")), "{stdout}");
+    assert!(
+        stdout.contains(&format!("atlases      {} of 32x64", set.atlases.len())),
+        "{stdout}"
+    );
+    assert!(
+        stdout.contains(&format!("texels       {stored}")),
+        "{stdout}"
+    );
     for i in 0..set.atlases.len() {
-        for name in [format!("atlas_{i:03}.png"), format!("atlas_{i:03}_values.png")] {
+        for name in [
+            format!("atlas_{i:03}.png"),
+            format!("atlas_{i:03}_values.png"),
+        ] {
             let img = image::open(out.join(&name)).unwrap();
             assert!(img.width() >= 32, "{name}");
         }

@@ -27,7 +27,11 @@ fn random_maps(rng: &mut ChaCha8Rng, w: u32, h: u32, n: usize) -> Vec<TransferMa
                 let bh = rng.random_range(1..=(h - by).min(12));
                 for y in by..by + bh {
                     for x in bx..bx + bw {
-                        full.set(x, y, [rng.random(), rng.random::<f32>() * 1e-3, rng.random()]);
+                        full.set(
+                            x,
+                            y,
+                            [rng.random(), rng.random::<f32>() * 1e-3, rng.random()],
+                        );
                     }
                 }
             }
@@ -105,12 +109,9 @@ fn pieces_reconstruct_every_map_bit_exactly() {
                 assert_eq!(bits(&rebuilt[mi]), bits(&m.to_full()), "map {mi}");
             }
             // Sorted by atlas, then position.
-            assert!(
-                set.pieces
-                    .windows(2)
-                    .all(|p| (p[0].atlas, p[0].src_y, p[0].src_x)
-                        < (p[1].atlas, p[1].src_y, p[1].src_x))
-            );
+            assert!(set.pieces.windows(2).all(
+                |p| (p[0].atlas, p[0].src_y, p[0].src_x) < (p[1].atlas, p[1].src_y, p[1].src_x)
+            ));
         }
     }
 }
@@ -198,14 +199,24 @@ fn write_then_read_round_trips() {
     assert_eq!(back, set);
     // Bit-exact atlas values (f32 files).
     for (a, b) in back.atlases.iter().zip(&set.atlases) {
-        assert!(a.iter().zip(b).all(|(x, y)| x.map(f32::to_bits) == y.map(f32::to_bits)));
+        assert!(
+            a.iter()
+                .zip(b)
+                .all(|(x, y)| x.map(f32::to_bits) == y.map(f32::to_bits))
+        );
     }
     let text = fs::read_to_string(dir.path().join(ATLAS_INDEX_FILE_NAME)).unwrap();
     let v: serde_json::Value = serde_json::from_str(&text).unwrap();
     assert_eq!(v["format"], "ortm-atlases");
     assert_eq!(v["version"], 1);
-    assert_eq!(v["atlas_size"], serde_json::json!({"width": 16, "height": 16}));
-    assert_eq!(v["lightmap"], serde_json::json!({"width": 48, "height": 40}));
+    assert_eq!(
+        v["atlas_size"],
+        serde_json::json!({"width": 16, "height": 16})
+    );
+    assert_eq!(
+        v["lightmap"],
+        serde_json::json!({"width": 48, "height": 40})
+    );
     assert_eq!(v["atlases"][1]["file"], "atlas_001.exr");
     assert_eq!(v["pieces"].as_array().unwrap().len(), set.pieces.len());
     // No temporary files are left behind.
@@ -257,7 +268,10 @@ fn tampered_or_inconsistent_atlases_are_refused() {
     assert!(e.to_string().contains("atlas_001.exr"), "{e}");
     // Truncated: size error.
     fs::write(&f1, &original[..original.len() - 7]).unwrap();
-    assert!(matches!(read_atlas_set(d), Err(AtlasError::FileSize { .. })));
+    assert!(matches!(
+        read_atlas_set(d),
+        Err(AtlasError::FileSize { .. })
+    ));
     // Missing.
     fs::remove_file(&f1).unwrap();
     let e = read_atlas_set(d).unwrap_err();
@@ -303,7 +317,11 @@ fn tampered_or_inconsistent_atlases_are_refused() {
     restore();
 
     // Unsafe file names.
-    for bad in ["../atlas_000.exr", "/tmp/atlas_000.exr", "sub/atlas_000.exr"] {
+    for bad in [
+        "../atlas_000.exr",
+        "/tmp/atlas_000.exr",
+        "sub/atlas_000.exr",
+    ] {
         let e = read_after_edit(d, |v| v["atlases"][0]["file"] = bad.into());
         assert!(matches!(e, AtlasError::BadFileName { .. }), "{bad}: {e}");
         restore();

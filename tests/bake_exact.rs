@@ -42,7 +42,11 @@ fn cornell_exact_solve_conserves_energy() {
         let patches = texel_patches(&grid);
         let dense = DenseTransport::new(&patches, &kernels);
         let e_d = lighting::irradiance(&grid, &scene.lights, &vis);
-        let b_o: Vec<Vec3> = e_d.iter().zip(&grid.texels).map(|(e, t)| *e * t.albedo).collect();
+        let b_o: Vec<Vec3> = e_d
+            .iter()
+            .zip(&grid.texels)
+            .map(|(e, t)| *e * t.albedo)
+            .collect();
         let b = dense.solve(&b_o);
         let row_sums = dense.form_factor_row_sums();
         for ch in 0..3 {
@@ -144,7 +148,9 @@ fn importance_sampled_offsets_converge_on_the_head() {
         .map(|&k| error(k, Selector::Importance))
         .collect();
     let jittered = error(100, Selector::JitteredGrid);
-    eprintln!("head 64²: relative RMSE of the indirect term, K = 25/50/100/200: {errs:.4?}; jittered grid K = 100: {jittered:.4}");
+    eprintln!(
+        "head 64²: relative RMSE of the indirect term, K = 25/50/100/200: {errs:.4?}; jittered grid K = 100: {jittered:.4}"
+    );
     for w in errs.windows(2) {
         assert!(w[1] < w[0], "error must fall as K grows: {errs:?}");
     }

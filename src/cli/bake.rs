@@ -56,7 +56,9 @@ pub fn parse_effects(s: &str) -> Result<Effects> {
         match part {
             "radiosity" => e.radiosity = true,
             "sss" | "subsurface" => e.subsurface = true,
-            other => bail!("--effects: unknown effect '{other}'; use radiosity, sss or both (radiosity,sss)"),
+            other => bail!(
+                "--effects: unknown effect '{other}'; use radiosity, sss or both (radiosity,sss)"
+            ),
         }
     }
     if !e.radiosity && !e.subsurface {
@@ -102,18 +104,23 @@ pub fn run(a: Args) -> Result<()> {
             if c.swap(true, Ordering::SeqCst) {
                 std::process::exit(130);
             }
-            eprintln!("\ninterrupt: finishing the current map, then stopping (Ctrl-C again to abort)");
+            eprintln!(
+                "\ninterrupt: finishing the current map, then stopping (Ctrl-C again to abort)"
+            );
         });
     }
     let bar = std::sync::Mutex::new(ProgressBar::hidden());
-    let style = ProgressStyle::with_template("{msg:24} [{bar:40}] {pos}/{len} {elapsed_precise} eta {eta}")
-        .expect("valid template")
-        .progress_chars("=> ");
+    let style =
+        ProgressStyle::with_template("{msg:24} [{bar:40}] {pos}/{len} {elapsed_precise} eta {eta}")
+            .expect("valid template")
+            .progress_chars("=> ");
     let events = |e: BakeEvent| match e {
         BakeEvent::Phase { name, total } => {
             let mut b = bar.lock().expect("progress lock");
             b.finish();
-            *b = ProgressBar::new(total).with_style(style.clone()).with_message(name);
+            *b = ProgressBar::new(total)
+                .with_style(style.clone())
+                .with_message(name);
         }
         BakeEvent::Advance(n) => bar.lock().expect("progress lock").inc(n),
         BakeEvent::Message(m) => bar.lock().expect("progress lock").println(m),

@@ -49,13 +49,19 @@ fn transport() -> Result<()> {
         .map(|_| {
             let a = &grid.texels[rng.random_range(0..n)];
             let b = &grid.texels[rng.random_range(0..n)];
-            (a.position_m + a.face_normal * 1e-5, b.position_m + b.face_normal * 1e-5)
+            (
+                a.position_m + a.face_normal * 1e-5,
+                b.position_m + b.face_normal * 1e-5,
+            )
         })
         .collect();
     let t = Instant::now();
     let visible = {
         use rayon::prelude::*;
-        pairs.par_iter().filter(|(p, q)| vis.visible(*p, *q, 1e-5)).count()
+        pairs
+            .par_iter()
+            .filter(|(p, q)| vis.visible(*p, *q, 1e-5))
+            .count()
     };
     let ray_s = pairs.len() as f64 / t.elapsed().as_secs_f64();
     println!("| measurement | value |");
@@ -94,8 +100,20 @@ fn transport() -> Result<()> {
         let lights = ortm::eval::random_light_setups(&s, 1, 11).remove(0);
         let b_o = ortm::lighting::first_order(&g, &lights, &vis_of(&s));
         for (label, eff) in [
-            ("radiosity", Effects { radiosity: true, subsurface: false }),
-            ("subsurface", Effects { radiosity: false, subsurface: true }),
+            (
+                "radiosity",
+                Effects {
+                    radiosity: true,
+                    subsurface: false,
+                },
+            ),
+            (
+                "subsurface",
+                Effects {
+                    radiosity: false,
+                    subsurface: true,
+                },
+            ),
             ("both", Effects::default()),
         ] {
             let tr = Transport::new(&s, &g, eff, 4);
@@ -105,7 +123,11 @@ fn transport() -> Result<()> {
             use rayon::prelude::*;
             let approx: Vec<Vec3> = (0..n)
                 .into_par_iter()
-                .map(|i| (0..n).map(|j| Vec3::from_array(tr.r(i as u32, j as u32)) * b_o[j]).sum())
+                .map(|i| {
+                    (0..n)
+                        .map(|j| Vec3::from_array(tr.r(i as u32, j as u32)) * b_o[j])
+                        .sum()
+                })
                 .collect();
             let ex: Vec<Vec3> = exact.iter().zip(&b_o).map(|(a, b)| *a - *b).collect();
             println!(
@@ -128,7 +150,10 @@ fn transport() -> Result<()> {
     let t = Instant::now();
     let s: f64 = idx
         .par_iter()
-        .map(|&(i, j)| tr.kernels.r_fine(&tr.patches[i as usize], &tr.patches[j as usize], i == j)[0])
+        .map(|&(i, j)| {
+            tr.kernels
+                .r_fine(&tr.patches[i as usize], &tr.patches[j as usize], i == j)[0]
+        })
         .sum();
     println!(
         "| K (first bounce + subsurface) pair evaluations/s, random pairs | {:.2} M |",
@@ -160,7 +185,9 @@ fn bake_table(rows: usize) -> Result<()> {
         (512, 100, 22, 197.0),
         (512, 200, 43, 226.0),
     ];
-    println!("| lightmap | offsets | ortm map generation (s) | of which transport / selection / maps | paper (s) | stored texels/map |");
+    println!(
+        "| lightmap | offsets | ortm map generation (s) | of which transport / selection / maps | paper (s) | stored texels/map |"
+    );
     println!("|---|---|---|---|---|---|");
     for &(size, k, _bins, paper_s) in table.iter().take(rows) {
         let mut scene = super::head_scene()?;

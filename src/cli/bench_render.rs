@@ -71,9 +71,9 @@ pub struct Args {
     /// Bench this bake directory instead of synthetic maps (repeatable).
     #[arg(long = "bake")]
     bakes: Vec<PathBuf>,
-    /// Scene: the head scene file (run from the repository root), `cornell` or another
-    /// scene file; for --bake, the default is the scene recorded in the bake, else this.
-    #[arg(long, default_value = "tests/data/render/head.toml")]
+    /// Scene: `head` (built in), `cornell` or a scene file; for --bake, the scene recorded
+    /// in the bake's settings takes precedence.
+    #[arg(long, default_value = "head")]
     scene: String,
     /// Timed runs per measurement (median; one warm-up run first).
     #[arg(long, default_value_t = 3)]
@@ -219,7 +219,10 @@ pub fn run(a: Args) -> Result<()> {
             paper,
         });
     }
-    if let Some(r) = rows.iter().find_map(|r| r.blend.as_ref().or(r.compute.as_ref())) {
+    if let Some(r) = rows
+        .iter()
+        .find_map(|r| r.blend.as_ref().or(r.compute.as_ref()))
+    {
         println!("timing: {}", r.timing);
     }
     print_table(&rows);
@@ -285,8 +288,9 @@ fn print_table(rows: &[Row]) {
                 1
             ),
             f(frame_ms.map(|m| 1000.0 / m), 3),
-            r.paper
-                .map_or("—".to_string(), |(bins, fps)| format!("{fps:.2} ({bins} bins)")),
+            r.paper.map_or("—".to_string(), |(bins, fps)| format!(
+                "{fps:.2} ({bins} bins)"
+            )),
         );
     }
     println!(

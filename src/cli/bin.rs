@@ -1,13 +1,14 @@
 //! `ortm bin DIR [--atlas 1024] [-o OUT]`: packs a bake's transfer maps into texture atlases
 //! (paper Sec. 5.2).
 //!
-//! Data flow: `DIR/index.json` + map files ([`ortm::maps::BakeIndex`]) → every crop rectangle
-//! packed by the `binning` crate ([`ortm::atlas::build_atlas_set_with_stats`]) → `OUT/atlas_NNN.exr`
-//! + `OUT/atlases.json` ([`ortm::atlas::write_atlas_set`], format in `docs/atlas-format.md`) →
-//! pictures `OUT/atlas_NNN.png` (the packing: one colour per map, labelled with the map index)
-//! and `OUT/atlas_NNN_values.png` (tone-mapped values). Prints the atlas count, pieces per map,
-//! fill ratio and texels, with the paper's Table 1 figures where the configuration matches
-//! (1024² atlases, same lightmap size and map count).
+//! Data flow: `DIR/index.json` and the map files ([`ortm::maps::BakeIndex`]); every crop
+//! rectangle packed by the `binning` crate ([`ortm::atlas::build_atlas_set_with_stats`]);
+//! `OUT/atlas_NNN.exr` and `OUT/atlases.json` ([`ortm::atlas::write_atlas_set`], format in
+//! `docs/atlas-format.md`); pictures `OUT/atlas_NNN.png` (the packing: one colour per map,
+//! labelled with the map index) and `OUT/atlas_NNN_values.png` (tone-mapped values). Prints the
+//! atlas count, pieces per map, fill ratio and texels, with the paper's Table 1 figures where the
+//! configuration matches (1024² atlases, same lightmap size and map count). Errors (missing
+//! index, corrupt map file, bad atlas size) name the file or argument and the fix.
 
 use std::path::PathBuf;
 
@@ -104,7 +105,9 @@ pub fn run(a: Args) -> Result<()> {
     let capacity = u64::from(aw) * u64::from(ah);
     let paper = PAPER_TABLE
         .iter()
-        .find(|&&(side, n, _)| (lw, lh) == (side, side) && maps.len() == n && (aw, ah) == (1024, 1024))
+        .find(|&&(side, n, _)| {
+            (lw, lh) == (side, side) && maps.len() == n && (aw, ah) == (1024, 1024)
+        })
         .map_or_else(String::new, |&(side, n, bins)| {
             format!("   (paper Table 1, {n} maps of {side}x{side}: {bins})")
         });
@@ -144,7 +147,10 @@ fn write_pictures(out: &std::path::Path, set: &AtlasSet) -> Result<()> {
         let stem = stem.trim_end_matches(".exr");
         let pictures = [
             (format!("{stem}.png"), atlas::packing_image(set, i)),
-            (format!("{stem}_values.png"), atlas::atlas_values_image(set, i)),
+            (
+                format!("{stem}_values.png"),
+                atlas::atlas_values_image(set, i),
+            ),
         ];
         for (name, img) in pictures {
             let img = img.context("atlas index out of range (internal error)")?;

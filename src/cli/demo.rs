@@ -27,9 +27,25 @@ pub fn run(a: Args) -> Result<()> {
     let size = a.size.to_string();
     let offsets = a.offsets.to_string();
     let steps: Vec<Vec<String>> = vec![
-        vec!["inspect", "cornell", "--size", &size, "-o", &out("coverage.png")],
+        vec![
+            "inspect",
+            "cornell",
+            "--size",
+            &size,
+            "-o",
+            &out("coverage.png"),
+        ],
         vec!["solve", "cornell", "--size", &size, "-o", &out("exact")],
-        vec!["bake", "cornell", "--size", &size, "--offsets", &offsets, "-o", &out("bake")],
+        vec![
+            "bake",
+            "cornell",
+            "--size",
+            &size,
+            "--offsets",
+            &offsets,
+            "-o",
+            &out("bake"),
+        ],
         vec!["bin", &out("bake")],
         vec![
             "render",
@@ -50,8 +66,9 @@ pub fn run(a: Args) -> Result<()> {
     .collect();
     for step in steps {
         println!("\n$ ortm {}", step.join(" "));
-        let cli = super::Cli::try_parse_from(std::iter::once("ortm".to_string()).chain(step.clone()))
-            .with_context(|| format!("demo step {}", step[0]))?;
+        let cli =
+            super::Cli::try_parse_from(std::iter::once("ortm".to_string()).chain(step.clone()))
+                .with_context(|| format!("demo step {}", step[0]))?;
         super::run(cli).with_context(|| format!("demo step `ortm {}`", step.join(" ")))?;
     }
     println!("\ndemo outputs in {}", a.output.display());

@@ -69,10 +69,10 @@ pub fn run(cli: Cli) -> Result<()> {
             sub: Some(BenchCommand::Render(a)),
             ..
         }) => bench_render::run(a),
-        Command::Bench(BenchArgs {
-            other: Some(a), ..
-        }) => bench::run(a),
-        Command::Bench(_) => anyhow::bail!("ortm bench: name a benchmark: transport, bake or render"),
+        Command::Bench(BenchArgs { other: Some(a), .. }) => bench::run(a),
+        Command::Bench(_) => {
+            anyhow::bail!("ortm bench: name a benchmark: transport, bake or render")
+        }
         Command::Bin(a) => bin::run(a),
         Command::Render(a) => render::run(a),
     }
@@ -84,7 +84,9 @@ pub fn load_scene(arg: &str, size: Option<u32>) -> Result<Scene> {
     let mut scene = match arg {
         "cornell" => {
             if size.is_some_and(|s| s < 32) {
-                anyhow::bail!("the built-in cornell scene needs --size 32 or more (its charts have 2-texel gutters)");
+                anyhow::bail!(
+                    "the built-in cornell scene needs --size 32 or more (its charts have 2-texel gutters)"
+                );
             }
             ortm::scene::cornell::cornell_box(size.unwrap_or(64))
         }
@@ -112,7 +114,12 @@ pub fn ensure_dir(dir: &std::path::Path) -> Result<()> {
 pub fn head_obj_path() -> PathBuf {
     std::env::var_os("ORTM_HEAD_OBJ")
         .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/faces/head.obj")))
+        .unwrap_or_else(|| {
+            PathBuf::from(concat!(
+                env!("CARGO_MANIFEST_DIR"),
+                "/../shared/faces/head.obj"
+            ))
+        })
 }
 
 /// The built-in `head` scene: the scanned head at 0.34 m per model unit (≈ 155 mm wide), skin

@@ -108,7 +108,10 @@ pub fn run(a: Args) -> Result<()> {
     let (img_w, img_h) = render::parse_size(&a.size)?;
     let (index, set, source) = render::load_bake_atlases(&a.dir, a.atlas_size)
         .with_context(|| format!("reading bake directory '{}'", a.dir.display()))?;
-    let scene_arg = match (&a.scene, index.as_ref().and_then(render::scene_arg_from_settings)) {
+    let scene_arg = match (
+        &a.scene,
+        index.as_ref().and_then(render::scene_arg_from_settings),
+    ) {
         (Some(s), _) => s.clone(),
         (None, Some(s)) => s,
         (None, None) => bail!(
@@ -133,7 +136,9 @@ pub fn run(a: Args) -> Result<()> {
             .collect::<Result<Vec<_>, _>>()?
     };
     if lights.is_empty() {
-        eprintln!("warning: no lights (the scene has none and no --light was given): the image is black");
+        eprintln!(
+            "warning: no lights (the scene has none and no --light was given): the image is black"
+        );
     }
     let light_descs: Vec<_> = lights.iter().map(render::light_desc).collect();
     let (atlases, pieces) = render::transfer_inputs(&set, (w, h))?;
@@ -251,7 +256,10 @@ fn sum_rgb(img: &TexelImage) -> f64 {
 /// Half the diagonal of the mesh's bounding box, metres.
 pub fn bounding_radius(mesh: &ortm::scene::Mesh) -> f32 {
     let (lo, hi) = mesh.positions_m.iter().fold(
-        (glam::Vec3::splat(f32::INFINITY), glam::Vec3::splat(f32::NEG_INFINITY)),
+        (
+            glam::Vec3::splat(f32::INFINITY),
+            glam::Vec3::splat(f32::NEG_INFINITY),
+        ),
         |(lo, hi), p| (lo.min(*p), hi.max(*p)),
     );
     if lo.is_finite() && hi.is_finite() {

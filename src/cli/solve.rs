@@ -56,9 +56,15 @@ pub fn run(a: Args) -> Result<()> {
     let indirect: Vec<_> = b.iter().zip(&b_o).map(|(x, y)| *x - *y).collect();
     let ind = lighting::to_lightmap(&grid, &indirect);
     let white = percentile_99(&fin);
-    save_png(&lightmap_image(&first, white), &a.output.join("first_order.png"))?;
+    save_png(
+        &lightmap_image(&first, white),
+        &a.output.join("first_order.png"),
+    )?;
     save_png(&lightmap_image(&fin, white), &a.output.join("final.png"))?;
-    save_png(&lightmap_image(&ind, percentile_99(&ind)), &a.output.join("indirect.png"))?;
+    save_png(
+        &lightmap_image(&ind, percentile_99(&ind)),
+        &a.output.join("indirect.png"),
+    )?;
     let power = |v: &[glam::Vec3]| -> glam::DVec3 {
         v.iter()
             .zip(&patches)

@@ -36,7 +36,14 @@ pub fn cluster_texels(grid: &TexelGrid, patches: &[Patch], block: u32) -> (Vec<u
         let key = (t.x / block, t.y / block, t.chart, t.material);
         let n = ids.len() as u32;
         let id = *ids.entry(key).or_insert_with(|| {
-            acc.push((0.0, Vec3::ZERO, Vec3::ZERO, Vec3::ZERO, Vec3::ZERO, t.material));
+            acc.push((
+                0.0,
+                Vec3::ZERO,
+                Vec3::ZERO,
+                Vec3::ZERO,
+                Vec3::ZERO,
+                t.material,
+            ));
             n
         });
         cluster_of.push(id);
@@ -98,9 +105,16 @@ impl Remainder {
     #[inline]
     pub fn r(&self, i: u32, j: u32, area_j_m2: f32) -> [f32; 3] {
         let n = self.clusters.len();
-        let (ci, cj) = (self.cluster_of[i as usize] as usize, self.cluster_of[j as usize] as usize);
+        let (ci, cj) = (
+            self.cluster_of[i as usize] as usize,
+            self.cluster_of[j as usize] as usize,
+        );
         let share = area_j_m2 / self.clusters[cj].area_m2;
         let k = ci * n + cj;
-        [self.rem[0][k] * share, self.rem[1][k] * share, self.rem[2][k] * share]
+        [
+            self.rem[0][k] * share,
+            self.rem[1][k] * share,
+            self.rem[2][k] * share,
+        ]
     }
 }

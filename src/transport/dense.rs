@@ -73,7 +73,11 @@ impl DenseTransport {
                 .collect();
             std::array::from_fn(|ch| {
                 Mat::from_fn(n, n, |i, j| {
-                    if translucent[i] { s_rows[i][j][ch] } else { 0.0 }
+                    if translucent[i] {
+                        s_rows[i][j][ch]
+                    } else {
+                        0.0
+                    }
                 })
             })
         });
@@ -142,7 +146,9 @@ impl DenseTransport {
         for ch in 0..3 {
             let x = self.exitance(ch);
             let m = self.system(&x);
-            let e = Mat::from_fn(self.n, k, |j, c| b_os[c][j][ch] as f64 * self.inv_rho(j, ch));
+            let e = Mat::from_fn(self.n, k, |j, c| {
+                b_os[c][j][ch] as f64 * self.inv_rho(j, ch)
+            });
             let rhs = &x * &e;
             let b = m.partial_piv_lu().solve(&rhs);
             for (c, o) in out.iter_mut().enumerate() {
@@ -183,7 +189,11 @@ impl DenseTransport {
                 let x = self.exitance(ch);
                 let m = self.system(&x);
                 (0..self.n)
-                    .map(|i| (0..self.n).map(|j| (if i == j { 1.0 } else { 0.0 }) - m[(i, j)]).sum::<f64>())
+                    .map(|i| {
+                        (0..self.n)
+                            .map(|j| (if i == j { 1.0 } else { 0.0 }) - m[(i, j)])
+                            .sum::<f64>()
+                    })
                     .fold(0.0, f64::max)
             })
             .fold(0.0, f64::max)

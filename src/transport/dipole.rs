@@ -49,7 +49,12 @@ pub fn fresnel_diffuse_reflectance(eta: f64) -> f64 {
 
 impl ChannelProfile {
     /// Builds one channel from σ_a and σ_s' in m⁻¹ and η.
-    pub fn new(sigma_a_per_m: f64, sigma_s_prime_per_m: f64, eta: f64, model: SubsurfaceModel) -> Self {
+    pub fn new(
+        sigma_a_per_m: f64,
+        sigma_s_prime_per_m: f64,
+        eta: f64,
+        model: SubsurfaceModel,
+    ) -> Self {
         let sigma_t = sigma_a_per_m + sigma_s_prime_per_m;
         let alpha_prime = sigma_s_prime_per_m / sigma_t;
         let sigma_tr = (3.0 * sigma_a_per_m * sigma_t).sqrt();

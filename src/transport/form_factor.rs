@@ -153,7 +153,7 @@ mod tests {
                     * ((1.0 + w * w) * (1.0 + h * h) / (1.0 + hw)
                         * (w * w * (1.0 + hw) / ((1.0 + w * w) * hw)).powf(w * w)
                         * (h * h * (1.0 + hw) / ((1.0 + h * h) * hw)).powf(h * h))
-                        .ln());
+                    .ln());
         let floor = grid(Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::Z, 24);
         let wall = grid(Vec3::ZERO, Vec3::X, Vec3::Z, Vec3::Y, 24);
         let f = surface_ff(&floor, &wall);

@@ -134,7 +134,11 @@ impl Kernels {
     }
 
     /// Kernels from parts: `profiles` per material index (`None` = opaque).
-    pub fn from_parts(effects: Effects, profiles: Vec<Option<Profile>>, visibility: Arc<Visibility>) -> Self {
+    pub fn from_parts(
+        effects: Effects,
+        profiles: Vec<Option<Profile>>,
+        visibility: Arc<Visibility>,
+    ) -> Self {
         let profiles: Vec<Option<Profile>> = profiles
             .into_iter()
             .map(|p| p.filter(|_| effects.subsurface))
@@ -207,16 +211,16 @@ impl Kernels {
         if self.is_translucent(a.material)
             && let Some(s) = self.subsurface(a, b, same)
         {
-            for c in 0..3 {
+            for (c, o) in out.iter_mut().enumerate() {
                 let rho = b.rho[c] as f64;
-                out[c] = if rho > 0.0 { s[c] / rho } else { 0.0 } - if same { 1.0 } else { 0.0 };
+                *o = if rho > 0.0 { s[c] / rho } else { 0.0 } - if same { 1.0 } else { 0.0 };
             }
         }
         if !same {
             let f = self.form_factor_c(a, b) as f64 * b.area_m2 as f64;
             if f > 0.0 {
-                for c in 0..3 {
-                    out[c] += a.rho[c] as f64 * f;
+                for (c, o) in out.iter_mut().enumerate() {
+                    *o += a.rho[c] as f64 * f;
                 }
             }
         }
@@ -252,7 +256,8 @@ impl Transport {
     /// True when texel `i` is translucent (its `R(i, i)` holds the subsurface point mass `−1`).
     #[inline]
     pub fn is_translucent(&self, i: u32) -> bool {
-        self.kernels.is_translucent(self.patches[i as usize].material)
+        self.kernels
+            .is_translucent(self.patches[i as usize].material)
     }
 
     /// `R(i, j)` per channel for texels `i` (receiver) and `j` (sender), indices into the grid's
