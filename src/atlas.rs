@@ -17,7 +17,7 @@
 //!    sizes, SHA-256, piece geometry, and the bake key against the bake's `index.json` if the
 //!    directory has one.
 //! 4. [`apply_atlas_set`] evaluates `B = B_o + Σ_pieces atlas[src+(i,j)]·B_o[dst+(i,j)+Δt]`, the
-//!    same sum as [`crate::maps::apply`] (bit-identical when the pieces came from the same maps:
+//!    same sum as [`crate::maps::apply()`] (bit-identical when the pieces came from the same maps:
 //!    see its doc). [`packing_image`] and [`atlas_values_image`] draw an atlas for people.
 //!
 //! # Units and conventions
@@ -1140,7 +1140,7 @@ pub fn read_atlas_set(dir: &Path) -> Result<AtlasSet, AtlasError> {
 /// Each texel is accumulated in f64, starting at `B_o`, adding the pieces' terms in increasing
 /// `map_index` (a map's pieces are disjoint in the lightmap, so each map adds at most one term
 /// per texel), and rounded to f32 once. That is exactly the order and arithmetic of
-/// [`crate::maps::apply`], so for a set built from `maps` the result is bit-identical to
+/// [`crate::maps::apply()`], so for a set built from `maps` the result is bit-identical to
 /// `maps::apply(maps, first_order)`.
 ///
 /// # Errors
@@ -1286,8 +1286,8 @@ pub fn packing_image(set: &AtlasSet, atlas: u32) -> Option<RgbImage> {
 }
 
 /// A tone-mapped picture of atlas `atlas`'s values (linear RGB scaled so the 99th percentile of
-/// the non-zero texels is white, sRGB-encoded), one pixel per texel. `None` if the atlas does
-/// not exist.
+/// the non-zero texels is white, sRGB-encoded), each texel [`packing_scale`] pixels square like
+/// [`packing_image`]. `None` if the atlas does not exist.
 pub fn atlas_values_image(set: &AtlasSet, atlas: u32) -> Option<RgbImage> {
     let data = set.atlases.get(atlas as usize)?;
     let map = Lightmap {
@@ -1296,7 +1296,11 @@ pub fn atlas_values_image(set: &AtlasSet, atlas: u32) -> Option<RgbImage> {
         data: data.clone(),
     };
     let white = crate::report::percentile_99(&map);
-    Some(crate::report::lightmap_image(&map, white))
+    let texels = crate::report::lightmap_image(&map, white);
+    let k = packing_scale(set.atlas_size);
+    Some(RgbImage::from_fn(map.width * k, map.height * k, |x, y| {
+        *texels.get_pixel(x / k, y / k)
+    }))
 }
 
 #[cfg(test)]

@@ -1,0 +1,143 @@
+//! `ortm render` end to end through the binary: bake the Cornell box, render it (maps packed
+//! in memory, then from `ortm bin`'s atlases), check that the written final lightmap is the
+//! CPU reference of Eq. 9 applied to the written first-order lightmap, and that bad input
+//! gives clear errors. Runs on lavapipe like the other GPU tests.
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+use ortm::maps::{BakeIndex, apply};
+use ortm::render::read_lightmap_exr;
+
+fn ortm(args: &[&str], cwd: &Path) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_ortm"))
+        .args(args)
+        .current_dir(cwd)
+        .output()
+        .expect("the ortm binary runs")
+}
+
+fn ok(out: Output) -> String {
+    let text = format!(
+        "{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(out.status.success(), "ortm failed:\n{text}");
+    text
+}
+
+fn fails(out: Output) -> String {
+    assert!(!out.status.success(), "ortm should have failed");
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
+/// `final.exr` must equal `maps::apply(maps, first.exr)`: 1e-3 relative plus 1e-6 of the
+/// map's maximum (the Cornell maps are all non-negative, so the GPU's f32 sums of ≤ 13 terms
+/// stay within ~1e-6 relative; the floor covers near-black texels).
+fn check_outputs(dir: &Path) {
+    let first = read_lightmap_exr(&dir.join("first.exr")).unwrap();
+    let fin = read_lightmap_exr(&dir.join("final.exr")).unwrap();
+    let bake = dir.join("bake");
+    let maps = BakeIndex::read(&bake).unwrap().load_maps(&bake).unwrap();
+    let want = apply(&maps, &first).unwrap();
+    let max = want.data.iter().flatten().fold(0f32, |a, &b| a.max(b));
+    assert!(max > 1.0, "the box is lit");
+    for (i, (g, c)) in fin.data.iter().zip(&want.data).enumerate() {
+        for ch in 0..3 {
+            assert!(
+                (g[ch] - c[ch]).abs() <= 1e-3 * c[ch].abs() + 1e-6 * max,
+                "texel {i} ch {ch}: final.exr {} vs CPU apply {}",
+                g[ch],
+                c[ch]
+            );
+        }
+    }
+    let sum = |m: &ortm::Lightmap| m.data.iter().map(|v| v[0] as f64).sum::<f64>();
+    assert!(sum(&fin) > 1.2 * sum(&first), "interreflection adds light");
+}
+
+#[test]
+fn render_writes_frame_and_lightmaps_consistent_with_cpu_reference() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    ok(ortm(
+        &[
+            "bake",
+            "cornell",
+            "--size",
+            "32",
+            "--offsets",
+            "12",
+            "--selector",
+            "jittered-grid",
+            "-o",
+            "bake",
+        ],
+        dir,
+    ));
+    let render = [
+        "render",
+        "bake",
+        "--scene",
+        "cornell",
+        "--size",
+        "96x64",
+        "--side-by-side",
+        "--shadow-size",
+        "512",
+        "-o",
+        "frame.png",
+        "--lightmap-out",
+        "final.exr",
+        "--first-order-out",
+        "first.exr",
+    ];
+    let text = ok(ortm(&render, dir));
+    assert!(text.contains("packed from the maps"), "{text}");
+    let img = image::open(dir.join("frame.png")).unwrap();
+    assert_eq!((img.width(), img.height()), (96, 64));
+    check_outputs(dir);
+
+    // With atlases from `ortm bin`, and the compute path: the same answer.
+    ok(ortm(&["bin", "bake", "--atlas", "256"], dir));
+    let mut compute = render.to_vec();
+    compute.extend(["--path", "compute"]);
+    let text = ok(ortm(&compute, dir));
+    assert!(text.contains("from atlases.json"), "{text}");
+    check_outputs(dir);
+    // No temporary files are left behind.
+    for e in std::fs::read_dir(dir).unwrap() {
+        let name = e.unwrap().file_name().to_string_lossy().into_owned();
+        assert!(!name.starts_with('.'), "left-over temporary {name}");
+    }
+
+    // Bad input: clear messages, no panic.
+    let e = fails(ortm(&["render", "."], dir));
+    assert!(e.contains("not a bake directory"), "{e}");
+    let e = fails(ortm(&["render", "bake"], dir));
+    assert!(e.contains("--scene"), "{e}");
+    let quads = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/tests/data/scene/two_quads.toml"
+    );
+    let e = fails(ortm(&["render", "bake", "--scene", quads], dir));
+    assert!(e.contains("different scene"), "{e}");
+    let e = fails(ortm(
+        &[
+            "render",
+            "bake",
+            "--scene",
+            "cornell",
+            "--light",
+            "point:1,2:3",
+        ],
+        dir,
+    ));
+    assert!(e.contains("--light") && e.contains("expected 3"), "{e}");
+    let e = fails(ortm(
+        &["render", "bake", "--scene", "cornell", "--size", "12"],
+        dir,
+    ));
+    assert!(e.contains("--size"), "{e}");
+}
