@@ -904,6 +904,32 @@ mod tests {
     }
 
     #[test]
+    fn synthetic_maps_are_non_zero_exactly_where_receiver_and_sender_are_covered() {
+        let scene = crate::scene::cornell_box(32);
+        let grid = TexelGrid::build(&scene).unwrap();
+        let offsets = [
+            glam::IVec2::ZERO,
+            glam::IVec2::new(5, -3),
+            glam::IVec2::new(-31, 31),
+        ];
+        let maps = synthetic_transfer_maps(&grid, &offsets).unwrap();
+        for (m, o) in maps.iter().zip(offsets) {
+            assert_eq!(m.offset, o);
+            for y in 0..32 {
+                for x in 0..32 {
+                    let both = grid.at(x, y).is_some() && grid.at(x + o.x, y + o.y).is_some();
+                    let v = m.value_at(x as u32, y as u32);
+                    assert_eq!(v.iter().all(|c| *c > 0.0), both, "({x}, {y}) offset {o}");
+                    assert_eq!(v.iter().any(|c| *c != 0.0), both, "({x}, {y}) offset {o}");
+                }
+            }
+        }
+        // The zero offset covers every covered texel; the far corner offset almost nothing.
+        assert!(maps[0].stored_texels() as usize >= grid.texels.len());
+        assert!(maps[2].stored_texels() < maps[1].stored_texels());
+    }
+
+    #[test]
     fn auto_exposure_maps_the_95th_percentile_to_one() {
         let mut img = TexelImage::new(100, 1);
         for (i, p) in img.rgba.iter_mut().enumerate() {
