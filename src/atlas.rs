@@ -418,6 +418,32 @@ pub fn build_atlas_set(
     build_atlas_set_with_stats(maps, atlas_w, atlas_h).map(|(set, _)| set)
 }
 
+/// Most set bits allowed in a padded crop width.
+pub const PAD_WIDTH_BITS: u32 = 3;
+
+/// Column padding that cuts the number of power-of-two slices of a crop: the smallest width
+/// `w' ≥ w` with at most [`PAD_WIDTH_BITS`] set bits (e.g. 447 = 8 slices → 448 = 256 + 128 +
+/// 64, 3 slices), kept inside the lightmap (the crop is extended to the right, or to the left
+/// at the border). The added columns hold zeros: they add nothing when blended, and cost at
+/// most a quarter of the width (in practice a few columns) of atlas space. Applied to maps made
+/// of a single crop rectangle (so padding can never overlap another crop of the same map).
+/// Returns the padded `(x, w)`, or `None` when the width is kept.
+pub fn padded_columns(x: u32, w: u32, lightmap_w: u32) -> Option<(u32, u32)> {
+    if w.count_ones() <= PAD_WIDTH_BITS {
+        return None;
+    }
+    let mut wp = w;
+    while wp.count_ones() > PAD_WIDTH_BITS {
+        // Clear the lowest set bit's run by adding it: strictly fewer or equal bits, larger.
+        wp += wp & wp.wrapping_neg();
+    }
+    if wp > lightmap_w {
+        return None;
+    }
+    let xp = x.min(lightmap_w - wp);
+    Some((xp, wp))
+}
+
 /// [`build_atlas_set`], also returning the packer's figures (slices, splits, merges; its
 /// `pieces_per_source` counts pieces per *crop rectangle*, in map then crop order).
 ///
@@ -430,6 +456,23 @@ pub fn build_atlas_set_with_stats(
 ) -> Result<(AtlasSet, binning::PackStats), AtlasError> {
     let first = maps.first().ok_or(AtlasError::NoMaps)?;
     let lightmap_size = (first.width(), first.height());
+    // Column padding of single-crop maps (see [`padded_columns`]): (map, x, w, padded data).
+    let padded: Vec<Option<(u32, u32, Vec<[f32; 3]>)>> = maps
+        .iter()
+        .map(|m| match m.crops() {
+            [c] => padded_columns(c.rect.x, c.rect.w, lightmap_size.0).map(|(x, w)| {
+                let mut buf = vec![[0.0f32; 3]; w as usize * c.rect.h as usize];
+                let shift = (c.rect.x - x) as usize;
+                for row in 0..c.rect.h as usize {
+                    let src = &c.data[row * c.rect.w as usize..(row + 1) * c.rect.w as usize];
+                    buf[row * w as usize + shift..row * w as usize + shift + src.len()]
+                        .copy_from_slice(src);
+                }
+                (x, w, buf)
+            }),
+            _ => None,
+        })
+        .collect();
     let mut owners = Vec::new(); // id -> (map, crop)
     let mut rects = Vec::new();
     let mut data: Vec<&[[f32; 3]]> = Vec::new();
@@ -446,12 +489,12 @@ pub fn build_atlas_set_with_stats(
                 count: maps.iter().map(|m| m.crops().len()).sum(),
             })?;
             owners.push((mi, ci));
-            rects.push(binning::SourceRect {
-                id,
-                w: c.rect.w,
-                h: c.rect.h,
-            });
-            data.push(&c.data);
+            let (w, d): (u32, &[[f32; 3]]) = match &padded[mi] {
+                Some((_, w, buf)) => (*w, buf),
+                None => (c.rect.w, &c.data),
+            };
+            rects.push(binning::SourceRect { id, w, h: c.rect.h });
+            data.push(d);
         }
     }
     let map_index =
@@ -462,7 +505,11 @@ pub fn build_atlas_set_with_stats(
     for p in &packing.placements {
         let (mi, ci) = owners[p.source as usize];
         let m = &maps[mi];
-        let r = m.crops()[ci].rect;
+        let mut r = m.crops()[ci].rect;
+        if let Some((x, w, _)) = &padded[mi] {
+            r.x = *x;
+            r.w = *w;
+        }
         pieces.push(AtlasPiece {
             atlas: p.atlas,
             src_x: p.dst_x,
@@ -1428,5 +1475,33 @@ mod tests {
         assert_eq!(*img.get_pixel(0, 16 * k - 1), PACKING_BACKGROUND);
         assert!(packing_image(&set, 1).is_none());
         assert_ne!(map_color(0), map_color(1));
+    }
+}
+
+#[cfg(test)]
+mod padding_tests {
+    use super::*;
+
+    #[test]
+    fn padded_width_is_the_smallest_with_few_bits() {
+        for w in 1..2000u32 {
+            let brute = (w..=4096)
+                .find(|v| v.count_ones() <= PAD_WIDTH_BITS)
+                .unwrap();
+            match padded_columns(10, w, 4096) {
+                None => assert_eq!(brute, w),
+                Some((x, wp)) => {
+                    assert_eq!(wp, brute, "w = {w}");
+                    assert!(x <= 10 && x + wp <= 4096 && x + wp >= 10 + w);
+                }
+            }
+        }
+        // At the border the crop is extended to the left; too wide → unchanged.
+        assert_eq!(padded_columns(500, 11, 512), None); // 0b1011: 3 bits already
+        assert_eq!(padded_columns(500, 15, 512), Some((496, 16)));
+        assert_eq!(padded_columns(505, 7, 512), None);
+        assert_eq!(padded_columns(0, 511, 511), None);
+        assert_eq!(padded_columns(200, 300, 512), Some((200, 304)));
+        assert_eq!(padded_columns(210, 300, 512), Some((208, 304)));
     }
 }

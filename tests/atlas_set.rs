@@ -60,7 +60,8 @@ fn random_lightmap(rng: &mut ChaCha8Rng, w: u32, h: u32) -> Lightmap {
 const ATLAS_SIZES: [(u32, u32); 5] = [(8, 8), (16, 32), (64, 16), (64, 64), (128, 128)];
 
 /// Rebuilds every map from the pieces and checks that each stored texel is covered exactly once,
-/// nothing else is covered, and the values are bit-identical.
+/// nothing else is covered except the zero columns that pad a single-crop map's width (see
+/// `atlas::padded_columns`), and the values are bit-identical.
 #[test]
 fn pieces_reconstruct_every_map_bit_exactly() {
     let mut rng = ChaCha8Rng::seed_from_u64(7);
@@ -72,9 +73,15 @@ fn pieces_reconstruct_every_map_bit_exactly() {
             let set = build_atlas_set(&maps, aw, ah).unwrap();
             set.validate().unwrap();
             let stored: u64 = maps.iter().map(TransferMap::stored_texels).sum();
+            let placed: u64 = set
+                .pieces
+                .iter()
+                .map(|p| u64::from(p.w) * u64::from(p.h))
+                .sum();
+            assert!(placed >= stored);
             assert_eq!(
                 set.atlases.len() as u64,
-                stored.div_ceil(u64::from(aw) * u64::from(ah)),
+                placed.div_ceil(u64::from(aw) * u64::from(ah)),
                 "round {round}, atlas {aw}x{ah}: not the optimal atlas count"
             );
             let mut rebuilt = vec![Lightmap::new(w, h); maps.len()];
@@ -95,11 +102,17 @@ fn pieces_reconstruct_every_map_bit_exactly() {
                 let rects = m.rects();
                 for y in 0..h {
                     for x in 0..w {
-                        let want = u32::from(rects.iter().any(|r| r.contains(x, y)));
-                        assert_eq!(
-                            count[mi][(y * w + x) as usize],
-                            want,
-                            "map {mi} texel ({x}, {y}), atlas {aw}x{ah}"
+                        let stored_here = rects.iter().any(|r| r.contains(x, y));
+                        let c = count[mi][(y * w + x) as usize];
+                        // Padding (zeros, checked by the bit-exact comparison below) only for
+                        // single-crop maps.
+                        assert!(
+                            if stored_here {
+                                c == 1
+                            } else {
+                                c == 0 || (c == 1 && rects.len() == 1)
+                            },
+                            "map {mi} texel ({x}, {y}) placed {c} times, atlas {aw}x{ah}"
                         );
                     }
                 }

@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 
-use anyhow::{Result, bail};
+use anyhow::{Context, Result, bail};
 use indicatif::{ProgressBar, ProgressStyle};
 use ortm::bake::{BakeEvent, BakeSettings, Selector, bake};
 use ortm::offsets::ImportanceMetric;
@@ -125,7 +125,8 @@ pub fn run(a: Args) -> Result<()> {
         BakeEvent::Advance(n) => bar.lock().expect("progress lock").inc(n),
         BakeEvent::Message(m) => bar.lock().expect("progress lock").println(m),
     };
-    let summary = bake(&scene, &s, &a.output, &events, &cancel);
+    let summary = bake(&scene, &s, &a.output, &events, &cancel)
+        .with_context(|| format!("baking '{}' into '{}'", a.scene, a.output.display()));
     bar.lock().expect("progress lock").finish();
     let summary = summary?;
     println!(

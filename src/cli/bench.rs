@@ -3,7 +3,7 @@
 //! - `transport`: visibility rays per second on the head, the exact dense solve at 64²,
 //!   and `K` / `R` pair-evaluation throughput (the budget of the bake);
 //! - `bake`: the paper's Table 1 configurations on the head (map-generation time per row beside
-//!   the paper's), and the accuracy of the offsets against the exact solve at 64².
+//!   the paper's), with the atlases and pieces per map of each bake binned at 1024².
 
 use std::sync::Arc;
 use std::time::Instant;
@@ -189,7 +189,7 @@ fn bake_table(rows: usize) -> Result<()> {
         "| lightmap | offsets | ortm map generation (s) | of which transport / selection / maps | paper (s) | stored texels/map |"
     );
     println!("|---|---|---|---|---|---|");
-    for &(size, k, _bins, paper_s) in table.iter().take(rows) {
+    for &(size, k, bins, paper_s) in table.iter().take(rows) {
         let mut scene = super::head_scene()?;
         scene.lightmap_size = (size, size);
         let dir = tempfile_dir(size, k)?;
@@ -202,13 +202,19 @@ fn bake_table(rows: usize) -> Result<()> {
         let cancel = std::sync::atomic::AtomicBool::new(false);
         let s = bake::bake(&scene, &settings, &dir, &|_| {}, &cancel)?;
         let total = t.elapsed().as_secs_f64();
+        let maps = ortm::maps::BakeIndex::read(&dir)?.load_maps(&dir)?;
+        let (set, _) = ortm::atlas::build_atlas_set_with_stats(&maps, 1024, 1024)?;
+        let st = set.stats();
         let _ = std::fs::remove_dir_all(&dir);
         println!(
-            "| {size}² | {k} | {total:.1} | {:.1} / {:.1} / {:.1} | {paper_s:.0} | {:.0} |",
+            "| {size}² | {k} | {total:.1} | {:.1} / {:.1} / {:.1} | {paper_s:.0} | {:.0} | {} ({bins}) | {:.2} ({}) |",
             s.seconds[0],
             s.seconds[1],
             s.seconds[2],
-            s.stored_texels as f64 / k as f64
+            s.stored_texels as f64 / k as f64,
+            st.atlases,
+            st.mean_pieces_per_map,
+            st.max_pieces_per_map
         );
     }
     Ok(())

@@ -2,7 +2,7 @@
 
 use std::path::PathBuf;
 
-use anyhow::Result;
+use anyhow::{Context, Result};
 use ortm::texels::TexelGrid;
 
 /// Arguments of `ortm inspect`.
@@ -55,7 +55,8 @@ pub fn run(a: Args) -> Result<()> {
         area
     );
     let (w, h) = scene.lightmap_size;
-    let grid = TexelGrid::build(&scene)?;
+    let grid = TexelGrid::build(&scene)
+        .with_context(|| format!("rasterizing the lightmap UVs of '{}'", a.scene))?;
     let s = &grid.stats;
     println!(
         "lightmap     {w}x{h}: {} covered texels ({:.1}%), {} charts",

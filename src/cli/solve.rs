@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::Instant;
 
-use anyhow::{Result, bail};
+use anyhow::{Context, Result, bail};
 use ortm::lighting;
 use ortm::raycast::Visibility;
 use ortm::report::{lightmap_image, percentile_99, save_png};
@@ -33,7 +33,8 @@ pub struct Args {
 /// Runs `ortm solve`.
 pub fn run(a: Args) -> Result<()> {
     let scene = super::load_scene(&a.scene, a.size)?;
-    let grid = TexelGrid::build(&scene)?;
+    let grid = TexelGrid::build(&scene)
+        .with_context(|| format!("rasterizing the lightmap UVs of '{}'", a.scene))?;
     if grid.texels.len() > MAX_DENSE_TEXELS {
         bail!(
             "{} covered texels: the exact dense solve is limited to {MAX_DENSE_TEXELS} \
