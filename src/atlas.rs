@@ -456,8 +456,9 @@ pub fn build_atlas_set_with_stats(
 ) -> Result<(AtlasSet, binning::PackStats), AtlasError> {
     let first = maps.first().ok_or(AtlasError::NoMaps)?;
     let lightmap_size = (first.width(), first.height());
-    // Column padding of single-crop maps (see [`padded_columns`]): (map, x, w, padded data).
-    let padded: Vec<Option<(u32, u32, Vec<[f32; 3]>)>> = maps
+    // Column padding of single-crop maps (see [`padded_columns`]): (x, w, padded data).
+    type Padded = Option<(u32, u32, Vec<[f32; 3]>)>;
+    let padded: Vec<Padded> = maps
         .iter()
         .map(|m| match m.crops() {
             [c] => padded_columns(c.rect.x, c.rect.w, lightmap_size.0).map(|(x, w)| {
