@@ -186,9 +186,9 @@ fn bake_table(rows: usize) -> Result<()> {
         (512, 200, 43, 226.0),
     ];
     println!(
-        "| lightmap | offsets | ortm map generation (s) | of which transport / selection / maps | paper (s) | stored texels/map |"
+        "| lightmap | offsets | ortm map generation (s) | of which transport / selection / maps | paper (s) | stored texels/map | atlases 1024² (paper) | pieces/map mean (max) |"
     );
-    println!("|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|");
     for &(size, k, bins, paper_s) in table.iter().take(rows) {
         let mut scene = super::head_scene()?;
         scene.lightmap_size = (size, size);
