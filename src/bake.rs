@@ -267,6 +267,11 @@ pub fn compute_map_values(
             (row, imp)
         })
         .collect();
+    assemble_rows(w, h, rows)
+}
+
+/// Joins per-row values and importances (computed in parallel) into a map and its importance.
+fn assemble_rows(w: u32, h: u32, rows: Vec<(Vec<[f32; 3]>, f64)>) -> (Lightmap, f64) {
     let mut map = Lightmap::new(w, h);
     let mut importance = 0.0f64;
     for (y, (row, imp)) in rows.into_iter().enumerate() {
@@ -323,14 +328,7 @@ pub fn compute_map_values_exact(
             (row, imp)
         })
         .collect();
-    let mut map = Lightmap::new(w, h);
-    let mut importance = 0.0f64;
-    for (y, (row, imp)) in rows.into_iter().enumerate() {
-        let start = y * w as usize;
-        map.data[start..start + w as usize].copy_from_slice(&row);
-        importance = importance.max(imp);
-    }
-    (map, importance)
+    assemble_rows(w, h, rows)
 }
 
 /// Offsets chosen by a selection, with the data needed for the report.
