@@ -66,6 +66,17 @@ pub fn unoccluded_form_factor(i: &FfPatch, j: &FfPatch) -> f32 {
     if d2 > 16.0 * i.area_m2.max(j.area_m2) {
         return point_kernel(i.position_m, i.normal, j.position_m, j.normal, mean_area);
     }
+    let si = i.area_m2.sqrt();
+    let sj = j.area_m2.sqrt();
+    // Exact early-out: a sub-patch point of j lies within sj/√2 of j's centre, and i's sub-patch
+    // offsets are orthogonal to n_i, so n_i·(p_j' − p_i') ≤ n_i·d + sj/√2 for every sub-pair
+    // (and likewise for j). When either bound is ≤ 0 every sub-pair faces away: F = 0.
+    let d = j.position_m - i.position_m;
+    if i.normal.dot(d) + std::f32::consts::FRAC_1_SQRT_2 * sj <= 0.0
+        || -j.normal.dot(d) + std::f32::consts::FRAC_1_SQRT_2 * si <= 0.0
+    {
+        return 0.0;
+    }
     // Near pair: subdivide both patches (as squares in their tangent planes); neighbours
     // (closer than ~1.5 patch sizes) twice as finely.
     let sub = if d2 < 2.25 * i.area_m2.max(j.area_m2) {
@@ -75,8 +86,6 @@ pub fn unoccluded_form_factor(i: &FfPatch, j: &FfPatch) -> f32 {
     };
     let (ti1, ti2) = tangent_frame(i.normal);
     let (tj1, tj2) = tangent_frame(j.normal);
-    let si = i.area_m2.sqrt();
-    let sj = j.area_m2.sqrt();
     let sub_area = mean_area / (sub * sub) as f32;
     let mut sum = 0.0f32;
     for a in 0..sub * sub {
