@@ -79,6 +79,9 @@ pub struct BakeSettings {
     pub coarse_block: u32,
     /// Receivers sampled per offset when estimating its transference.
     pub selection_receivers: usize,
+    /// How the scene was named when baking (a built-in name or a scene-file path, as given), so
+    /// that `ortm render DIR` can find it again; informational (the scene hash identifies it).
+    pub scene: Option<String>,
 }
 
 impl Default for BakeSettings {
@@ -95,6 +98,7 @@ impl Default for BakeSettings {
             rebuild_every: 20,
             coarse_block: 8,
             selection_receivers: 4096,
+            scene: None,
         }
     }
 }

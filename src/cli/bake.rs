@@ -88,6 +88,7 @@ pub fn settings(a: &Args, size: (u32, u32)) -> Result<BakeSettings> {
         metric,
         refinement_iterations: a.iterations,
         coarse_block: a.coarse_block.max(1),
+        scene: Some(a.scene.clone()),
         ..BakeSettings::default()
     })
 }
