@@ -70,6 +70,8 @@ pub const ATLAS_INDEX_VERSION: u32 = 1;
 /// Value of the `ortmFormat` attribute of an atlas OpenEXR file.
 const ATLAS_FILE_FORMAT: &str = "ortm-atlas";
 
+/// The single custom attribute holding the fields below as `name=value` lines.
+const A_META: &str = "ortmMeta";
 const A_FORMAT: &str = "ortmFormat";
 const A_ATLAS: &str = "ortmAtlasIndex";
 const A_KEY: &str = "ortmBakeKey";
@@ -784,13 +786,13 @@ fn encode_atlas(
         encoding,
         channels,
     );
-    let other = &mut layer.attributes.other;
-    other.insert(
-        text(A_FORMAT),
-        AttributeValue::Text(text(ATLAS_FILE_FORMAT)),
-    );
-    other.insert(text(A_ATLAS), AttributeValue::I32(index as i32));
-    other.insert(text(A_KEY), AttributeValue::Text(text(bake_key)));
+    // One custom attribute with `name=value` lines in a fixed order: the `exr` crate writes
+    // custom attributes in hash-map order, so several would make identical atlases differ.
+    let meta = format!("{A_FORMAT}={ATLAS_FILE_FORMAT}\n{A_ATLAS}={index}\n{A_KEY}={bake_key}\n");
+    layer
+        .attributes
+        .other
+        .insert(text(A_META), AttributeValue::Text(text(&meta)));
     let display = IntegerBounds::from_dimensions(Vec2(size.0 as usize, size.1 as usize));
     let image = Image::from_layers(ImageAttributes::new(display), vec![layer]);
     let mut bytes = Vec::new();
@@ -862,18 +864,23 @@ fn decode_atlas(
             "channels {names:?} are not exactly B, G, R as 32-bit float without subsampling"
         )));
     }
-    let attrs = &h.own_attributes.other;
-    let get_text = |name: &str| match attrs.get(name.as_bytes()) {
-        Some(AttributeValue::Text(t)) => Some(t.to_string()),
-        _ => None,
+    let meta: Vec<(String, String)> = match h.own_attributes.other.get(A_META.as_bytes()) {
+        Some(AttributeValue::Text(t)) => t
+            .to_string()
+            .lines()
+            .filter_map(|l| l.split_once('='))
+            .map(|(k, v)| (k.to_owned(), v.to_owned()))
+            .collect(),
+        _ => Vec::new(),
     };
+    let get_text = |name: &str| meta.iter().find(|(k, _)| k == name).map(|(_, v)| v.clone());
     if get_text(A_FORMAT).as_deref() != Some(ATLAS_FILE_FORMAT) {
         return Err(bad(format!(
             "attribute {A_FORMAT} is not \"{ATLAS_FILE_FORMAT}\""
         )));
     }
-    match attrs.get(A_ATLAS.as_bytes()) {
-        Some(AttributeValue::I32(i)) if i64::from(*i) == i64::from(index) => {}
+    match get_text(A_ATLAS).and_then(|v| v.parse::<i64>().ok()) {
+        Some(i) if i == i64::from(index) => {}
         other => {
             return Err(bad(format!(
                 "attribute {A_ATLAS} is {other:?}, expected {index} (files swapped?)"

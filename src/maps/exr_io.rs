@@ -13,12 +13,14 @@
 //! - A map with no non-zero texel has no rectangles, but an OpenEXR file needs at least one part:
 //!   it gets a single placeholder part named `ortm-empty`, 1×1 at `(0,0)`, value 0, and
 //!   `ortmRectCount = 0`.
-//! - Metadata, as custom attributes of the first part: `ortmFormat` (text
-//!   `"ortm-transfer-map"`), `ortmVersion` (int, 1), `ortmMapIndex` (int), `ortmOffset` (v2i,
-//!   `(dx, dy)` in texels, +dy down), `ortmVoronoiArea` (double), `ortmImportance` (double),
-//!   `ortmRectCount` (int), `ortmBakeKey` (text, see [`BakeKey`]) and `ortmContentSha256` (text:
-//!   SHA-256 of the map content, see below). This makes each file self-describing, which the
-//!   resumable bake ([`crate::maps::scan_finished_maps`]) relies on.
+//! - Metadata, in ONE custom text attribute `ortmMeta` of the first part, as `name=value` lines in
+//!   this fixed order: `ortmFormat` (`ortm-transfer-map`), `ortmVersion` (1), `ortmMapIndex`,
+//!   `ortmOffset` (`dx,dy` in texels, +dy down), `ortmVoronoiArea` and `ortmImportance` (the
+//!   f64's bit pattern as `0x` + 16 hex digits: exact), `ortmRectCount`, `ortmBakeKey` (see
+//!   [`BakeKey`]) and `ortmContentSha256` (SHA-256 of the map content, see below). One attribute,
+//!   because the `exr` crate writes custom attributes in hash-map order: with several, two
+//!   identical maps would not be byte-identical files. This makes each file self-describing,
+//!   which the resumable bake ([`crate::maps::scan_finished_maps`]) relies on.
 //!
 //! # Why f32 and not f16
 //! Transfer values span ≈1e-6…1. Half floats have a relative rounding error of 2⁻¹¹ ≈ 4.9e-4 in
@@ -71,6 +73,8 @@ const FILE_VERSION: i32 = 1;
 /// Name of the placeholder part of an empty map.
 const EMPTY_PART: &str = "ortm-empty";
 
+/// The single custom attribute holding every metadata field below as `name=value` lines.
+const A_META: &str = "ortmMeta";
 const A_FORMAT: &str = "ortmFormat";
 const A_VERSION: &str = "ortmVersion";
 const A_INDEX: &str = "ortmMapIndex";
@@ -182,25 +186,27 @@ pub fn encode_map(index: u32, map: &TransferMap, key: &BakeKey) -> Result<Vec<u8
             })
             .collect()
     };
-    let other = &mut layers[0].attributes.other;
-    let mut put = |name: &str, v: AttributeValue| {
-        other.insert(text(name), v);
-    };
-    put(A_FORMAT, AttributeValue::Text(text(FILE_FORMAT)));
-    put(A_VERSION, AttributeValue::I32(FILE_VERSION));
-    put(A_INDEX, AttributeValue::I32(index as i32));
-    put(
-        A_OFFSET,
-        AttributeValue::IntVec2(Vec2(map.offset.x, map.offset.y)),
-    );
-    put(A_AREA, AttributeValue::F64(map.voronoi_area));
-    put(A_IMPORTANCE, AttributeValue::F64(map.importance));
-    put(A_RECTS, AttributeValue::I32(map.crops().len() as i32));
-    put(A_KEY, AttributeValue::Text(text(key.as_str())));
-    put(
-        A_HASH,
-        AttributeValue::Text(text(&content_hash(index, key.as_str(), map))),
-    );
+    // All metadata goes into ONE text attribute (`ortmMeta`, lines `name=value` in a fixed order):
+    // the `exr` crate writes custom attributes in hash-map order, so several attributes would
+    // make the bytes of identical maps differ from run to run.
+    let meta = [
+        (A_FORMAT, FILE_FORMAT.to_owned()),
+        (A_VERSION, FILE_VERSION.to_string()),
+        (A_INDEX, index.to_string()),
+        (A_OFFSET, format!("{},{}", map.offset.x, map.offset.y)),
+        (A_AREA, format!("0x{:016x}", map.voronoi_area.to_bits())),
+        (A_IMPORTANCE, format!("0x{:016x}", map.importance.to_bits())),
+        (A_RECTS, map.crops().len().to_string()),
+        (A_KEY, key.as_str().to_owned()),
+        (A_HASH, content_hash(index, key.as_str(), map)),
+    ]
+    .iter()
+    .map(|(k, v)| format!("{k}={v}\n"))
+    .collect::<String>();
+    layers[0]
+        .attributes
+        .other
+        .insert(text(A_META), AttributeValue::Text(text(&meta)));
 
     let display = IntegerBounds::from_dimensions(Vec2(map.width() as usize, map.height() as usize));
     let image = Image::from_layers(ImageAttributes::new(display), layers);
@@ -353,7 +359,7 @@ pub fn decode_map(
             found: (width, height),
         });
     }
-    let attrs = &first.own_attributes.other;
+    let attrs = &parse_meta(&first.own_attributes.other).map_err(&bad)?;
     let format = get_text(attrs, A_FORMAT).map_err(&bad)?;
     if format != FILE_FORMAT {
         return Err(bad(format!(
@@ -368,10 +374,7 @@ pub fn decode_map(
     }
     let index = u32::try_from(get_i32(attrs, A_INDEX).map_err(&bad)?)
         .map_err(|_| bad(format!("{A_INDEX} is negative")))?;
-    let offset = match attrs.get(A_OFFSET.as_bytes()) {
-        Some(AttributeValue::IntVec2(v)) => IVec2::new(v.0, v.1),
-        _ => return Err(bad(format!("attribute {A_OFFSET} (v2i) is missing"))),
-    };
+    let offset = get_offset(attrs, A_OFFSET).map_err(&bad)?;
     let area = get_f64(attrs, A_AREA).map_err(&bad)?;
     let importance = get_f64(attrs, A_IMPORTANCE).map_err(&bad)?;
     let rect_count = usize::try_from(get_i32(attrs, A_RECTS).map_err(&bad)?)
@@ -506,24 +509,51 @@ fn check_header(
     Ok(())
 }
 
-fn get_text(attrs: &HashMap<Text, AttributeValue>, name: &str) -> Result<String, String> {
-    match attrs.get(name.as_bytes()) {
-        Some(AttributeValue::Text(t)) => Ok(t.to_string()),
-        _ => Err(format!("attribute {name} (string) is missing")),
+/// The metadata fields of the `ortmMeta` attribute.
+type Meta = std::collections::BTreeMap<String, String>;
+
+fn parse_meta(attrs: &HashMap<Text, AttributeValue>) -> Result<Meta, String> {
+    let Some(AttributeValue::Text(t)) = attrs.get(A_META.as_bytes()) else {
+        return Err(format!("attribute {A_META} (string) is missing"));
+    };
+    let mut meta = Meta::new();
+    for line in t.to_string().lines() {
+        let (k, v) = line
+            .split_once('=')
+            .ok_or_else(|| format!("{A_META}: line {line:?} is not name=value"))?;
+        meta.insert(k.to_owned(), v.to_owned());
     }
+    Ok(meta)
 }
 
-fn get_i32(attrs: &HashMap<Text, AttributeValue>, name: &str) -> Result<i32, String> {
-    match attrs.get(name.as_bytes()) {
-        Some(AttributeValue::I32(v)) => Ok(*v),
-        _ => Err(format!("attribute {name} (int) is missing")),
-    }
+fn get_text(meta: &Meta, name: &str) -> Result<String, String> {
+    meta.get(name)
+        .cloned()
+        .ok_or_else(|| format!("field {name} of {A_META} is missing"))
 }
 
-fn get_f64(attrs: &HashMap<Text, AttributeValue>, name: &str) -> Result<f64, String> {
-    match attrs.get(name.as_bytes()) {
-        Some(AttributeValue::F64(v)) => Ok(*v),
-        _ => Err(format!("attribute {name} (double) is missing")),
+fn get_i32(meta: &Meta, name: &str) -> Result<i32, String> {
+    get_text(meta, name)?
+        .parse()
+        .map_err(|_| format!("field {name} of {A_META} is not an integer"))
+}
+
+fn get_f64(meta: &Meta, name: &str) -> Result<f64, String> {
+    let v = get_text(meta, name)?;
+    v.strip_prefix("0x")
+        .and_then(|h| u64::from_str_radix(h, 16).ok())
+        .map(f64::from_bits)
+        .ok_or_else(|| format!("field {name} of {A_META} is not a 0x-prefixed f64 bit pattern"))
+}
+
+fn get_offset(meta: &Meta, name: &str) -> Result<IVec2, String> {
+    let v = get_text(meta, name)?;
+    let (x, y) = v
+        .split_once(',')
+        .ok_or_else(|| format!("field {name} of {A_META} is not dx,dy"))?;
+    match (x.parse(), y.parse()) {
+        (Ok(x), Ok(y)) => Ok(IVec2::new(x, y)),
+        _ => Err(format!("field {name} of {A_META} is not dx,dy")),
     }
 }
 
