@@ -46,7 +46,7 @@ use std::path::{Path, PathBuf};
 use exr::image::read::read;
 use exr::image::{AnyChannel, AnyChannels, Blocks, Encoding, FlatSamples, Image, Layer};
 use exr::math::Vec2;
-use exr::meta::attribute::{AttributeValue, IntegerBounds, SampleType, Text};
+use exr::meta::attribute::{IntegerBounds, SampleType};
 use exr::meta::header::{ImageAttributes, LayerAttributes};
 use exr::meta::{BlockDescription, MetaData};
 use exr::prelude::traits::{ReadChannels, ReadLayers, WritableImage};
@@ -56,7 +56,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::Lightmap;
-use crate::maps::exr_io::{sha256_hex, write_atomic};
+use crate::maps::exr_io::{A_META, meta_attribute, parse_meta, sha256_hex, text, write_atomic};
 use crate::maps::{
     INDEX_FILE_NAME, INDEX_FORMAT, LightmapSize, MAX_TEXELS, MapsError, TransferMap,
 };
@@ -70,8 +70,6 @@ pub const ATLAS_INDEX_VERSION: u32 = 1;
 /// Value of the `ortmFormat` attribute of an atlas OpenEXR file.
 const ATLAS_FILE_FORMAT: &str = "ortm-atlas";
 
-/// The single custom attribute holding the fields below as `name=value` lines.
-const A_META: &str = "ortmMeta";
 const A_FORMAT: &str = "ortmFormat";
 const A_ATLAS: &str = "ortmAtlasIndex";
 const A_KEY: &str = "ortmBakeKey";
@@ -756,11 +754,6 @@ fn write_file(path: &Path, bytes: &[u8]) -> Result<(), AtlasError> {
     })
 }
 
-/// Text attribute value; the caller guarantees ASCII.
-fn text(s: &str) -> Text {
-    Text::from_slice_unchecked(s.as_bytes())
-}
-
 /// Encodes atlas `index` as a single-part OpenEXR file (channels `B, G, R` f32, ZIP).
 fn encode_atlas(
     path: &Path,
@@ -786,13 +779,12 @@ fn encode_atlas(
         encoding,
         channels,
     );
-    // One custom attribute with `name=value` lines in a fixed order: the `exr` crate writes
-    // custom attributes in hash-map order, so several would make identical atlases differ.
-    let meta = format!("{A_FORMAT}={ATLAS_FILE_FORMAT}\n{A_ATLAS}={index}\n{A_KEY}={bake_key}\n");
-    layer
-        .attributes
-        .other
-        .insert(text(A_META), AttributeValue::Text(text(&meta)));
+    let meta = meta_attribute(&[
+        (A_FORMAT, ATLAS_FILE_FORMAT.to_owned()),
+        (A_ATLAS, index.to_string()),
+        (A_KEY, bake_key.to_owned()),
+    ]);
+    layer.attributes.other.insert(text(A_META), meta);
     let display = IntegerBounds::from_dimensions(Vec2(size.0 as usize, size.1 as usize));
     let image = Image::from_layers(ImageAttributes::new(display), vec![layer]);
     let mut bytes = Vec::new();
@@ -864,16 +856,8 @@ fn decode_atlas(
             "channels {names:?} are not exactly B, G, R as 32-bit float without subsampling"
         )));
     }
-    let meta: Vec<(String, String)> = match h.own_attributes.other.get(A_META.as_bytes()) {
-        Some(AttributeValue::Text(t)) => t
-            .to_string()
-            .lines()
-            .filter_map(|l| l.split_once('='))
-            .map(|(k, v)| (k.to_owned(), v.to_owned()))
-            .collect(),
-        _ => Vec::new(),
-    };
-    let get_text = |name: &str| meta.iter().find(|(k, _)| k == name).map(|(_, v)| v.clone());
+    let fields = parse_meta(&h.own_attributes.other).map_err(&bad)?;
+    let get_text = |name: &str| fields.get(name).cloned();
     if get_text(A_FORMAT).as_deref() != Some(ATLAS_FILE_FORMAT) {
         return Err(bad(format!(
             "attribute {A_FORMAT} is not \"{ATLAS_FILE_FORMAT}\""

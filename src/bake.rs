@@ -472,18 +472,13 @@ impl MapPlan {
     }
 }
 
+/// Writes `value` as pretty JSON through the maps' atomic writer (temporary file, fsync, rename).
 fn write_json_atomic<T: Serialize>(path: &Path, value: &T) -> Result<(), BakeError> {
-    let io = |source| BakeError::Io {
+    let text = serde_json::to_vec_pretty(value).map_err(|e| BakeError::Io {
         path: path.to_owned(),
-        source,
-    };
-    let tmp = path.with_file_name(format!(
-        ".{}.tmp",
-        path.file_name().and_then(|n| n.to_str()).unwrap_or("file")
-    ));
-    let text = serde_json::to_vec_pretty(value).map_err(|e| io(std::io::Error::other(e)))?;
-    std::fs::write(&tmp, text).map_err(io)?;
-    std::fs::rename(&tmp, path).map_err(io)
+        source: std::io::Error::other(e),
+    })?;
+    Ok(crate::maps::exr_io::write_atomic(path, &text)?)
 }
 
 /// Bakes `scene` into `dir` (resumable; see the module docs). `cancel` is polled between maps.

@@ -74,7 +74,7 @@ const FILE_VERSION: i32 = 1;
 const EMPTY_PART: &str = "ortm-empty";
 
 /// The single custom attribute holding every metadata field below as `name=value` lines.
-const A_META: &str = "ortmMeta";
+pub(crate) const A_META: &str = "ortmMeta";
 const A_FORMAT: &str = "ortmFormat";
 const A_VERSION: &str = "ortmVersion";
 const A_INDEX: &str = "ortmMapIndex";
@@ -140,7 +140,7 @@ pub(crate) fn content_hash(index: u32, bake_key: &str, map: &TransferMap) -> Str
 }
 
 /// Text attribute value; the caller guarantees ASCII.
-fn text(s: &str) -> Text {
+pub(crate) fn text(s: &str) -> Text {
     Text::from_slice_unchecked(s.as_bytes())
 }
 
@@ -186,10 +186,8 @@ pub fn encode_map(index: u32, map: &TransferMap, key: &BakeKey) -> Result<Vec<u8
             })
             .collect()
     };
-    // All metadata goes into ONE text attribute (`ortmMeta`, lines `name=value` in a fixed order):
-    // the `exr` crate writes custom attributes in hash-map order, so several attributes would
-    // make the bytes of identical maps differ from run to run.
-    let meta = [
+    // All metadata goes into ONE text attribute (see `meta_attribute`).
+    let meta = meta_attribute(&[
         (A_FORMAT, FILE_FORMAT.to_owned()),
         (A_VERSION, FILE_VERSION.to_string()),
         (A_INDEX, index.to_string()),
@@ -199,14 +197,8 @@ pub fn encode_map(index: u32, map: &TransferMap, key: &BakeKey) -> Result<Vec<u8
         (A_RECTS, map.crops().len().to_string()),
         (A_KEY, key.as_str().to_owned()),
         (A_HASH, content_hash(index, key.as_str(), map)),
-    ]
-    .iter()
-    .map(|(k, v)| format!("{k}={v}\n"))
-    .collect::<String>();
-    layers[0]
-        .attributes
-        .other
-        .insert(text(A_META), AttributeValue::Text(text(&meta)));
+    ]);
+    layers[0].attributes.other.insert(text(A_META), meta);
 
     let display = IntegerBounds::from_dimensions(Vec2(map.width() as usize, map.height() as usize));
     let image = Image::from_layers(ImageAttributes::new(display), layers);
@@ -510,9 +502,18 @@ fn check_header(
 }
 
 /// The metadata fields of the `ortmMeta` attribute.
-type Meta = std::collections::BTreeMap<String, String>;
+pub(crate) type Meta = std::collections::BTreeMap<String, String>;
 
-fn parse_meta(attrs: &HashMap<Text, AttributeValue>) -> Result<Meta, String> {
+/// The `ortmMeta` attribute value: one `name=value` line per field, in the given order. Map and
+/// atlas files keep all their metadata in this one attribute because the `exr` crate writes
+/// custom attributes in hash-map order (several would make identical files differ).
+pub(crate) fn meta_attribute(fields: &[(&str, String)]) -> AttributeValue {
+    let lines: String = fields.iter().map(|(k, v)| format!("{k}={v}\n")).collect();
+    AttributeValue::Text(text(&lines))
+}
+
+/// Parses the `ortmMeta` attribute of a part (see [`meta_attribute`]).
+pub(crate) fn parse_meta(attrs: &HashMap<Text, AttributeValue>) -> Result<Meta, String> {
     let Some(AttributeValue::Text(t)) = attrs.get(A_META.as_bytes()) else {
         return Err(format!("attribute {A_META} (string) is missing"));
     };
