@@ -54,6 +54,19 @@ pub enum Selector {
     JitteredGrid,
 }
 
+/// How a map's value over its Voronoi cell is computed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum CellRule {
+    /// The transfer integrated over the cell, `Σ_{v ∈ V} R(t, t+v)`
+    /// ([`crate::cell_transfer`]); the default.
+    #[default]
+    Integrated,
+    /// The paper's Eq. 10, `TR(t, t+Δt)·TVA(t, Δt)`: one sample of the transfer times the cell's
+    /// area (cells of at most [`EXACT_CELL_MAX`] offsets, and the origin's, are summed exactly).
+    Sampled,
+}
+
 /// Every setting that influences the bake's output (stored in the index).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct BakeSettings {
@@ -79,6 +92,9 @@ pub struct BakeSettings {
     pub coarse_block: u32,
     /// Receivers sampled per offset when estimating its transference.
     pub selection_receivers: usize,
+    /// How map values cover their Voronoi cells.
+    #[serde(default)]
+    pub cell_rule: CellRule,
     /// How the scene was named when baking (a built-in name or a scene-file path, as given), so
     /// that `ortm render DIR` can find it again; informational (the scene hash identifies it).
     pub scene: Option<String>,
@@ -98,6 +114,7 @@ impl Default for BakeSettings {
             rebuild_every: 20,
             coarse_block: 8,
             selection_receivers: 4096,
+            cell_rule: CellRule::Integrated,
             scene: None,
         }
     }
@@ -399,15 +416,18 @@ pub fn select_offsets(
     }
 }
 
-/// Computes the transfer maps of `offsets` in memory (no files): the core of the bake, used
-/// directly by tests. `events` receives one `Advance` per map.
+/// Computes the transfer maps of `offsets` in memory (no files) with the cell rule `rule`: the
+/// core of the bake, used directly by tests. `events` receives the integration phase's progress
+/// and one `Advance` per map.
 pub fn bake_maps(
     transport: &Transport,
     grid: &TexelGrid,
     offset_list: &[IVec2],
+    rule: CellRule,
     events: &(dyn Fn(BakeEvent) + Sync),
 ) -> Result<Vec<TransferMap>, BakeError> {
-    let plan = MapPlan::new(grid, offset_list)?;
+    let mut plan = MapPlan::new(grid, offset_list, rule)?;
+    plan.prepare(transport, grid, events);
     (0..offset_list.len())
         .map(|k| {
             let m = plan.map(transport, grid, k)?;
@@ -423,11 +443,13 @@ pub struct MapPlan {
     cells: offsets::DiscreteCells,
     areas: Vec<f64>,
     area_map: Vec<f32>,
+    rule: CellRule,
+    integrated: Option<crate::cell_transfer::CellValues>,
 }
 
 impl MapPlan {
     /// Computes the clipped Voronoi cells (areas) and the discrete cells (for TVA).
-    pub fn new(grid: &TexelGrid, offset_list: &[IVec2]) -> Result<Self, BakeError> {
+    pub fn new(grid: &TexelGrid, offset_list: &[IVec2], rule: CellRule) -> Result<Self, BakeError> {
         let (w, h) = (grid.width, grid.height);
         let polys = offsets::clipped_cell_polygons(offset_list, w, h)?;
         Ok(Self {
@@ -435,33 +457,80 @@ impl MapPlan {
             cells: offsets::discrete_cells(offset_list, w, h)?,
             areas: polys.real_areas(),
             area_map: grid.area_map(),
+            rule,
+            integrated: None,
         })
+    }
+
+    /// For [`CellRule::Integrated`], integrates every cell at once (receiver-major, see
+    /// [`crate::cell_transfer`]); a phase of `height` steps. Nothing to do for
+    /// [`CellRule::Sampled`], whose maps are computed one by one.
+    pub fn prepare(
+        &mut self,
+        transport: &Transport,
+        grid: &TexelGrid,
+        events: &(dyn Fn(BakeEvent) + Sync),
+    ) {
+        if self.rule != CellRule::Integrated || self.integrated.is_some() {
+            return;
+        }
+        events(BakeEvent::Phase {
+            name: "integrating cells",
+            total: grid.height as u64,
+        });
+        let t0 = std::time::Instant::now();
+        let iv = crate::cell_transfer::integrate(
+            transport,
+            grid,
+            &self.offsets,
+            &self.cells,
+            &|n| events(BakeEvent::Advance(n)),
+        );
+        let st = &iv.stats;
+        events(BakeEvent::Message(format!(
+            "cells integrated in {:.2} s: {} near cluster pairs ({} texel pairs, {} moved to the \
+             origin's cell), {} far windows in one cell, {} split",
+            t0.elapsed().as_secs_f64(),
+            st.near_cluster_pairs,
+            st.near_texel_pairs,
+            st.rehomed,
+            st.uniform_windows,
+            st.split_windows
+        )));
+        self.integrated = Some(iv);
     }
 
     /// The `k`-th map.
     ///
-    /// Small cells (at most [`EXACT_CELL_MAX`] integer offsets) and the cell holding the zero
-    /// offset are integrated exactly ([`compute_map_values_exact`]): near `Δt = 0` the transfer is
-    /// far from coherent in `Δt` — the subsurface profile and the form factors of neighbouring
-    /// texels peak there and the texel's own term is a point mass — so the paper's
-    /// `TR(t, t+Δt)·TVA(t, Δt)` (one sample times the cell's area) would over-weight the peak by
-    /// the cell's size. Larger cells, where the transfer is smooth, use Eq. 10 as in the paper.
+    /// [`CellRule::Integrated`]: from [`MapPlan::prepare`]'s integration (run here, without
+    /// progress events, if it has not been).
+    /// [`CellRule::Sampled`]: small cells (at most [`EXACT_CELL_MAX`] integer offsets) and the
+    /// cell holding the zero offset are summed exactly ([`compute_map_values_exact`]) — near
+    /// `Δt = 0` the transfer is far from coherent in `Δt` (the subsurface profile and the form
+    /// factors of neighbouring texels peak there and the texel's own term is a point mass) — and
+    /// larger cells use Eq. 10 as in the paper.
     pub fn map(
-        &self,
+        &mut self,
         transport: &Transport,
         grid: &TexelGrid,
         k: usize,
     ) -> Result<TransferMap, BakeError> {
-        let runs = &self.cells.real[k];
-        let contains_origin = runs
-            .iter()
-            .any(|r| r.dy == 0 && r.dx_start <= 0 && 0 <= r.dx_end_inclusive);
-        let members: usize = runs.iter().map(|r| r.len()).sum();
-        let (values, importance) = if contains_origin || members <= EXACT_CELL_MAX {
-            compute_map_values_exact(transport, grid, self.offsets[k], runs)
-        } else {
-            let tva = offsets::tva_map(&self.area_map, grid.width, grid.height, runs)?;
-            compute_map_values(transport, grid, self.offsets[k], &tva, false)
+        self.prepare(transport, grid, &|_| {});
+        let (values, importance) = match &self.integrated {
+            Some(iv) => (iv.map(k), iv.peak[k]),
+            None => {
+                let runs = &self.cells.real[k];
+                let contains_origin = runs
+                    .iter()
+                    .any(|r| r.dy == 0 && r.dx_start <= 0 && 0 <= r.dx_end_inclusive);
+                let members: usize = runs.iter().map(|r| r.len()).sum();
+                if contains_origin || members <= EXACT_CELL_MAX {
+                    compute_map_values_exact(transport, grid, self.offsets[k], runs)
+                } else {
+                    let tva = offsets::tva_map(&self.area_map, grid.width, grid.height, runs)?;
+                    compute_map_values(transport, grid, self.offsets[k], &tva, false)
+                }
+            }
         };
         Ok(TransferMap::from_full(
             self.offsets[k],
@@ -541,12 +610,27 @@ pub fn bake(
     };
     let t_select = t0.elapsed().as_secs_f64() - t_transport;
 
-    let plan = MapPlan::new(&grid, &offset_list)?;
+    let mut plan = MapPlan::new(&grid, &offset_list, settings.cell_rule)?;
     let scan = maps::scan_finished_maps(dir, &key, w, h)?;
     for p in &scan.stale_temp {
         let _ = std::fs::remove_file(p);
     }
     let total = offset_list.len();
+    let is_finished = |k: usize, offset: IVec2| {
+        scan.finished
+            .get(&(k as u32))
+            .is_some_and(|e| e.offset == offset.to_array())
+    };
+    if offset_list
+        .iter()
+        .enumerate()
+        .any(|(k, &o)| !is_finished(k, o))
+    {
+        if cancel.load(Ordering::Relaxed) {
+            return Err(BakeError::Interrupted { done: 0, total });
+        }
+        plan.prepare(&transport, &grid, events);
+    }
     events(BakeEvent::Phase {
         name: "writing transfer maps",
         total: total as u64,

@@ -12,6 +12,7 @@
 
 pub mod atlas;
 pub mod bake;
+pub mod cell_transfer;
 pub mod eval;
 pub mod lighting;
 pub mod lightmap;

@@ -90,7 +90,7 @@ fn check_all_offsets_exact(scene: &Scene, lights: &[ortm::scene::Light]) {
     // block = 1: the coarse level is the texel level, so R(t, t') is the exact transfer.
     let transport = Transport::new(scene, &grid, Effects::default(), 1);
     let offsets = all_offsets(grid.width, grid.height);
-    let maps = bake::bake_maps(&transport, &grid, &offsets, &|_| {}).unwrap();
+    let maps = bake::bake_maps(&transport, &grid, &offsets, bake::CellRule::Integrated, &|_| {}).unwrap();
     let vis = Visibility::new(&scene.mesh);
     let b_o = lighting::first_order(&grid, lights, &vis);
     let dense = DenseTransport::new(&texel_patches(&grid), &transport.kernels);
@@ -147,7 +147,7 @@ fn importance_sampled_offsets_converge_on_the_head() {
             ..BakeSettings::default()
         };
         let (offsets, _) = bake::select_offsets(&transport, &grid, &settings, &|_| {}).unwrap();
-        let maps = bake::bake_maps(&transport, &grid, &offsets, &|_| {}).unwrap();
+        let maps = bake::bake_maps(&transport, &grid, &offsets, bake::CellRule::Integrated, &|_| {}).unwrap();
         reference.indirect_error(&grid, &maps)
     };
     let errs: Vec<f64> = [25, 50, 100, 200]

@@ -22,6 +22,9 @@ pub struct Remainder {
     pub clusters: Vec<Patch>,
     /// `R_rem(I, J)` per channel, row-major `n_c × n_c`.
     pub rem: [Vec<f32>; 3],
+    /// The whole cluster transfer `R(I, J)` (fine + remainder) per channel, row-major
+    /// `n_c × n_c`: the far field of the cell integration ([`crate::cell_transfer`]).
+    pub full: [Vec<f32>; 3],
     /// Block size in texels.
     pub block: u32,
 }
@@ -93,10 +96,21 @@ impl Remainder {
             }
             v
         });
+        let full = std::array::from_fn(|ch| {
+            let m = &full[ch];
+            let mut v = vec![0.0f32; n * n];
+            for i in 0..n {
+                for j in 0..n {
+                    v[i * n + j] = m[(i, j)] as f32;
+                }
+            }
+            v
+        });
         Self {
             cluster_of,
             clusters,
             rem,
+            full,
             block,
         }
     }

@@ -85,7 +85,8 @@ pub struct Patch {
 }
 
 impl Patch {
-    fn ff(&self) -> FfPatch {
+    /// The patch as seen by the form-factor kernels.
+    pub fn ff(&self) -> FfPatch {
         FfPatch {
             position_m: self.position_m,
             normal: self.normal,
@@ -207,6 +208,15 @@ impl Kernels {
     /// (see the module docs). `i == j` must be signalled by `same`.
     #[inline]
     pub fn r_fine(&self, a: &Patch, b: &Patch, same: bool) -> [f64; 3] {
+        let s = self.r_subsurface(a, b, same);
+        let f = self.r_bounce(a, b, same);
+        [s[0] + f[0], s[1] + f[1], s[2] + f[2]]
+    }
+
+    /// The subsurface part of `R_fine(i, j)`: `S_ij / ρ̄_j − δ_ij` between texels of one
+    /// translucent material, else 0. No ray is cast.
+    #[inline]
+    pub fn r_subsurface(&self, a: &Patch, b: &Patch, same: bool) -> [f64; 3] {
         let mut out = [0.0f64; 3];
         if self.is_translucent(a.material)
             && let Some(s) = self.subsurface(a, b, same)
@@ -216,11 +226,19 @@ impl Kernels {
                 *o = if rho > 0.0 { s[c] / rho } else { 0.0 } - if same { 1.0 } else { 0.0 };
             }
         }
+        out
+    }
+
+    /// The first-bounce part of `R_fine(i, j)`: `ρ̄_i F_ij` with visibility (one shadow ray when
+    /// the patches face each other); 0 for `i == j`.
+    #[inline]
+    pub fn r_bounce(&self, a: &Patch, b: &Patch, same: bool) -> [f64; 3] {
+        let mut out = [0.0f64; 3];
         if !same {
             let f = self.form_factor_c(a, b) as f64 * b.area_m2 as f64;
             if f > 0.0 {
                 for (c, o) in out.iter_mut().enumerate() {
-                    *o += a.rho[c] as f64 * f;
+                    *o = a.rho[c] as f64 * f;
                 }
             }
         }
