@@ -7,7 +7,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use anyhow::{Context, Result, bail};
 use indicatif::{ProgressBar, ProgressStyle};
-use ortm::bake::{BakeEvent, BakeSettings, Selector, bake};
+use ortm::bake::{BakeEvent, BakeSettings, CellRule, Selector, bake};
 use ortm::offsets::ImportanceMetric;
 use ortm::transport::Effects;
 
@@ -38,6 +38,10 @@ pub struct Args {
     /// Transference metric: `max` or `average`.
     #[arg(long, default_value = "max")]
     pub metric: String,
+    /// How a map covers its Voronoi cell: `integrated` (the transfer summed over the cell) or
+    /// `sampled` (the paper's Eq. 10, `TR·TVA`).
+    #[arg(long, default_value = "integrated")]
+    pub cell_rule: String,
     /// Refinement iterations of the importance density.
     #[arg(long, default_value_t = 1000)]
     pub iterations: usize,
@@ -79,8 +83,14 @@ pub fn settings(a: &Args, size: (u32, u32)) -> Result<BakeSettings> {
         "average" | "avg" => ImportanceMetric::Average,
         o => bail!("--metric: unknown '{o}'; use max or average"),
     };
+    let cell_rule = match a.cell_rule.as_str() {
+        "integrated" => CellRule::Integrated,
+        "sampled" => CellRule::Sampled,
+        o => bail!("--cell-rule: unknown '{o}'; use integrated or sampled"),
+    };
     Ok(BakeSettings {
         size,
+        cell_rule,
         offsets: a.offsets,
         effects: parse_effects(&a.effects)?,
         seed: a.seed,
