@@ -13,6 +13,7 @@
 pub mod atlas;
 pub mod bake;
 pub mod eval;
+pub mod face;
 pub mod lighting;
 pub mod lightmap;
 pub mod maps;
