@@ -25,7 +25,8 @@ pub struct Cli {
 
 #[derive(Subcommand, Debug)]
 enum Command {
-    /// The main job on the built-in Cornell box: inspect, exact solve, bake, bin, render.
+    /// Demos: `cornell` (default; inspect, exact solve, bake, bin, render) or `face` (the
+    /// paper's face figures on the scanned head).
     Demo(demo::Args),
     /// Mesh and chart statistics, coverage, overlaps, and a PNG of the texel charts.
     Inspect(inspect::Args),
@@ -78,7 +79,8 @@ pub fn run(cli: Cli) -> Result<()> {
     }
 }
 
-/// Loads a scene argument: the name of a built-in scene (`cornell`) or a scene-file path.
+/// Loads a scene argument: the name of a built-in scene (`cornell`, `head`,
+/// `head-exponential`) or a scene-file path.
 /// `size` overrides the lightmap size (square).
 pub fn load_scene(arg: &str, size: Option<u32>) -> Result<Scene> {
     let mut scene = match arg {
@@ -91,6 +93,8 @@ pub fn load_scene(arg: &str, size: Option<u32>) -> Result<Scene> {
             ortm::scene::cornell::cornell_box(size.unwrap_or(64))
         }
         "head" => head_scene()?,
+        "head-exponential" => ortm::face::head_scene_with(faces::Falloff::Exponential)
+            .with_context(|| format!("loading the head scan '{}'", faces::head_obj_path().display()))?,
         path => ortm::scene::file::load_scene(&PathBuf::from(path))
             .with_context(|| format!("loading scene '{path}'"))?,
     };
