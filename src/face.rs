@@ -40,7 +40,10 @@ pub fn head_scene_with(falloff: faces::Falloff) -> Result<Scene, SceneError> {
             subsurface: Some(skin),
         }],
         lights: fig5.map(figure_lights).unwrap_or_default(),
-        lightmap_size: (faces::head::HEAD_LIGHTMAP_SIDE, faces::head::HEAD_LIGHTMAP_SIDE),
+        lightmap_size: (
+            faces::head::HEAD_LIGHTMAP_SIDE,
+            faces::head::HEAD_LIGHTMAP_SIDE,
+        ),
         allow_uv_overlap: false,
     })
 }

@@ -131,13 +131,13 @@ pub const FIGURES: [Figure; 5] = [
         look_for: "the underside of the nose, not directly lit, receiving light reflected \
                    from the upper lip and cheeks (black in the first-order half)",
         lights: &[FigLight::Directional {
-            direction: Vec3::new(0.0, -1.0, -0.12),
+            direction: Vec3::new(0.0, -1.0, -0.3),
             color: WHITE,
             irradiance_w_m2: 5.0,
         }],
         camera: FigCamera {
-            eye_m: Vec3::new(0.08, -0.16, 0.42),
-            target_m: Vec3::new(0.0, -0.05, 0.0),
+            eye_m: Vec3::new(0.1, -0.11, 0.45),
+            target_m: Vec3::new(0.0, -0.04, 0.0),
             fov_y_deg: 30.0,
         },
         side_by_side: true,
@@ -174,7 +174,11 @@ mod tests {
         assert_eq!(ids.len(), FIGURES.len());
         for f in &FIGURES {
             assert!(!f.lights.is_empty(), "{}", f.id);
-            assert!((f.camera.eye_m - f.camera.target_m).length() > 0.1, "{}", f.id);
+            assert!(
+                (f.camera.eye_m - f.camera.target_m).length() > 0.1,
+                "{}",
+                f.id
+            );
             assert!(f.camera.fov_y_deg > 5.0 && f.camera.fov_y_deg < 90.0);
             assert!(figure(f.id).is_some());
         }

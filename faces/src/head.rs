@@ -50,7 +50,10 @@ pub const HEAD_LIGHTMAP_SIDE: u32 = 256;
 /// pinna; `|x| ≥ 0.088`, behind the cheek), used to pick ear texels for the back-lit ear check.
 pub const EAR_BOXES_UNITS: [(Vec3, Vec3); 2] = [
     (Vec3::new(0.088, -0.075, -0.13), Vec3::new(0.2, 0.02, -0.05)),
-    (Vec3::new(-0.2, -0.075, -0.13), Vec3::new(-0.088, 0.02, -0.05)),
+    (
+        Vec3::new(-0.2, -0.075, -0.13),
+        Vec3::new(-0.088, 0.02, -0.05),
+    ),
 ];
 
 /// True when the point `p_m` (metres, head at [`HEAD_METRES_PER_UNIT`]) lies on an ear rim.

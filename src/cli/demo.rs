@@ -163,6 +163,13 @@ fn face(a: &Args) -> Result<()> {
     let size = a.size.unwrap_or(faces::head::HEAD_LIGHTMAP_SIDE);
     let scene = face_scene_arg(a.falloff);
     let bake_dir = out("bake");
+    if a.bench && a.output.join("bake").join("index.json").exists() {
+        anyhow::bail!(
+            "--bench times a fresh bake, but '{}' already holds one (its maps would be reused): \
+             remove it or choose another -o",
+            bake_dir
+        );
+    }
     let t = Instant::now();
     step(words(&[
         "bake",
@@ -189,7 +196,11 @@ fn face(a: &Args) -> Result<()> {
     for f in &faces::FIGURES {
         let png = format!("{}.png", f.id);
         let h = a.height.max(16);
-        let w = if f.side_by_side { 2 * h * 8 / 9 } else { h * 8 / 9 };
+        let w = if f.side_by_side {
+            2 * h * 8 / 9
+        } else {
+            h * 8 / 9
+        };
         let mut v = words(&[
             "render",
             &bake_dir,
@@ -257,7 +268,9 @@ fn bench_table(
         .iter()
         .position(|r| r.0 == size && r.1 == a.offsets)
         .map(|i| PAPER_MAPGEN_S[i]);
-    println!("\nface demo configuration beside the paper's Table 1 (paper: Pentium 4 2.53 GHz, GeForce 6800)");
+    println!(
+        "\nface demo configuration beside the paper's Table 1 (paper: Pentium 4 2.53 GHz, GeForce 6800)"
+    );
     println!(
         "| lightmap | offsets | ortm bake (s) | paper map-gen (s) | atlases 1024² | paper bins | paper FPS |"
     );

@@ -94,7 +94,12 @@ pub fn load_scene(arg: &str, size: Option<u32>) -> Result<Scene> {
         }
         "head" => head_scene()?,
         "head-exponential" => ortm::face::head_scene_with(faces::Falloff::Exponential)
-            .with_context(|| format!("loading the head scan '{}'", faces::head_obj_path().display()))?,
+            .with_context(|| {
+                format!(
+                    "loading the head scan '{}'",
+                    faces::head_obj_path().display()
+                )
+            })?,
         path => ortm::scene::file::load_scene(&PathBuf::from(path))
             .with_context(|| format!("loading scene '{path}'"))?,
     };
