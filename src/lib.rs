@@ -14,6 +14,7 @@ pub mod atlas;
 pub mod bake;
 pub mod cell_transfer;
 pub mod eval;
+pub mod face;
 pub mod lighting;
 pub mod lightmap;
 pub mod maps;

@@ -1,42 +1,101 @@
-//! `ortm demo [-o OUT]`: the main job on the built-in Cornell box — inspect, exact solve, bake,
-//! bin and render — each step the same as its own subcommand, outputs under `OUT`.
+//! `ortm demo [cornell] [-o OUT]`: the main job on the built-in Cornell box — inspect, exact
+//! solve, bake, bin and render — each step the same as its own subcommand, outputs under `OUT`.
+//!
+//! `ortm demo face [-o OUT] [--size N] [--offsets K] [--falloff dipole|exponential] [--bench]`:
+//! the paper's face figures on the scanned head. One bake with radiosity and subsurface
+//! scattering combined (`ortm bake head`), `ortm bin`, then one `ortm render` per figure of
+//! [`faces::FIGURES`] (Figs. 3, 4, 5, 6a, 6b: lights and camera from the `faces` crate;
+//! first order beside the final image where the figure compares them) → `OUT/<figure>.png`,
+//! plus `OUT/figures.md` with the captions, what to look for and the scan's credit line.
+//! `--bench` then prints the bake and frame times beside the paper's Table 1 (frame times from
+//! `ortm bench render --bake OUT/bake`).
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
 
 use anyhow::{Context, Result};
 use clap::Parser;
 
+/// Which demo.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Which {
+    /// The built-in Cornell box.
+    Cornell,
+    /// The paper's face figures on the scanned head.
+    Face,
+}
+
+/// Skin falloff of the face demo.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FalloffArg {
+    /// Jensen et al. 2001 dipole.
+    Dipole,
+    /// Normalised exponential falloff (mean free path 1/σ_tr).
+    Exponential,
+}
+
 /// Arguments of `ortm demo`.
 #[derive(clap::Args, Debug)]
 pub struct Args {
+    /// Which demo: `cornell` (default) or `face`.
+    #[arg(value_enum, default_value_t = Which::Cornell)]
+    which: Which,
     /// Output folder.
     #[arg(short, long, default_value = "out")]
     output: PathBuf,
-    /// Lightmap size (square).
-    #[arg(long, default_value_t = 64)]
-    size: u32,
+    /// Lightmap size (square); default 64 (cornell), 256 (face).
+    #[arg(long)]
+    size: Option<u32>,
     /// Number of offsets.
     #[arg(long, default_value_t = 100)]
     offsets: usize,
+    /// Face demo: skin falloff.
+    #[arg(long, value_enum, default_value_t = FalloffArg::Dipole)]
+    falloff: FalloffArg,
+    /// Face demo: rendered image height in pixels (side-by-side figures are twice as wide).
+    #[arg(long, default_value_t = 540)]
+    height: u32,
+    /// Face demo: afterwards, print bake and frame times beside the paper's Table 1.
+    #[arg(long)]
+    bench: bool,
+}
+
+/// Runs one `ortm` subcommand given as words, echoing it.
+fn step(words: Vec<String>) -> Result<()> {
+    println!("\n$ ortm {}", words.join(" "));
+    let cli = super::Cli::try_parse_from(std::iter::once("ortm".to_string()).chain(words.clone()))
+        .with_context(|| format!("demo step {}", words[0]))?;
+    super::run(cli).with_context(|| format!("demo step `ortm {}`", words.join(" ")))
+}
+
+fn words(v: &[&str]) -> Vec<String> {
+    v.iter().map(|s| s.to_string()).collect()
 }
 
 /// Runs `ortm demo`.
 pub fn run(a: Args) -> Result<()> {
     super::ensure_dir(&a.output)?;
+    match a.which {
+        Which::Cornell => cornell(&a),
+        Which::Face => face(&a),
+    }
+}
+
+fn cornell(a: &Args) -> Result<()> {
     let out = |p: &str| a.output.join(p).display().to_string();
-    let size = a.size.to_string();
+    let size = a.size.unwrap_or(64).to_string();
     let offsets = a.offsets.to_string();
-    let steps: Vec<Vec<String>> = vec![
-        vec![
+    let steps = [
+        words(&[
             "inspect",
             "cornell",
             "--size",
             &size,
             "-o",
             &out("coverage.png"),
-        ],
-        vec!["solve", "cornell", "--size", &size, "-o", &out("exact")],
-        vec![
+        ]),
+        words(&["solve", "cornell", "--size", &size, "-o", &out("exact")]),
+        words(&[
             "bake",
             "cornell",
             "--size",
@@ -45,9 +104,9 @@ pub fn run(a: Args) -> Result<()> {
             &offsets,
             "-o",
             &out("bake"),
-        ],
-        vec!["bin", &out("bake")],
-        vec![
+        ]),
+        words(&["bin", &out("bake")]),
+        words(&[
             "render",
             &out("bake"),
             "--scene",
@@ -59,18 +118,184 @@ pub fn run(a: Args) -> Result<()> {
             &out("final.exr"),
             "--first-order-out",
             &out("first_order.exr"),
-        ],
-    ]
-    .into_iter()
-    .map(|v| v.into_iter().map(String::from).collect())
-    .collect();
-    for step in steps {
-        println!("\n$ ortm {}", step.join(" "));
-        let cli =
-            super::Cli::try_parse_from(std::iter::once("ortm".to_string()).chain(step.clone()))
-                .with_context(|| format!("demo step {}", step[0]))?;
-        super::run(cli).with_context(|| format!("demo step `ortm {}`", step.join(" ")))?;
+        ]),
+    ];
+    for s in steps {
+        step(s)?;
     }
     println!("\ndemo outputs in {}", a.output.display());
     Ok(())
+}
+
+/// `ortm render --light` syntax of a figure light.
+pub fn light_spec(l: &faces::FigLight) -> String {
+    let v = |v: glam::Vec3| format!("{},{},{}", v.x, v.y, v.z);
+    match *l {
+        faces::FigLight::Point {
+            position_m,
+            color,
+            intensity_w_sr,
+        } => format!("point:{}:{intensity_w_sr}:{}", v(position_m), v(color)),
+        faces::FigLight::Directional {
+            direction,
+            color,
+            irradiance_w_m2,
+        } => format!("dir:{}:{irradiance_w_m2}:{}", v(direction), v(color)),
+    }
+}
+
+/// `ortm render --camera` syntax of a figure camera.
+pub fn camera_spec(c: &faces::FigCamera) -> String {
+    let v = |v: glam::Vec3| format!("{},{},{}", v.x, v.y, v.z);
+    format!("{}:{}:{}", v(c.eye_m), v(c.target_m), c.fov_y_deg)
+}
+
+/// The scene argument of the face demo for a falloff.
+pub fn face_scene_arg(f: FalloffArg) -> &'static str {
+    match f {
+        FalloffArg::Dipole => "head",
+        FalloffArg::Exponential => "head-exponential",
+    }
+}
+
+fn face(a: &Args) -> Result<()> {
+    let out = |p: &str| a.output.join(p).display().to_string();
+    let size = a.size.unwrap_or(faces::head::HEAD_LIGHTMAP_SIDE);
+    let scene = face_scene_arg(a.falloff);
+    let bake_dir = out("bake");
+    if a.bench && a.output.join("bake").join("index.json").exists() {
+        anyhow::bail!(
+            "--bench times a fresh bake, but '{}' already holds one (its maps would be reused): \
+             remove it or choose another -o",
+            bake_dir
+        );
+    }
+    let t = Instant::now();
+    step(words(&[
+        "bake",
+        scene,
+        "--size",
+        &size.to_string(),
+        "--offsets",
+        &a.offsets.to_string(),
+        "--effects",
+        "radiosity,sss",
+        "-o",
+        &bake_dir,
+    ]))?;
+    let bake_s = t.elapsed().as_secs_f64();
+    step(words(&["bin", &bake_dir, "--atlas", "1024"]))?;
+    let mut md = format!(
+        "# Face figures (`ortm demo face`, {size}² lightmap, {} offsets, radiosity + {:?} \
+         subsurface scattering in one bake)\n\n{}.\n\n",
+        a.offsets,
+        a.falloff,
+        faces::HEAD_CREDIT
+    );
+    let mut render_s = Vec::new();
+    for f in &faces::FIGURES {
+        let png = format!("{}.png", f.id);
+        let h = a.height.max(16);
+        let w = if f.side_by_side {
+            2 * h * 8 / 9
+        } else {
+            h * 8 / 9
+        };
+        let mut v = words(&[
+            "render",
+            &bake_dir,
+            &format!("--camera={}", camera_spec(&f.camera)),
+            "--size",
+            &format!("{w}x{h}"),
+            "-o",
+            &out(&png),
+        ]);
+        for l in f.lights {
+            // `--light=SPEC`: a spec may start with a minus sign.
+            v.push(format!("--light={}", light_spec(l)));
+        }
+        if f.side_by_side {
+            v.push("--side-by-side".into());
+        }
+        let t = Instant::now();
+        step(v)?;
+        render_s.push((f.id, t.elapsed().as_secs_f64()));
+        md.push_str(&format!(
+            "## {}\n\n![{}]({png})\n\n{}{}.\nLook for: {}.\n\n",
+            f.paper,
+            f.id,
+            if f.side_by_side {
+                "Left: first order; right: final (radiosity + subsurface scattering). "
+            } else {
+                ""
+            },
+            faces::HEAD_CREDIT,
+            f.look_for
+        ));
+    }
+    write_text(&a.output.join("figures.md"), &md)?;
+    println!("\nface demo outputs in {}", a.output.display());
+    println!("{}", faces::HEAD_CREDIT);
+    if a.bench {
+        bench_table(a, size, bake_s, &render_s, Path::new(&bake_dir))?;
+    }
+    Ok(())
+}
+
+/// Writes a text file atomically (temporary name, then rename).
+fn write_text(path: &Path, text: &str) -> Result<()> {
+    let tmp = path.with_extension(format!("tmp{}", std::process::id()));
+    std::fs::write(&tmp, text)
+        .and_then(|()| std::fs::rename(&tmp, path))
+        .with_context(|| format!("cannot write '{}'", path.display()))
+}
+
+fn bench_table(
+    a: &Args,
+    size: u32,
+    bake_s: f64,
+    render_s: &[(&str, f64)],
+    bake_dir: &Path,
+) -> Result<()> {
+    let atlases = ortm::atlas::read_atlas_index(bake_dir)
+        .map(|i| i.atlases.len())
+        .ok();
+    let paper = super::bench_render::TABLE_1
+        .iter()
+        .find(|r| r.0 == size && r.1 == a.offsets);
+    const PAPER_MAPGEN_S: [f64; 8] = [22.0, 28.0, 42.0, 57.0, 36.0, 107.0, 197.0, 226.0];
+    let paper_mapgen = super::bench_render::TABLE_1
+        .iter()
+        .position(|r| r.0 == size && r.1 == a.offsets)
+        .map(|i| PAPER_MAPGEN_S[i]);
+    println!(
+        "\nface demo configuration beside the paper's Table 1 (paper: Pentium 4 2.53 GHz, GeForce 6800)"
+    );
+    println!(
+        "| lightmap | offsets | ortm bake (s) | paper map-gen (s) | atlases 1024² | paper bins | paper FPS |"
+    );
+    println!("|---|---|---|---|---|---|---|");
+    println!(
+        "| {size}² | {} | {bake_s:.1} | {} | {} | {} | {} |",
+        a.offsets,
+        paper_mapgen.map_or("—".into(), |s| format!("{s:.0}")),
+        atlases.map_or("—".into(), |n| n.to_string()),
+        paper.map_or("—".into(), |r| r.2.to_string()),
+        paper.map_or("—".into(), |r| format!("{:.2}", r.3)),
+    );
+    println!("\nwall time of each `ortm render` (adapter start-up, upload, one frame, PNG):");
+    for (id, s) in render_s {
+        println!("  {id}: {s:.1} s");
+    }
+    println!("\nper-pass frame times of this bake (median GPU time):");
+    step(words(&[
+        "bench",
+        "render",
+        "--bake",
+        &bake_dir.display().to_string(),
+        "--paths",
+        "blend",
+        "--iterations",
+        "3",
+    ]))
 }

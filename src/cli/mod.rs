@@ -25,7 +25,8 @@ pub struct Cli {
 
 #[derive(Subcommand, Debug)]
 enum Command {
-    /// The main job on the built-in Cornell box: inspect, exact solve, bake, bin, render.
+    /// Demos: `cornell` (default; inspect, exact solve, bake, bin, render) or `face` (the
+    /// paper's face figures on the scanned head).
     Demo(demo::Args),
     /// Mesh and chart statistics, coverage, overlaps, and a PNG of the texel charts.
     Inspect(inspect::Args),
@@ -78,7 +79,8 @@ pub fn run(cli: Cli) -> Result<()> {
     }
 }
 
-/// Loads a scene argument: the name of a built-in scene (`cornell`) or a scene-file path.
+/// Loads a scene argument: the name of a built-in scene (`cornell`, `head`,
+/// `head-exponential`) or a scene-file path.
 /// `size` overrides the lightmap size (square).
 pub fn load_scene(arg: &str, size: Option<u32>) -> Result<Scene> {
     let mut scene = match arg {
@@ -91,6 +93,13 @@ pub fn load_scene(arg: &str, size: Option<u32>) -> Result<Scene> {
             ortm::scene::cornell::cornell_box(size.unwrap_or(64))
         }
         "head" => head_scene()?,
+        "head-exponential" => ortm::face::head_scene_with(faces::Falloff::Exponential)
+            .with_context(|| {
+                format!(
+                    "loading the head scan '{}'",
+                    faces::head_obj_path().display()
+                )
+            })?,
         path => ortm::scene::file::load_scene(&PathBuf::from(path))
             .with_context(|| format!("loading scene '{path}'"))?,
     };
@@ -109,46 +118,17 @@ pub fn ensure_dir(dir: &std::path::Path) -> Result<()> {
         .with_context(|| format!("cannot create output folder '{}'", dir.display()))
 }
 
-/// Where the scanned head lives: `$ORTM_HEAD_OBJ`, else `../shared/faces/head.obj` beside the
-/// checkout (the file is CC BY 3.0 and never copied into this repository).
-pub fn head_obj_path() -> PathBuf {
-    std::env::var_os("ORTM_HEAD_OBJ")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| {
-            PathBuf::from(concat!(
-                env!("CARGO_MANIFEST_DIR"),
-                "/../shared/faces/head.obj"
-            ))
-        })
-}
-
-/// The built-in `head` scene: the scanned head at 0.34 m per model unit (≈ 155 mm wide), skin
-/// (Jensen et al. 2001 "skin1" dipole), 256² lightmap, a point light in front of the face.
-/// Head scan © Lee Perry-Smith / Infinite Realities, CC BY 3.0.
+/// The built-in `head` scene ([`ortm::face::head_scene`]): the scanned head at
+/// [`faces::HEAD_METRES_PER_UNIT`] m per model unit, Jensen et al. 2001 "skin1" dipole, 256²
+/// lightmap, the point light of the paper's Fig. 5. The mesh comes from `$ORTM_HEAD_OBJ` or
+/// `../shared/faces/head.obj`. Head scan © Lee Perry-Smith / Infinite Realities, CC BY 3.0.
 pub fn head_scene() -> Result<Scene> {
-    use ortm::scene::{Albedo, Light, Material};
-    let path = head_obj_path();
-    let (mesh, _names, _warnings) = ortm::scene::obj::load_obj(&path, 0.34).with_context(|| {
+    ortm::face::head_scene().with_context(|| {
         format!(
-            "loading the head scan '{}' (set ORTM_HEAD_OBJ to its path; it is \"Infinite, 3D Head \
-             Scan\" by Lee Perry-Smith, McGuire Computer Graphics Archive)",
-            path.display()
+            "loading the head scan '{}' (set {} to its path; it is {})",
+            faces::head_obj_path().display(),
+            faces::HEAD_OBJ_ENV,
+            faces::head::HEAD_SOURCE
         )
-    })?;
-    Ok(Scene {
-        name: "head".into(),
-        mesh,
-        materials: vec![Material {
-            name: "skin".into(),
-            albedo: Albedo::Constant(glam::Vec3::new(0.8, 0.6, 0.5)),
-            subsurface: ortm::scene::subsurface_preset("skin1"),
-        }],
-        lights: vec![Light::Point {
-            position_m: glam::Vec3::new(0.1, 0.1, 0.4),
-            color: glam::Vec3::ONE,
-            intensity_w_sr: 2.0,
-        }],
-        lightmap_size: (256, 256),
-        allow_uv_overlap: false,
     })
 }
