@@ -17,7 +17,7 @@ use ortm::transport::{Effects, Kernels, Transport, texel_patches};
 
 fn head(size: u32) -> Scene {
     let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/faces/head.obj");
-    let (mesh, _, _) = ortm::scene::obj::load_obj(std::path::Path::new(path), 0.34).unwrap();
+    let (mesh, _, _) = ortm::scene::obj::load_obj(std::path::Path::new(path), f64::from(faces::head::HEAD_METRES_PER_UNIT)).unwrap();
     Scene {
         name: "head".into(),
         mesh,

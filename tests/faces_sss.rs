@@ -337,7 +337,7 @@ fn subsurface_light_crosses_a_uv_seam_through_offset_maps() {
     let tr = Transport::new(&scene, &grid, SSS_ONLY, 4);
     let (offsets, _) = bake::select_offsets(&tr, &grid, &settings, &|_| {}).unwrap();
     let seam_offsets = offsets.iter().filter(|o| o.x.abs() >= 60).count();
-    let maps = bake::bake_maps(&tr, &grid, &offsets, &|_| {}).unwrap();
+    let maps = bake::bake_maps(&tr, &grid, &offsets, bake::CellRule::Integrated, &|_| {}).unwrap();
     let out = ortm::maps::apply(&maps, &first).unwrap();
     let baked = lighting::from_lightmap(&grid, &out);
 
