@@ -41,6 +41,9 @@
 //! sampler). Defaults (2048², 1.5 texels, slope 2.0) remove acne on surfaces lit at up to
 //! ~80° from the normal and keep peter-panning under ~2 shadow texels.
 //!
+//! Shadow maps are re-rendered only when a light's layer matrices change (the mesh is
+//! static); [`FirstOrderScene::invalidate_shadow_maps`] forces a re-render.
+//!
 //! # Conventions
 //! Clip position of a vertex is `(2u − 1, 2v − 1)`: `v = 1` is row 0, so framebuffer pixel
 //! `(x, y)` is lightmap texel `(x, y)` and the rasteriser's pixel-centre rule covers a texel
@@ -415,6 +418,8 @@ pub struct FirstOrderScene {
     lights: wgpu::Buffer,
     matrices: wgpu::Buffer,
     shadow_layer_views: Vec<wgpu::TextureView>,
+    /// Layer matrices the shadow maps were last rendered with (`None`: not valid).
+    shadow_cache: std::sync::Mutex<Option<Vec<[f32; 16]>>>,
     bind_group: wgpu::BindGroup,
     shadow_bind_group: wgpu::BindGroup,
     output: wgpu::Texture,
@@ -432,6 +437,13 @@ impl FirstOrderScene {
     /// Number of indices.
     pub fn index_count(&self) -> u32 {
         self.index_count
+    }
+    /// Forgets which lights the shadow maps hold, so the next `encode` re-renders them even
+    /// if the lights did not move (benchmarks of the moving-light case use this).
+    pub fn invalidate_shadow_maps(&self) {
+        if let Ok(mut c) = self.shadow_cache.lock() {
+            *c = None;
+        }
     }
 }
 
@@ -863,6 +875,7 @@ impl FirstOrderPass {
             lights,
             matrices,
             shadow_layer_views,
+            shadow_cache: std::sync::Mutex::new(None),
             bind_group,
             shadow_bind_group,
             output,
@@ -892,14 +905,33 @@ impl FirstOrderPass {
         };
         gpu.queue
             .write_buffer(&scene.params, 0, bytemuck::bytes_of(&params));
+        let m: Vec<[f32; 16]> = mats.iter().map(|m| m.to_cols_array()).collect();
         if !lights.is_empty() {
             gpu.queue
                 .write_buffer(&scene.lights, 0, bytemuck::cast_slice(&lights));
-            let m: Vec<[f32; 16]> = mats.iter().map(|m| m.to_cols_array()).collect();
             gpu.queue
                 .write_buffer(&scene.matrices, 0, bytemuck::cast_slice(&m));
         }
-        for (layer, view) in scene.shadow_layer_views.iter().enumerate().take(mats.len()) {
+        // The mesh is static: shadow maps rendered with the same matrices are still valid.
+        let reuse = {
+            let mut cache = scene
+                .shadow_cache
+                .lock()
+                .map_err(|_| PassError::InvalidInput {
+                    what: "FirstOrderScene".into(),
+                    problem: "shadow-map cache poisoned by a panic in another thread".into(),
+                })?;
+            let same = cache.as_ref() == Some(&m);
+            *cache = Some(m);
+            same
+        };
+        let layers_to_render = if reuse { 0 } else { mats.len() };
+        for (layer, view) in scene
+            .shadow_layer_views
+            .iter()
+            .enumerate()
+            .take(layers_to_render)
+        {
             let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
                 label: Some(&format!("ortm.first_order.shadow_pass{layer}")),
                 color_attachments: &[],
