@@ -1023,12 +1023,50 @@ mod tests {
     #[test]
     fn too_many_layers_is_an_error() {
         let b = Bounds::of(&[[0.0; 3], [1.0; 3]]);
+        // Inside the bounding sphere: six cube faces per point light.
         let p = LightDesc::Point {
-            position_m: [0.0, 2.0, 0.0],
+            position_m: [0.5, 0.6, 0.4],
             color: [1.0; 3],
             intensity_w_sr: 1.0,
         };
         assert!(pack_lights(&[p, p], &b, 64, 12).is_ok());
         assert!(pack_lights(&[p, p, p], &b, 64, 12).is_err());
+        // Outside it: one cone each.
+        let far = LightDesc::Point {
+            position_m: [0.0, 2.0, 0.0],
+            color: [1.0; 3],
+            intensity_w_sr: 1.0,
+        };
+        let (_, mats) = pack_lights(&[far, far, far], &b, 64, 3).unwrap();
+        assert_eq!(mats.len(), 3);
+    }
+
+    #[test]
+    fn point_cone_contains_the_bounds() {
+        // Every bbox corner projects inside the single cone's map, within [0, 1] depth.
+        let b = Bounds {
+            min: Vec3::new(-0.1, -0.12, -0.09),
+            max: Vec3::new(0.08, 0.13, 0.1),
+        };
+        let p = Vec3::new(0.1, 0.1, 0.4);
+        let light = LightDesc::Point {
+            position_m: p.into(),
+            color: [1.0; 3],
+            intensity_w_sr: 1.0,
+        };
+        let (g, mats) = shadow_layers(&light, &b, 512);
+        assert_eq!((g.layer_count, mats.len()), (1, 1));
+        for i in 0..8 {
+            let c = Vec3::new(
+                if i & 1 == 0 { b.min.x } else { b.max.x },
+                if i & 2 == 0 { b.min.y } else { b.max.y },
+                if i & 4 == 0 { b.min.z } else { b.max.z },
+            );
+            let q = mats[0].project_point3(c);
+            assert!(
+                q.x.abs() < 1.0 && q.y.abs() < 1.0 && q.z > 0.0 && q.z < 1.0,
+                "corner {c} → {q}"
+            );
+        }
     }
 }

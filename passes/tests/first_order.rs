@@ -156,3 +156,51 @@ fn check(lights: &[LightDesc], point_layers: u32) {
     );
     assert!(edge * 5 < lit + shadowed, "too many edge texels: {edge}");
 }
+
+/// Shadow maps are reused only while the lights stay put: lights A, then B, then A again
+/// must give A's lightmap again, bit for bit, and B's twice the same.
+#[test]
+fn shadow_map_cache_follows_moving_lights() {
+    let (mesh, albedo) = floor_and_box(SIZE);
+    let a = demo_lights();
+    let b = [LightDesc::Point {
+        position_m: [-0.9, 1.1, 0.6],
+        color: [1.0; 3],
+        intensity_w_sr: 3.0,
+    }];
+    let options = FirstOrderOptions {
+        shadow_map_size: 256,
+        max_shadow_layers: 8,
+        ..Default::default()
+    };
+    let gpu = gpu();
+    let pass = FirstOrderPass::new(&gpu, &options).unwrap();
+    let scene = pass.prepare(&gpu, &mesh, &albedo).unwrap();
+    let render = |lights: &[LightDesc]| {
+        let mut enc = gpu.device.create_command_encoder(&Default::default());
+        let out = pass
+            .encode(
+                &gpu,
+                &mut enc,
+                &FirstOrderInputs {
+                    scene: &scene,
+                    lights,
+                },
+            )
+            .unwrap();
+        gpu.submit_and_wait("test.first_order_cache", enc).unwrap();
+        gpu.read_texel_image("test.first_order_cache", &out.first_order_tex)
+            .unwrap()
+            .rgba
+    };
+    let a1 = render(&a);
+    let b1 = render(&b);
+    let b2 = render(&b); // shadow maps reused
+    let a2 = render(&a);
+    scene.invalidate_shadow_maps();
+    let a3 = render(&a);
+    assert_ne!(a1, b1, "the two light sets must differ");
+    assert_eq!(b1, b2);
+    assert_eq!(a1, a2);
+    assert_eq!(a1, a3);
+}
