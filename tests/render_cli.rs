@@ -146,4 +146,28 @@ fn render_writes_frame_and_lightmaps_consistent_with_cpu_reference() {
         dir,
     ));
     assert!(e.contains("--size"), "{e}");
+
+    // No usable adapter (only a backend this build lacks): the error says how to get one.
+    if cfg!(target_os = "linux") {
+        let out = Command::new(env!("CARGO_BIN_EXE_ortm"))
+            .args(["render", "bake", "-o", "no_adapter.png"])
+            .env("WGPU_BACKEND", "metal")
+            .current_dir(dir)
+            .output()
+            .expect("the ortm binary runs");
+        let e = fails(out);
+        assert!(
+            e.contains("no GPU adapter") && e.contains("mesa-vulkan-drivers"),
+            "{e}"
+        );
+        assert!(!dir.join("no_adapter.png").exists());
+    }
+
+    // A damaged atlas: an error naming the file, no image.
+    let atlas = dir.join("bake").join("atlas_000.exr");
+    let bytes = std::fs::read(&atlas).unwrap();
+    std::fs::write(&atlas, &bytes[..bytes.len() / 2]).unwrap();
+    let e = fails(ortm(&["render", "bake", "-o", "bad_atlas.png"], dir));
+    assert!(e.contains("atlas_000.exr"), "{e}");
+    assert!(!dir.join("bad_atlas.png").exists());
 }

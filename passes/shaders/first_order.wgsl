@@ -1,17 +1,22 @@
 // First-order pass: B_o = ρ·E per lightmap texel, with shadow maps.
 // (lights.wgsl is prepended.) Mirror: src/cpu/first_order.rs. Host side: src/first_order.rs.
 //
-// vs_shadow:   mesh into one layer of the shadow-map array (layer = instance index).
-// vs_lightmap: mesh rasterised by its lightmap UVs, clip = (2u − 1, 2v − 1): v = 1 → row 0,
-//              so framebuffer pixel (x, y) is lightmap texel (x, y); the rasteriser's centre
-//              rule gives exactly the covered texels.
-// fs_lightmap: world position/normal interpolated at the texel centre; E summed over lights
-//              with shadows; out = (ρ·E, 1): alpha = 1 marks coverage (cleared to 0).
+// vs_shadow:   mesh positions into one layer of the shadow-map array (layer = instance index).
+// vs_gbuffer:  (once per scene) mesh rasterised by its lightmap UVs, clip = (2u − 1, 2v − 1):
+//              v = 1 → row 0, so framebuffer pixel (x, y) is lightmap texel (x, y); the
+//              rasteriser's centre rule gives exactly the covered texels.
+// fs_gbuffer:  world position (w = 1: covered; cleared to 0) and normal interpolated at the
+//              texel centre.
+// fs_lightmap: (per frame, full-screen triangle) G-buffer position/normal of the texel; E
+//              summed over lights with shadows; out = (ρ·E, 1): alpha = 1 marks coverage,
+//              uncovered texels 0.
 //
 // Bindings (bind-group order = @binding order; must match `FirstOrderPass` in first_order.rs):
 //   group 0: 0 = Params (uniform), 1 = lights (storage, read), 2 = layer matrices (storage,
 //            read), 3 = albedo (RGBA32F texture, textureLoad), 4 = shadow maps (depth 2D array),
-//            5 = comparison sampler
+//            5 = comparison sampler, 6 = G-buffer position (RGBA32F, w = coverage),
+//            7 = G-buffer normal (RGBA32F)
+//   vs_gbuffer/fs_gbuffer use no bindings.
 
 // Must match `FirstOrderParams` in first_order.rs (32 bytes).
 struct Params {
@@ -31,6 +36,8 @@ struct Params {
 @group(0) @binding(3) var albedo: texture_2d<f32>;
 @group(0) @binding(4) var shadow_maps: texture_depth_2d_array;
 @group(0) @binding(5) var shadow_sampler: sampler_comparison;
+@group(0) @binding(6) var gbuffer_position: texture_2d<f32>;
+@group(0) @binding(7) var gbuffer_normal: texture_2d<f32>;
 
 // Vertex layout: must match `Vertex` in first_order.rs (32 bytes).
 struct VertexIn {
@@ -39,9 +46,31 @@ struct VertexIn {
     @location(2) uv: vec2<f32>,
 }
 
+// Shadow pass vertex: positions only (`position_layout` in first_order.rs, 12 bytes).
 @vertex
-fn vs_shadow(v: VertexIn, @builtin(instance_index) layer: u32) -> @builtin(position) vec4<f32> {
-    return layer_view_proj[layer] * vec4<f32>(v.position, 1.0);
+fn vs_shadow(@location(0) position: vec3<f32>, @builtin(instance_index) layer: u32) -> @builtin(position) vec4<f32> {
+    return layer_view_proj[layer] * vec4<f32>(position, 1.0);
+}
+
+struct GbufferOut {
+    @location(0) position: vec4<f32>,
+    @location(1) normal: vec4<f32>,
+}
+
+@fragment
+fn fs_gbuffer(in: LightmapOut) -> GbufferOut {
+    var out: GbufferOut;
+    out.position = vec4<f32>(in.world, 1.0);
+    out.normal = vec4<f32>(in.normal, 0.0);
+    return out;
+}
+
+// Full-screen triangle over the lightmap (per-frame lighting pass).
+@vertex
+fn vs_fullscreen(@builtin(vertex_index) vi: u32) -> @builtin(position) vec4<f32> {
+    let x = f32(i32(vi & 1u) * 4 - 1);
+    let y = f32(i32(vi >> 1u) * 4 - 1);
+    return vec4<f32>(x, y, 0.0, 1.0);
 }
 
 struct LightmapOut {
@@ -51,7 +80,7 @@ struct LightmapOut {
 }
 
 @vertex
-fn vs_lightmap(v: VertexIn) -> LightmapOut {
+fn vs_gbuffer(v: VertexIn) -> LightmapOut {
     var out: LightmapOut;
     out.clip = vec4<f32>(2.0 * v.uv.x - 1.0, 2.0 * v.uv.y - 1.0, 0.0, 1.0);
     out.world = v.position;
@@ -81,7 +110,7 @@ fn shadow_visibility(light: GpuLight, p: vec3<f32>, n: vec3<f32>) -> f32 {
     }
     let q = p + n * (params.normal_offset_texels * texel_m);
     var layer = light.first_layer;
-    if (light.kind == LIGHT_POINT) {
+    if (light.kind == LIGHT_POINT && light.layer_count == 6u) {
         layer += cube_face(q - light.position.xyz);
     }
     let clip = layer_view_proj[layer] * vec4<f32>(q, 1.0);
@@ -97,16 +126,21 @@ fn shadow_visibility(light: GpuLight, p: vec3<f32>, n: vec3<f32>) -> f32 {
 }
 
 @fragment
-fn fs_lightmap(in: LightmapOut) -> @location(0) vec4<f32> {
-    let t = vec2<i32>(floor(in.clip.xy));
+fn fs_lightmap(@builtin(position) clip: vec4<f32>) -> @location(0) vec4<f32> {
+    let t = vec2<i32>(floor(clip.xy));
+    let g = textureLoad(gbuffer_position, t, 0);
+    if (g.w == 0.0) {
+        return vec4<f32>(0.0);
+    }
+    let world = g.xyz;
     let rho = textureLoad(albedo, t, 0).rgb;
-    let n = normalize(in.normal);
+    let n = normalize(textureLoad(gbuffer_normal, t, 0).xyz);
     var e = vec3<f32>(0.0);
     for (var i = 0u; i < params.light_count; i++) {
         let light = lights[i];
-        let e_light = unshadowed_irradiance(light, in.world, n);
+        let e_light = unshadowed_irradiance(light, world, n);
         if (any(e_light > vec3<f32>(0.0))) {
-            e += e_light * shadow_visibility(light, in.world, n);
+            e += e_light * shadow_visibility(light, world, n);
         }
     }
     return vec4<f32>(rho * e, 1.0);

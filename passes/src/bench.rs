@@ -13,8 +13,14 @@
 //! With `TIMESTAMP_QUERY` + `TIMESTAMP_QUERY_INSIDE_ENCODERS` the GPU time between two
 //! timestamps around the recorded commands is used ([`TimingSource::GpuTimestamps`]);
 //! otherwise the wall time of submit + wait ([`TimingSource::WallClock`], which includes
-//! submission and synchronisation overhead). Every measurement is the median of
-//! `iterations` runs after one warm-up run; each run is its own submission.
+//! submission and synchronisation overhead). Every measurement is the median (or, with
+//! [`Statistic::Min`], the minimum: on a CPU shared with other work, the run least disturbed
+//! by it) of `iterations` runs after one warm-up run; each run is its own submission.
+//!
+//! The first-order row times moving lights: the shadow-map cache is invalidated before every
+//! run, so each run renders every shadow layer. A last row times the same pass with static
+//! lights (shadow maps reused, only the per-texel lighting runs), the viewer's case when
+//! only the camera moves.
 //!
 //! # Limits
 //! Software adapters (lavapipe) are orders of magnitude slower than GPUs; compare numbers
@@ -45,6 +51,25 @@ impl std::fmt::Display for TimingSource {
     }
 }
 
+/// Which statistic of the timed runs a row reports.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Statistic {
+    /// The median run.
+    #[default]
+    Median,
+    /// The fastest run.
+    Min,
+}
+
+impl Statistic {
+    fn of(self, sorted: &[f64]) -> f64 {
+        match self {
+            Statistic::Median => sorted[sorted.len() / 2],
+            Statistic::Min => sorted[0],
+        }
+    }
+}
+
 /// One line of the table.
 #[derive(Clone, Debug, PartialEq)]
 pub struct BenchRow {
@@ -56,6 +81,11 @@ pub struct BenchRow {
     pub texel_blends: u64,
     /// `texel_blends / seconds` (0 where not meaningful).
     pub blends_per_s: f64,
+    /// CPU time the whole process (every thread, so lavapipe's too) spent per timed run, in
+    /// milliseconds, from `/proc/self/task/*/schedstat` (`None` where unavailable). On a
+    /// software adapter this is the work done, independent of waiting for cores that other
+    /// processes hold.
+    pub cpu_ms: Option<f64>,
 }
 
 impl BenchRow {
@@ -63,6 +93,7 @@ impl BenchRow {
         Self {
             name: name.into(),
             ms,
+            cpu_ms: None,
             texel_blends,
             blends_per_s: if ms > 0.0 {
                 texel_blends as f64 / (ms * 1e-3)
@@ -70,6 +101,11 @@ impl BenchRow {
                 0.0
             },
         }
+    }
+
+    fn with_cpu(mut self, cpu_ms: Option<f64>) -> Self {
+        self.cpu_ms = cpu_ms;
+        self
     }
 }
 
@@ -82,6 +118,8 @@ pub struct BenchReport {
     pub timing: TimingSource,
     /// Iterations per measurement.
     pub iterations: u32,
+    /// Statistic of the runs each row reports.
+    pub statistic: Statistic,
     /// One row per pass, then the roofline.
     pub rows: Vec<BenchRow>,
 }
@@ -91,23 +129,41 @@ impl std::fmt::Display for BenchReport {
         writeln!(f, "adapter: {}", self.adapter)?;
         writeln!(
             f,
-            "timing:  {} (median of {})",
-            self.timing, self.iterations
+            "timing:  {} ({:?} of {})",
+            self.timing, self.statistic, self.iterations
         )?;
         writeln!(
             f,
-            "{:<34} {:>10} {:>14} {:>14}",
-            "pass", "ms", "texel blends", "blends/s"
+            "{:<48} {:>10} {:>10} {:>14} {:>14}",
+            "pass", "ms", "cpu ms", "texel blends", "blends/s"
         )?;
         for r in &self.rows {
             writeln!(
                 f,
-                "{:<34} {:>10.3} {:>14} {:>14.3e}",
-                r.name, r.ms, r.texel_blends, r.blends_per_s
+                "{:<48} {:>10.3} {:>10} {:>14} {:>14.3e}",
+                r.name,
+                r.ms,
+                r.cpu_ms.map_or("—".to_string(), |c| format!("{c:.3}")),
+                r.texel_blends,
+                r.blends_per_s
             )?;
         }
         Ok(())
     }
+}
+
+/// CPU time of every thread of this process so far, in nanoseconds (Linux
+/// `/proc/self/task/*/schedstat`, first field); `None` elsewhere. Threads that exited are
+/// not counted, so only differences over a span in which lavapipe's threads live are
+/// meaningful.
+pub fn process_cpu_ns() -> Option<u64> {
+    let mut total = 0u64;
+    for entry in std::fs::read_dir("/proc/self/task").ok()? {
+        let path = entry.ok()?.path().join("schedstat");
+        let text = std::fs::read_to_string(path).ok()?;
+        total += text.split_whitespace().next()?.parse::<u64>().ok()?;
+    }
+    Some(total)
 }
 
 /// Times `record` (which records commands into a fresh encoder) `iterations` times after a
@@ -116,8 +172,20 @@ pub fn time_encoded(
     gpu: &Gpu,
     label: &str,
     iterations: u32,
-    mut record: impl FnMut(&mut wgpu::CommandEncoder) -> Result<(), PassError>,
+    record: impl FnMut(&mut wgpu::CommandEncoder) -> Result<(), PassError>,
 ) -> Result<(f64, TimingSource), PassError> {
+    time_encoded_stat(gpu, label, iterations, Statistic::Median, record).map(|(ms, s, _)| (ms, s))
+}
+
+/// [`time_encoded`] reporting `statistic` of the runs, and the mean process CPU time per
+/// run in milliseconds ([`process_cpu_ns`]; `None` where unavailable).
+pub fn time_encoded_stat(
+    gpu: &Gpu,
+    label: &str,
+    iterations: u32,
+    statistic: Statistic,
+    mut record: impl FnMut(&mut wgpu::CommandEncoder) -> Result<(), PassError>,
+) -> Result<(f64, TimingSource, Option<f64>), PassError> {
     let iterations = iterations.clamp(1, 1024);
     let device = &gpu.device;
     let new_encoder = || {
@@ -131,6 +199,7 @@ pub fn time_encoded(
     gpu.submit_and_wait(label, enc)?;
 
     let mut times = Vec::with_capacity(iterations as usize);
+    let cpu_start = process_cpu_ns();
     let source = if gpu.supports_timestamps() {
         let qs = device.create_query_set(&wgpu::QuerySetDescriptor {
             label: Some("ortm.bench.timestamps"),
@@ -174,8 +243,11 @@ pub fn time_encoded(
         }
         TimingSource::WallClock
     };
+    let cpu_ms = cpu_start
+        .zip(process_cpu_ns())
+        .map(|(a, b)| b.saturating_sub(a) as f64 * 1e-6 / iterations as f64);
     times.sort_by(f64::total_cmp);
-    Ok((times[times.len() / 2], source))
+    Ok((statistic.of(&times), source, cpu_ms))
 }
 
 /// Pure additive blending: `draws` full-screen triangles into a `size` target of `format`.
@@ -186,6 +258,18 @@ pub fn bench_blend_roofline(
     format: wgpu::TextureFormat,
     draws: u32,
     iterations: u32,
+) -> Result<(BenchRow, TimingSource), PassError> {
+    bench_blend_roofline_stat(gpu, size, format, draws, iterations, Statistic::Median)
+}
+
+/// [`bench_blend_roofline`] reporting `statistic` of the runs.
+pub fn bench_blend_roofline_stat(
+    gpu: &Gpu,
+    size: [u32; 2],
+    format: wgpu::TextureFormat,
+    draws: u32,
+    iterations: u32,
+    statistic: Statistic,
 ) -> Result<(BenchRow, TimingSource), PassError> {
     gpu.check_texture_size("roofline target", size[0], size[1])?;
     let device = &gpu.device;
@@ -237,48 +321,64 @@ pub fn bench_blend_roofline(
         wgpu::TextureUsages::RENDER_ATTACHMENT,
     );
     let view = util::view(&target);
-    let (ms, source) = time_encoded(gpu, "ortm.bench.roofline", iterations, |enc| {
-        let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
-            label: Some("ortm.bench.roofline_pass"),
-            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                view: &view,
-                depth_slice: None,
-                resolve_target: None,
-                ops: wgpu::Operations {
-                    load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
-                    store: wgpu::StoreOp::Store,
-                },
-            })],
-            depth_stencil_attachment: None,
-            timestamp_writes: None,
-            occlusion_query_set: None,
-            multiview_mask: None,
-        });
-        pass.set_pipeline(&pipeline);
-        for _ in 0..draws {
-            pass.draw(0..3, 0..1);
-        }
-        Ok(())
-    })?;
+    let (ms, source, cpu) =
+        time_encoded_stat(gpu, "ortm.bench.roofline", iterations, statistic, |enc| {
+            let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("ortm.bench.roofline_pass"),
+                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                    view: &view,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
+                        store: wgpu::StoreOp::Store,
+                    },
+                })],
+                depth_stencil_attachment: None,
+                timestamp_writes: None,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            pass.set_pipeline(&pipeline);
+            for _ in 0..draws {
+                pass.draw(0..3, 0..1);
+            }
+            Ok(())
+        })?;
     let blends = size[0] as u64 * size[1] as u64 * draws as u64;
     Ok((
         BenchRow::new(
             format!("roofline: {draws}× full-screen blend {format:?}"),
             ms,
             blends,
-        ),
+        )
+        .with_cpu(cpu),
         source,
     ))
 }
 
-/// Times every pass of `renderer` on `scene`, then the roofline at the lightmap size with
-/// as many full-screen draws as the transfer pass's blends need.
+/// Times every pass of `renderer` on `scene` (median of the runs), then the roofline at the
+/// lightmap size with as many full-screen draws as the transfer pass's blends need. Rows:
+/// first order with moving lights (shadow maps re-rendered every run), transfer, dilation,
+/// display, roofline, first order with static lights (shadow maps reused).
 pub fn bench_frame(
     gpu: &Gpu,
     renderer: &Renderer,
     scene: &RenderScene,
     params: &FrameParams<'_>,
     iterations: u32,
+) -> Result<BenchReport, PassError> {
+    bench_frame_stat(gpu, renderer, scene, params, iterations, Statistic::Median)
+}
+
+/// [`bench_frame`] reporting `statistic` of the runs.
+pub fn bench_frame_stat(
+    gpu: &Gpu,
+    renderer: &Renderer,
+    scene: &RenderScene,
+    params: &FrameParams<'_>,
+    iterations: u32,
+    statistic: Statistic,
 ) -> Result<BenchReport, PassError> {
     use crate::dilate::DilateInputs;
     use crate::display::DisplayInputs;
@@ -294,7 +394,7 @@ pub fn bench_frame(
     let dil_view = util::view(&frame.dilated_final_tex);
 
     let mut rows = Vec::new();
-    let (ms, timing) = time_encoded(gpu, "ortm.bench.first_order", iterations, |enc| {
+    let first_order = |enc: &mut wgpu::CommandEncoder| {
         renderer
             .first_order
             .encode(
@@ -306,24 +406,46 @@ pub fn bench_frame(
                 },
             )
             .map(|_| ())
-    })?;
-    rows.push(BenchRow::new("first order (+ shadow maps)", ms, 0));
+    };
+    let (ms, timing, cpu) = time_encoded_stat(
+        gpu,
+        "ortm.bench.first_order",
+        iterations,
+        statistic,
+        |enc| {
+            // Moving lights: every run renders every shadow layer.
+            scene.first_order.invalidate_shadow_maps();
+            renderer
+                .first_order
+                .encode(
+                    gpu,
+                    enc,
+                    &FirstOrderInputs {
+                        scene: &scene.first_order,
+                        lights: params.lights,
+                    },
+                )
+                .map(|_| ())
+        },
+    )?;
+    rows.push(BenchRow::new("first order, moving lights (+ shadow maps)", ms, 0).with_cpu(cpu));
 
     let schedule = &scene.transfer.schedule;
     let [w, h] = scene.lightmap_size;
     let blends = schedule.texel_blends() + w as u64 * h as u64;
     let path = renderer.transfer.options().path;
-    let (ms, _) = time_encoded(gpu, "ortm.bench.transfer", iterations, |enc| {
-        renderer.transfer.encode(
-            gpu,
-            enc,
-            &TransferInputs {
-                scene: &scene.transfer,
-                first_order: &fo_view,
-            },
-        );
-        Ok(())
-    })?;
+    let (ms, _, cpu) =
+        time_encoded_stat(gpu, "ortm.bench.transfer", iterations, statistic, |enc| {
+            renderer.transfer.encode(
+                gpu,
+                enc,
+                &TransferInputs {
+                    scene: &scene.transfer,
+                    first_order: &fo_view,
+                },
+            );
+            Ok(())
+        })?;
     let name = match path {
         TransferPath::Blend => format!(
             "transfer, blend {:?} ({} pieces)",
@@ -336,9 +458,9 @@ pub fn bench_frame(
         ),
         TransferPath::Compute => "transfer, compute gather".to_string(),
     };
-    rows.push(BenchRow::new(name, ms, blends));
+    rows.push(BenchRow::new(name, ms, blends).with_cpu(cpu));
 
-    let (ms, _) = time_encoded(gpu, "ortm.bench.dilate", iterations, |enc| {
+    let (ms, _, cpu) = time_encoded_stat(gpu, "ortm.bench.dilate", iterations, statistic, |enc| {
         renderer.dilate.encode(
             gpu,
             enc,
@@ -349,28 +471,29 @@ pub fn bench_frame(
         );
         Ok(())
     })?;
-    rows.push(BenchRow::new("dilate (final map)", ms, 0));
+    rows.push(BenchRow::new("dilate (final map)", ms, 0).with_cpu(cpu));
 
-    let (ms, _) = time_encoded(gpu, "ortm.bench.display", iterations, |enc| {
-        renderer
-            .display
-            .encode(
-                gpu,
-                enc,
-                &DisplayInputs {
-                    scene: &scene.display,
-                    final_lightmap: &dil_view,
-                    lightmap_size: scene.lightmap_size,
-                    first_order: Some(&dil_view),
-                    camera: params.camera,
-                    exposure: params.exposure,
-                    lights: params.lights,
-                    specular: params.specular,
-                },
-            )
-            .map(|_| ())
-    })?;
-    rows.push(BenchRow::new("display", ms, 0));
+    let (ms, _, cpu) =
+        time_encoded_stat(gpu, "ortm.bench.display", iterations, statistic, |enc| {
+            renderer
+                .display
+                .encode(
+                    gpu,
+                    enc,
+                    &DisplayInputs {
+                        scene: &scene.display,
+                        final_lightmap: &dil_view,
+                        lightmap_size: scene.lightmap_size,
+                        first_order: Some(&dil_view),
+                        camera: params.camera,
+                        exposure: params.exposure,
+                        lights: params.lights,
+                        specular: params.specular,
+                    },
+                )
+                .map(|_| ())
+        })?;
+    rows.push(BenchRow::new("display", ms, 0).with_cpu(cpu));
 
     let draws = blends.div_ceil(w as u64 * h as u64).clamp(1, 4096) as u32;
     let format = match path {
@@ -382,12 +505,25 @@ pub fn bench_frame(
     } else {
         format
     };
-    let (row, _) = bench_blend_roofline(gpu, [w, h], format, draws, iterations)?;
+    let (row, _) = bench_blend_roofline_stat(gpu, [w, h], format, draws, iterations, statistic)?;
     rows.push(row);
+    // Static lights: the warm-up run renders the shadow maps, the timed runs reuse them.
+    scene.first_order.invalidate_shadow_maps();
+    let (ms, _, cpu) = time_encoded_stat(
+        gpu,
+        "ortm.bench.first_order_static",
+        iterations,
+        statistic,
+        first_order,
+    )?;
+    rows.push(
+        BenchRow::new("first order, static lights (shadow maps reused)", ms, 0).with_cpu(cpu),
+    );
     Ok(BenchReport {
         adapter: format!("{} ({:?})", gpu.adapter_info.name, gpu.adapter_info.backend),
         timing,
         iterations,
+        statistic,
         rows,
     })
 }

@@ -3,7 +3,7 @@
 //! mirror [`crate::cpu::dilate`].
 //!
 //! # Data flow
-//! [`DilatePass::encode`] runs [`DilateOptions::iterations`] compute dispatches, ping-ponging
+//! [`DilatePass::encode`] runs [`DilateOptions::iterations`] full-screen fragment passes, ping-ponging
 //! between two RGBA32F textures owned by [`DilateTargets`]; each iteration grows the filled
 //! region by one texel (8-neighbourhood mean of non-empty neighbours). Covered texels
 //! (alpha 1) and already-filled ones (alpha [`FILLED_ALPHA`]) are copied unchanged, so a
@@ -55,16 +55,16 @@ pub struct DilateParams {
 pub struct DilatePass {
     options: DilateOptions,
     layout: wgpu::BindGroupLayout,
-    pipeline: wgpu::ComputePipeline,
+    pipeline: wgpu::RenderPipeline,
 }
 
 /// Ping-pong targets for one map size.
 #[derive(Debug)]
 pub struct DilateTargets {
-    size: [u32; 2],
     params: wgpu::Buffer,
     textures: [wgpu::Texture; 2],
-    /// Bind groups reading texture `i` and writing texture `1 − i`.
+    views: [wgpu::TextureView; 2],
+    /// Bind groups reading texture `i` (the pass renders into texture `1 − i`).
     swap_groups: [wgpu::BindGroup; 2],
 }
 
@@ -85,7 +85,7 @@ pub struct DilateOutput {
 }
 
 impl DilatePass {
-    /// Builds the compute pipeline.
+    /// Builds the render pipeline.
     pub fn new(gpu: &Gpu, options: &DilateOptions) -> Result<Self, PassError> {
         if options.iterations == 0 {
             return Err(PassError::InvalidInput {
@@ -100,27 +100,40 @@ impl DilatePass {
                 "ortm.dilate.shader",
                 include_str!("../shaders/dilate.wgsl"),
             );
-            let cs = wgpu::ShaderStages::COMPUTE;
+            let fs = wgpu::ShaderStages::FRAGMENT;
             // Order = @binding order in dilate.wgsl.
             let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
                 label: Some("ortm.dilate.layout"),
-                entries: &[
-                    util::uniform_entry(0, cs),
-                    util::texture_entry(1, cs),
-                    util::storage_texture_entry(2, wgpu::TextureFormat::Rgba32Float),
-                ],
+                entries: &[util::uniform_entry(0, fs), util::texture_entry(1, fs)],
             });
             let pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
                 label: Some("ortm.dilate.pipeline_layout"),
                 bind_group_layouts: &[Some(&layout)],
                 immediate_size: 0,
             });
-            let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
                 label: Some("ortm.dilate.pipeline"),
                 layout: Some(&pl),
-                module: &module,
-                entry_point: Some("cs_dilate"),
-                compilation_options: Default::default(),
+                vertex: wgpu::VertexState {
+                    module: &module,
+                    entry_point: Some("vs_fullscreen"),
+                    compilation_options: Default::default(),
+                    buffers: &[],
+                },
+                primitive: Default::default(),
+                depth_stencil: None,
+                multisample: Default::default(),
+                fragment: Some(wgpu::FragmentState {
+                    module: &module,
+                    entry_point: Some("fs_dilate"),
+                    compilation_options: Default::default(),
+                    targets: &[Some(wgpu::ColorTargetState {
+                        format: wgpu::TextureFormat::Rgba32Float,
+                        blend: None,
+                        write_mask: wgpu::ColorWrites::ALL,
+                    })],
+                }),
+                multiview_mask: None,
                 cache: None,
             });
             Self {
@@ -147,19 +160,19 @@ impl DilatePass {
                 &format!("ortm.dilate.target{i}"),
                 size,
                 wgpu::TextureFormat::Rgba32Float,
-                wgpu::TextureUsages::STORAGE_BINDING
+                wgpu::TextureUsages::RENDER_ATTACHMENT
                     | wgpu::TextureUsages::TEXTURE_BINDING
                     | wgpu::TextureUsages::COPY_SRC,
             )
         };
         let textures = [make(0), make(1)];
         let views = [util::view(&textures[0]), util::view(&textures[1])];
-        let group = |from: usize| self.bind_group(device, &params, &views[from], &views[1 - from]);
+        let group = |from: usize| self.bind_group(device, &params, &views[from]);
         let swap_groups = [group(0), group(1)];
         Ok(DilateTargets {
-            size,
             params,
             textures,
+            views,
             swap_groups,
         })
     }
@@ -169,7 +182,6 @@ impl DilatePass {
         device: &wgpu::Device,
         params: &wgpu::Buffer,
         src: &wgpu::TextureView,
-        dst: &wgpu::TextureView,
     ) -> wgpu::BindGroup {
         // Order = @binding order in dilate.wgsl.
         device.create_bind_group(&wgpu::BindGroupDescriptor {
@@ -184,10 +196,6 @@ impl DilatePass {
                     binding: 1,
                     resource: wgpu::BindingResource::TextureView(src),
                 },
-                wgpu::BindGroupEntry {
-                    binding: 2,
-                    resource: wgpu::BindingResource::TextureView(dst),
-                },
             ],
         })
     }
@@ -200,30 +208,35 @@ impl DilatePass {
         inputs: &DilateInputs<'_>,
     ) -> DilateOutput {
         let t = inputs.targets;
-        let first = self.bind_group(
-            &gpu.device,
-            &t.params,
-            inputs.source,
-            &util::view(&t.textures[0]),
-        );
-        let groups = [t.size[0].div_ceil(8), t.size[1].div_ceil(8)];
-        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-            label: Some("ortm.dilate.pass"),
-            timestamp_writes: None,
-        });
-        pass.set_pipeline(&self.pipeline);
+        let first = self.bind_group(&gpu.device, &t.params, inputs.source);
         // Iteration 0: source → target0; iteration k: target((k−1)%2) → target(k%2).
         let mut last = 0;
         for k in 0..self.options.iterations as usize {
+            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("ortm.dilate.pass"),
+                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                    view: &t.views[k % 2],
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
+                        store: wgpu::StoreOp::Store,
+                    },
+                })],
+                depth_stencil_attachment: None,
+                timestamp_writes: None,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            pass.set_pipeline(&self.pipeline);
             if k == 0 {
                 pass.set_bind_group(0, &first, &[]);
             } else {
                 pass.set_bind_group(0, &t.swap_groups[(k - 1) % 2], &[]);
             }
-            pass.dispatch_workgroups(groups[0], groups[1], 1);
+            pass.draw(0..3, 0..1);
             last = k % 2;
         }
-        drop(pass);
         DilateOutput {
             dilated_tex: t.textures[last].clone(),
         }

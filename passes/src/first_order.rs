@@ -4,11 +4,17 @@
 //!
 //! # Data flow
 //! Once: [`FirstOrderPass::new`] builds the pipelines; [`FirstOrderPass::prepare`] uploads
-//! the mesh (interleaved [`Vertex`]), the albedo map and allocates the shadow-map array and
-//! the output. Per frame: [`FirstOrderPass::encode`] writes the lights ([`GpuLight`]) and
-//! one view-projection matrix per shadow layer ([`shadow_layers`]), renders every shadow
-//! layer (depth only), then the lightmap: per fragment the interpolated world position and
-//! normal, `E = Σ_lights E_light·visibility`, output `(ρ·E, 1)`.
+//! the mesh (interleaved [`Vertex`], plus positions alone for the shadow pass), the albedo
+//! map, allocates the shadow-map array and the output, and rasterises the mesh once by its
+//! UVs into a texel G-buffer (interpolated world position + coverage, interpolated normal;
+//! two RGBA32F maps). Per frame: [`FirstOrderPass::encode`] writes the lights
+//! ([`GpuLight`]) and one view-projection matrix per shadow layer ([`shadow_layers`]),
+//! renders every shadow layer (depth only), then the lightmap as one full-screen triangle:
+//! per texel the G-buffer's position and normal, `E = Σ_lights E_light·visibility`, output
+//! `(ρ·E, 1)` (`0` where the G-buffer says uncovered). Deferring to a G-buffer gives the
+//! same values as shading while rasterising the mesh (same interpolants, stored in f32)
+//! but shades each texel once: rasterising 17k small triangles into 256² shades partial
+//! 4×4 blocks many times over on a software rasteriser.
 //!
 //! # Lights (SI units)
 //! Point/spot `E = I·cosθ/d²` (spot × `smoothstep(cos outer, cos inner, cos α)`),
@@ -17,12 +23,16 @@
 //!
 //! # Shadow maps
 //! One `Depth32Float` 2D array of `shadow_map_size²` layers shared by all lights:
-//! - point light: 6 layers, 90° perspective faces in the order +X, −X, +Y, −Y, +Z, −Z; the
-//!   lookup picks the face by the major axis (a cube map without cube-map conventions);
+//! - point light outside the mesh's bounding sphere (×1.05; [`point_cone`]): 1 perspective
+//!   layer whose cone just contains the sphere, `near`/`far` at the sphere's extent — the
+//!   mesh fills the map instead of a corner of one cube face, and one depth pass replaces six;
+//! - point light inside it: 6 layers, 90° perspective faces in the order +X, −X, +Y, −Y, +Z,
+//!   −Z; the lookup picks the face by the major axis (a cube map without cube-map
+//!   conventions);
 //! - spot light: 1 perspective layer, half-angle = outer angle + 1° (≤ 89°);
 //! - directional light: 1 orthographic layer fitted to the mesh's bounding sphere.
 //!
-//! Perspective maps use `far` = 1.01 × the distance to the farthest corner of the mesh's
+//! Cube faces and spot maps use `far` = 1.01 × the distance to the farthest corner of the mesh's
 //! bounding box and `near = far/1000`; geometry nearer than `near` to a light casts no
 //! shadow. Biases: lookups are offset along the normal by
 //! [`FirstOrderOptions::normal_offset_texels`] shadow texels (world size of a texel at that
@@ -30,6 +40,9 @@
 //! ([`FirstOrderOptions::slope_bias`]); comparisons use 2×2 hardware PCF (linear comparison
 //! sampler). Defaults (2048², 1.5 texels, slope 2.0) remove acne on surfaces lit at up to
 //! ~80° from the normal and keep peter-panning under ~2 shadow texels.
+//!
+//! Shadow maps are re-rendered only when a light's layer matrices change (the mesh is
+//! static); [`FirstOrderScene::invalidate_shadow_maps`] forces a re-render.
 //!
 //! # Conventions
 //! Clip position of a vertex is `(2u − 1, 2v − 1)`: `v = 1` is row 0, so framebuffer pixel
@@ -102,6 +115,16 @@ pub fn vertex_layout() -> wgpu::VertexBufferLayout<'static> {
         wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Float32x2];
     wgpu::VertexBufferLayout {
         array_stride: std::mem::size_of::<Vertex>() as u64,
+        step_mode: wgpu::VertexStepMode::Vertex,
+        attributes: &ATTRS,
+    }
+}
+
+/// The shadow pass's vertex buffer layout: positions only (`[f32; 3]`, metres, location 0).
+pub fn position_layout() -> wgpu::VertexBufferLayout<'static> {
+    const ATTRS: [wgpu::VertexAttribute; 1] = wgpu::vertex_attr_array![0 => Float32x3];
+    wgpu::VertexBufferLayout {
+        array_stride: 12,
         step_mode: wgpu::VertexStepMode::Vertex,
         attributes: &ATTRS,
     }
@@ -210,6 +233,31 @@ fn up_for(dir: Vec3) -> Vec3 {
     if dir.y.abs() > 0.9 { Vec3::Z } else { Vec3::Y }
 }
 
+/// Margin on the bounding-sphere radius of a point light's single shadow cone (covers the
+/// normal offset of lookups near the silhouette).
+const POINT_CONE_MARGIN: f32 = 1.05;
+
+/// For a point light at `p` outside the mesh's (margined) bounding sphere: the axis, the
+/// half-angle (radians) of the cone that just contains the sphere, and `near`, `far` (m) of
+/// the perspective map along that cone. `None` when the light is inside or too close (the
+/// cone would be wider than 2·75°): then it takes six 90° faces.
+pub fn point_cone(p: Vec3, bounds: &Bounds) -> Option<(Vec3, f32, f32, f32)> {
+    let (c, r) = bounds.sphere();
+    let r = r * POINT_CONE_MARGIN;
+    let to_c = c - p;
+    let d = to_c.length();
+    if d <= r {
+        return None;
+    }
+    let half = (r / d).asin();
+    if half > 75f32.to_radians() {
+        return None;
+    }
+    let far = d + r;
+    let near = (d - r).max(far * 1e-3);
+    Some((to_c / d, half, near, far))
+}
+
 /// The shader record of a light and its shadow layers' view-projection matrices
 /// (`first_layer` filled in by the caller).
 pub fn shadow_layers(
@@ -225,6 +273,21 @@ pub fn shadow_layers(
             intensity_w_sr,
         } => {
             let p = Vec3::from(position_m);
+            let radiance = (Vec3::from(color) * intensity_w_sr).extend(0.0).into();
+            if let Some((dir, half, near, far)) = point_cone(p, bounds) {
+                // Outside the bounding sphere: one perspective layer whose cone just
+                // contains the sphere sees every surface the light can reach.
+                let proj = proj_dx::perspective(2.0 * half, 1.0, near, far);
+                let g = GpuLight {
+                    position: [p.x, p.y, p.z, 0.0],
+                    radiance,
+                    cone: [-2.0, -1.0, 2.0 * half.tan() / size, 0.0],
+                    kind: LIGHT_POINT,
+                    layer_count: 1,
+                    ..Default::default()
+                };
+                return (g, vec![proj * look_to_mat4(p, dir, up_for(dir))]);
+            }
             let far = bounds.farthest_corner(p) * 1.01 + 1e-3;
             let near = (far * 1e-3).max(1e-5);
             let proj = proj_dx::perspective(std::f32::consts::FRAC_PI_2, 1.0, near, far);
@@ -234,7 +297,7 @@ pub fn shadow_layers(
                 .collect();
             let g = GpuLight {
                 position: [p.x, p.y, p.z, 0.0],
-                radiance: (Vec3::from(color) * intensity_w_sr).extend(0.0).into(),
+                radiance,
                 cone: [-2.0, -1.0, 2.0 / size, 0.0],
                 kind: LIGHT_POINT,
                 layer_count: 6,
@@ -336,6 +399,7 @@ pub struct FirstOrderPass {
     shadow_layout: wgpu::BindGroupLayout,
     shadow_pipeline: wgpu::RenderPipeline,
     lightmap_pipeline: wgpu::RenderPipeline,
+    gbuffer_pipeline: wgpu::RenderPipeline,
     sampler: wgpu::Sampler,
 }
 
@@ -347,12 +411,15 @@ pub struct FirstOrderScene {
     /// Mesh bounds (for shadow frusta).
     pub bounds: Bounds,
     vertices: wgpu::Buffer,
+    positions: wgpu::Buffer,
     indices: wgpu::Buffer,
     index_count: u32,
     params: wgpu::Buffer,
     lights: wgpu::Buffer,
     matrices: wgpu::Buffer,
     shadow_layer_views: Vec<wgpu::TextureView>,
+    /// Layer matrices the shadow maps were last rendered with (`None`: not valid).
+    shadow_cache: std::sync::Mutex<Option<Vec<[f32; 16]>>>,
     bind_group: wgpu::BindGroup,
     shadow_bind_group: wgpu::BindGroup,
     output: wgpu::Texture,
@@ -370,6 +437,13 @@ impl FirstOrderScene {
     /// Number of indices.
     pub fn index_count(&self) -> u32 {
         self.index_count
+    }
+    /// Forgets which lights the shadow maps hold, so the next `encode` re-renders them even
+    /// if the lights did not move (benchmarks of the moving-light case use this).
+    pub fn invalidate_shadow_maps(&self) {
+        if let Ok(mut c) = self.shadow_cache.lock() {
+            *c = None;
+        }
     }
 }
 
@@ -444,6 +518,8 @@ impl FirstOrderPass {
                         ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Comparison),
                         count: None,
                     },
+                    util::texture_entry(6, fs),
+                    util::texture_entry(7, fs),
                 ],
             });
             let pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -469,7 +545,7 @@ impl FirstOrderPass {
                     module: &module,
                     entry_point: Some("vs_shadow"),
                     compilation_options: Default::default(),
-                    buffers: &[Some(vertex_layout())],
+                    buffers: &[Some(position_layout())],
                 },
                 primitive: wgpu::PrimitiveState {
                     cull_mode: None,
@@ -497,14 +573,11 @@ impl FirstOrderPass {
                     layout: Some(&pl),
                     vertex: wgpu::VertexState {
                         module: &module,
-                        entry_point: Some("vs_lightmap"),
+                        entry_point: Some("vs_fullscreen"),
                         compilation_options: Default::default(),
-                        buffers: &[Some(vertex_layout())],
+                        buffers: &[],
                     },
-                    primitive: wgpu::PrimitiveState {
-                        cull_mode: None,
-                        ..Default::default()
-                    },
+                    primitive: Default::default(),
                     depth_stencil: None,
                     multisample: Default::default(),
                     fragment: Some(wgpu::FragmentState {
@@ -520,6 +593,40 @@ impl FirstOrderPass {
                     multiview_mask: None,
                     cache: None,
                 });
+            let gbuffer_pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                label: Some("ortm.first_order.gbuffer_pipeline_layout"),
+                bind_group_layouts: &[],
+                immediate_size: 0,
+            });
+            let gbuffer_target = Some(wgpu::ColorTargetState {
+                format: wgpu::TextureFormat::Rgba32Float,
+                blend: None,
+                write_mask: wgpu::ColorWrites::ALL,
+            });
+            let gbuffer_pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                label: Some("ortm.first_order.gbuffer_pipeline"),
+                layout: Some(&gbuffer_pl),
+                vertex: wgpu::VertexState {
+                    module: &module,
+                    entry_point: Some("vs_gbuffer"),
+                    compilation_options: Default::default(),
+                    buffers: &[Some(vertex_layout())],
+                },
+                primitive: wgpu::PrimitiveState {
+                    cull_mode: None,
+                    ..Default::default()
+                },
+                depth_stencil: None,
+                multisample: Default::default(),
+                fragment: Some(wgpu::FragmentState {
+                    module: &module,
+                    entry_point: Some("fs_gbuffer"),
+                    compilation_options: Default::default(),
+                    targets: &[gbuffer_target.clone(), gbuffer_target],
+                }),
+                multiview_mask: None,
+                cache: None,
+            });
             let sampler = device.create_sampler(&wgpu::SamplerDescriptor {
                 label: Some("ortm.first_order.shadow_sampler"),
                 address_mode_u: wgpu::AddressMode::ClampToEdge,
@@ -535,6 +642,7 @@ impl FirstOrderPass {
                 shadow_layout,
                 shadow_pipeline,
                 lightmap_pipeline,
+                gbuffer_pipeline,
                 sampler,
             }
         })
@@ -576,6 +684,12 @@ impl FirstOrderPass {
             device,
             "ortm.first_order.vertices",
             bytemuck::cast_slice(&verts),
+            wgpu::BufferUsages::VERTEX,
+        );
+        let positions = util::buffer_init(
+            device,
+            "ortm.first_order.positions",
+            bytemuck::cast_slice(&mesh.positions_m),
             wgpu::BufferUsages::VERTEX,
         );
         let indices = util::buffer_init(
@@ -643,6 +757,56 @@ impl FirstOrderPass {
             ..Default::default()
         });
         let albedo_view = util::view(&albedo_tex);
+        // The texel G-buffer: the mesh rasterised once by its UVs (the lights change per
+        // frame, the surface point of a texel does not).
+        let gbuffer_usage =
+            wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING;
+        let gbuffer = [
+            util::texture_2d(
+                device,
+                "ortm.first_order.gbuffer_position",
+                size,
+                wgpu::TextureFormat::Rgba32Float,
+                gbuffer_usage,
+            ),
+            util::texture_2d(
+                device,
+                "ortm.first_order.gbuffer_normal",
+                size,
+                wgpu::TextureFormat::Rgba32Float,
+                gbuffer_usage,
+            ),
+        ];
+        let gbuffer_views = [util::view(&gbuffer[0]), util::view(&gbuffer[1])];
+        let mut enc = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+            label: Some("ortm.first_order.gbuffer_encoder"),
+        });
+        {
+            let attachment = |view| {
+                Some(wgpu::RenderPassColorAttachment {
+                    view,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
+                        store: wgpu::StoreOp::Store,
+                    },
+                })
+            };
+            let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("ortm.first_order.gbuffer_pass"),
+                color_attachments: &[attachment(&gbuffer_views[0]), attachment(&gbuffer_views[1])],
+                depth_stencil_attachment: None,
+                timestamp_writes: None,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            pass.set_pipeline(&self.gbuffer_pipeline);
+            pass.set_vertex_buffer(0, vertices.slice(..));
+            pass.set_index_buffer(indices.slice(..), wgpu::IndexFormat::Uint32);
+            pass.draw_indexed(0..mesh.indices.len() as u32, 0, 0..1);
+        }
+        gpu.queue.submit([enc.finish()]);
         // Order = @binding order in first_order.wgsl.
         let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("ortm.first_order.bind_group"),
@@ -672,6 +836,14 @@ impl FirstOrderPass {
                     binding: 5,
                     resource: wgpu::BindingResource::Sampler(&self.sampler),
                 },
+                wgpu::BindGroupEntry {
+                    binding: 6,
+                    resource: wgpu::BindingResource::TextureView(&gbuffer_views[0]),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 7,
+                    resource: wgpu::BindingResource::TextureView(&gbuffer_views[1]),
+                },
             ],
         });
         let shadow_bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
@@ -696,12 +868,14 @@ impl FirstOrderPass {
             lightmap_size: size,
             bounds: Bounds::of(&mesh.positions_m),
             vertices,
+            positions,
             indices,
             index_count: mesh.indices.len() as u32,
             params,
             lights,
             matrices,
             shadow_layer_views,
+            shadow_cache: std::sync::Mutex::new(None),
             bind_group,
             shadow_bind_group,
             output,
@@ -731,14 +905,33 @@ impl FirstOrderPass {
         };
         gpu.queue
             .write_buffer(&scene.params, 0, bytemuck::bytes_of(&params));
+        let m: Vec<[f32; 16]> = mats.iter().map(|m| m.to_cols_array()).collect();
         if !lights.is_empty() {
             gpu.queue
                 .write_buffer(&scene.lights, 0, bytemuck::cast_slice(&lights));
-            let m: Vec<[f32; 16]> = mats.iter().map(|m| m.to_cols_array()).collect();
             gpu.queue
                 .write_buffer(&scene.matrices, 0, bytemuck::cast_slice(&m));
         }
-        for (layer, view) in scene.shadow_layer_views.iter().enumerate().take(mats.len()) {
+        // The mesh is static: shadow maps rendered with the same matrices are still valid.
+        let reuse = {
+            let mut cache = scene
+                .shadow_cache
+                .lock()
+                .map_err(|_| PassError::InvalidInput {
+                    what: "FirstOrderScene".into(),
+                    problem: "shadow-map cache poisoned by a panic in another thread".into(),
+                })?;
+            let same = cache.as_ref() == Some(&m);
+            *cache = Some(m);
+            same
+        };
+        let layers_to_render = if reuse { 0 } else { mats.len() };
+        for (layer, view) in scene
+            .shadow_layer_views
+            .iter()
+            .enumerate()
+            .take(layers_to_render)
+        {
             let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
                 label: Some(&format!("ortm.first_order.shadow_pass{layer}")),
                 color_attachments: &[],
@@ -756,7 +949,7 @@ impl FirstOrderPass {
             });
             pass.set_pipeline(&self.shadow_pipeline);
             pass.set_bind_group(0, &scene.shadow_bind_group, &[]);
-            pass.set_vertex_buffer(0, scene.vertices.slice(..));
+            pass.set_vertex_buffer(0, scene.positions.slice(..));
             pass.set_index_buffer(scene.indices.slice(..), wgpu::IndexFormat::Uint32);
             let l = layer as u32;
             pass.draw_indexed(0..scene.index_count, 0, l..l + 1);
@@ -780,9 +973,7 @@ impl FirstOrderPass {
         });
         pass.set_pipeline(&self.lightmap_pipeline);
         pass.set_bind_group(0, &scene.bind_group, &[]);
-        pass.set_vertex_buffer(0, scene.vertices.slice(..));
-        pass.set_index_buffer(scene.indices.slice(..), wgpu::IndexFormat::Uint32);
-        pass.draw_indexed(0..scene.index_count, 0, 0..1);
+        pass.draw(0..3, 0..1);
         drop(pass);
         Ok(FirstOrderOutput {
             first_order_tex: scene.output.clone(),
@@ -832,12 +1023,50 @@ mod tests {
     #[test]
     fn too_many_layers_is_an_error() {
         let b = Bounds::of(&[[0.0; 3], [1.0; 3]]);
+        // Inside the bounding sphere: six cube faces per point light.
         let p = LightDesc::Point {
-            position_m: [0.0, 2.0, 0.0],
+            position_m: [0.5, 0.6, 0.4],
             color: [1.0; 3],
             intensity_w_sr: 1.0,
         };
         assert!(pack_lights(&[p, p], &b, 64, 12).is_ok());
         assert!(pack_lights(&[p, p, p], &b, 64, 12).is_err());
+        // Outside it: one cone each.
+        let far = LightDesc::Point {
+            position_m: [0.0, 2.0, 0.0],
+            color: [1.0; 3],
+            intensity_w_sr: 1.0,
+        };
+        let (_, mats) = pack_lights(&[far, far, far], &b, 64, 3).unwrap();
+        assert_eq!(mats.len(), 3);
+    }
+
+    #[test]
+    fn point_cone_contains_the_bounds() {
+        // Every bbox corner projects inside the single cone's map, within [0, 1] depth.
+        let b = Bounds {
+            min: Vec3::new(-0.1, -0.12, -0.09),
+            max: Vec3::new(0.08, 0.13, 0.1),
+        };
+        let p = Vec3::new(0.1, 0.1, 0.4);
+        let light = LightDesc::Point {
+            position_m: p.into(),
+            color: [1.0; 3],
+            intensity_w_sr: 1.0,
+        };
+        let (g, mats) = shadow_layers(&light, &b, 512);
+        assert_eq!((g.layer_count, mats.len()), (1, 1));
+        for i in 0..8 {
+            let c = Vec3::new(
+                if i & 1 == 0 { b.min.x } else { b.max.x },
+                if i & 2 == 0 { b.min.y } else { b.max.y },
+                if i & 4 == 0 { b.min.z } else { b.max.z },
+            );
+            let q = mats[0].project_point3(c);
+            assert!(
+                q.x.abs() < 1.0 && q.y.abs() < 1.0 && q.z > 0.0 && q.z < 1.0,
+                "corner {c} → {q}"
+            );
+        }
     }
 }

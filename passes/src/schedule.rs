@@ -14,7 +14,8 @@
 //! to the *destination* texel to find the first-order texel read.
 //!
 //! # Limits
-//! Pieces with `w == 0` or `h == 0` are dropped (they do nothing). A piece must lie inside
+//! Pieces with `w == 0` or `h == 0` are dropped (they do nothing), and pieces are cropped to
+//! the texels whose first-order read `t + Δt` lies in the map (the rest add 0). A piece must lie inside
 //! its atlas and its destination inside the lightmap; anything else is an error (the binning
 //! stage produces such pieces only when its inputs disagree with the render's).
 
@@ -115,10 +116,19 @@ pub fn build_schedule(
                 ),
             });
         }
+        // Crop to the texels whose source t + Δt lies in the map: first order is 0
+        // outside it (Eq. 4), so the cropped texels add exactly nothing, and the shaders
+        // need no bounds test on the first-order read.
+        let (Some((x0, w)), Some((y0, h))) = (
+            read_inside(p.dst_x, p.w, p.offset[0], lw),
+            read_inside(p.dst_y, p.h, p.offset[1], lh),
+        ) else {
+            continue;
+        };
         per_atlas[p.atlas as usize].push(PieceInstance {
-            src: [p.src_x, p.src_y],
-            dst: [p.dst_x, p.dst_y],
-            size: [p.w, p.h],
+            src: [p.src_x + x0, p.src_y + y0],
+            dst: [p.dst_x + x0, p.dst_y + y0],
+            size: [w, h],
             offset: p.offset,
         });
     }
@@ -135,6 +145,15 @@ pub fn build_schedule(
         lightmap_size,
         batches,
     })
+}
+
+/// Along one axis: the first local index and the count of `dst + i` (`0 ≤ i < len`) whose
+/// read `dst + i + offset` lies in `[0, map)`; `None` if there is none.
+fn read_inside(dst: u32, len: u32, offset: i32, map: u32) -> Option<(u32, u32)> {
+    let (dst, len, offset, map) = (dst as i64, len as i64, offset as i64, map as i64);
+    let lo = (-offset - dst).max(0);
+    let hi = (map - offset - dst).min(len);
+    (hi > lo).then_some((lo as u32, (hi - lo) as u32))
 }
 
 /// Compute-path work of one atlas: for every non-empty tile, the instances overlapping it.
@@ -254,6 +273,33 @@ mod tests {
         assert_eq!(s.batches[1].instances.len(), 2);
         assert_eq!(s.batches[1].instances[1].src, [2, 0]);
         assert_eq!(s.texel_blends(), 4 + 3 + 4);
+    }
+
+    #[test]
+    fn crops_pieces_to_reads_inside_the_map() {
+        // 8×8 map; piece at dst (1, 2), 4×3 texels, Δt = (−3, 6): reads x + 1 − 3 ≥ 0 needs
+        // local x ≥ 2, reads y + 2 + 6 < 8 needs local y < 0 → dropped; with Δt = (−3, 4)
+        // local y < 2 stays.
+        let pieces = [
+            piece(0, [10, 20], [4, 3], [1, 2], [-3, 6]),
+            piece(0, [10, 20], [4, 3], [1, 2], [-3, 4]),
+        ];
+        let s = build_schedule([8, 8], &[[32, 32]], &pieces).unwrap();
+        assert_eq!(s.batches.len(), 1);
+        let inst = &s.batches[0].instances;
+        assert_eq!(inst.len(), 1);
+        assert_eq!(inst[0].src, [12, 20]);
+        assert_eq!(inst[0].dst, [3, 2]);
+        assert_eq!(inst[0].size, [2, 2]);
+        // Brute force: exactly the texels of the uncropped piece whose read is inside.
+        for j in 0..3i32 {
+            for i in 0..4i32 {
+                let (x, y) = (1 + i, 2 + j);
+                let inside = (0..8).contains(&(x - 3)) && (0..8).contains(&(y + 4));
+                let kept = (3..5).contains(&x) && (2..4).contains(&y);
+                assert_eq!(inside, kept, "texel ({x}, {y})");
+            }
+        }
     }
 
     #[test]

@@ -1,5 +1,7 @@
 //! GPU first-order pass vs its CPU mirror (exact, ray-traced shadows) on the floor-and-box
-//! scene with a point, a directional and a spot light.
+//! scene: (1) the demo lights — a point light outside the mesh's bounding sphere (one
+//! shadow cone), a directional and a spot light; (2) a point light inside the bounding
+//! sphere (six cube faces).
 //!
 //! Coverage must match exactly. Texels whose shadow state is the same at every point of a
 //! disc of 4 shadow texels around them ("away from shadow edges") must agree within 1e-3
@@ -10,14 +12,35 @@ mod common;
 use common::gpu;
 use glam::Vec3;
 use passes::AlbedoMap;
+use passes::LightDesc;
 use passes::cpu::first_order as mirror;
 use passes::demo::{demo_lights, floor_and_box};
-use passes::first_order::{FirstOrderInputs, FirstOrderOptions, FirstOrderPass, LIGHT_DIRECTIONAL};
+use passes::first_order::{
+    FirstOrderInputs, FirstOrderOptions, FirstOrderPass, LIGHT_DIRECTIONAL, LIGHT_POINT,
+    shadow_layers,
+};
 
 const SIZE: u32 = 64;
 
 #[test]
 fn first_order_matches_ray_traced_mirror() {
+    let lights = demo_lights();
+    check(&lights, 1);
+}
+
+#[test]
+fn point_light_inside_bounds_uses_cube_faces_and_matches_mirror() {
+    let lights = [LightDesc::Point {
+        position_m: [0.6, 0.9, -0.5],
+        color: [1.0, 0.9, 0.8],
+        intensity_w_sr: 3.0,
+    }];
+    check(&lights, 6);
+}
+
+/// Compares GPU and mirror for `lights`; the first light must be a point light whose
+/// shadow takes `point_layers` layers.
+fn check(lights: &[LightDesc], point_layers: u32) {
     let (mesh, _) = floor_and_box(SIZE);
     // A per-texel albedo pattern, so a wrong texel lookup shows.
     let mut albedo = AlbedoMap::uniform(SIZE, SIZE, [0.0; 3]);
@@ -30,7 +53,6 @@ fn first_order_matches_ray_traced_mirror() {
             ];
         }
     }
-    let lights = demo_lights();
     let options = FirstOrderOptions {
         shadow_map_size: 512,
         max_shadow_layers: 8,
@@ -40,6 +62,12 @@ fn first_order_matches_ray_traced_mirror() {
     let gpu = gpu();
     let pass = FirstOrderPass::new(&gpu, &options).unwrap();
     let scene = pass.prepare(&gpu, &mesh, &albedo).unwrap();
+    let (g0, _) = shadow_layers(&lights[0], &scene.bounds, options.shadow_map_size);
+    assert_eq!(g0.kind, LIGHT_POINT);
+    assert_eq!(
+        g0.layer_count, point_layers,
+        "shadow layers of the point light"
+    );
     let mut enc = gpu.device.create_command_encoder(&Default::default());
     let out = pass
         .encode(
@@ -47,7 +75,7 @@ fn first_order_matches_ray_traced_mirror() {
             &mut enc,
             &FirstOrderInputs {
                 scene: &scene,
-                lights: &lights,
+                lights,
             },
         )
         .unwrap();
@@ -56,7 +84,7 @@ fn first_order_matches_ray_traced_mirror() {
         .read_texel_image("test.first_order", &out.first_order_tex)
         .unwrap();
 
-    let want = mirror::first_order(&mesh, &albedo, &lights);
+    let want = mirror::first_order(&mesh, &albedo, lights);
     for (i, (g, w)) in got.rgba.iter().zip(&want.rgba).enumerate() {
         assert_eq!(g[3], w[3], "coverage differs at texel {i}");
         if w[3] == 0.0 {
@@ -64,7 +92,7 @@ fn first_order_matches_ray_traced_mirror() {
         }
     }
 
-    let gl = mirror::packed_lights(&mesh, &lights);
+    let gl = mirror::packed_lights(&mesh, lights);
     let (mut lit, mut shadowed, mut edge) = (0, 0, 0);
     for s in mirror::rasterize_uv(&mesh, SIZE, SIZE) {
         // Shadow state at the texel and on a disc of 4 shadow texels around it.
@@ -127,4 +155,52 @@ fn first_order_matches_ray_traced_mirror() {
         "lit {lit}, shadowed {shadowed}, edge {edge}"
     );
     assert!(edge * 5 < lit + shadowed, "too many edge texels: {edge}");
+}
+
+/// Shadow maps are reused only while the lights stay put: lights A, then B, then A again
+/// must give A's lightmap again, bit for bit, and B's twice the same.
+#[test]
+fn shadow_map_cache_follows_moving_lights() {
+    let (mesh, albedo) = floor_and_box(SIZE);
+    let a = demo_lights();
+    let b = [LightDesc::Point {
+        position_m: [-0.9, 1.1, 0.6],
+        color: [1.0; 3],
+        intensity_w_sr: 3.0,
+    }];
+    let options = FirstOrderOptions {
+        shadow_map_size: 256,
+        max_shadow_layers: 8,
+        ..Default::default()
+    };
+    let gpu = gpu();
+    let pass = FirstOrderPass::new(&gpu, &options).unwrap();
+    let scene = pass.prepare(&gpu, &mesh, &albedo).unwrap();
+    let render = |lights: &[LightDesc]| {
+        let mut enc = gpu.device.create_command_encoder(&Default::default());
+        let out = pass
+            .encode(
+                &gpu,
+                &mut enc,
+                &FirstOrderInputs {
+                    scene: &scene,
+                    lights,
+                },
+            )
+            .unwrap();
+        gpu.submit_and_wait("test.first_order_cache", enc).unwrap();
+        gpu.read_texel_image("test.first_order_cache", &out.first_order_tex)
+            .unwrap()
+            .rgba
+    };
+    let a1 = render(&a);
+    let b1 = render(&b);
+    let b2 = render(&b); // shadow maps reused
+    let a2 = render(&a);
+    scene.invalidate_shadow_maps();
+    let a3 = render(&a);
+    assert_ne!(a1, b1, "the two light sets must differ");
+    assert_eq!(b1, b2);
+    assert_eq!(a1, a2);
+    assert_eq!(a1, a3);
 }

@@ -71,7 +71,14 @@ fn renderer_final_map_matches_mirror_and_bench_reports_every_pass() {
         specular: None,
     };
     let report = bench_frame(&gpu, &renderer, &scene, &params, 2).unwrap();
-    assert_eq!(report.rows.len(), 5);
+    // first order (moving lights), transfer, dilation, display, roofline, first order
+    // (static lights).
+    assert_eq!(report.rows.len(), 6);
+    assert!(
+        report.rows[5].name.contains("static"),
+        "{:?}",
+        report.rows[5]
+    );
     let expected_blends = scene.transfer.schedule.texel_blends() + (size * size) as u64;
     assert_eq!(report.rows[1].texel_blends, expected_blends);
     assert_eq!(

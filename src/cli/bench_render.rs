@@ -33,7 +33,7 @@ use anyhow::{Context, Result};
 use ortm::render;
 use ortm::texels::TexelGrid;
 use passes::Gpu;
-use passes::bench::{BenchReport, bench_frame};
+use passes::bench::{BenchReport, Statistic, bench_frame_stat};
 use passes::display::DisplayOptions;
 use passes::first_order::FirstOrderOptions;
 use passes::frame::{FrameParams, Renderer, RendererOptions};
@@ -81,6 +81,10 @@ pub struct Args {
     /// Timed runs per measurement (median; one warm-up run first).
     #[arg(long, default_value_t = 3)]
     iterations: u32,
+    /// Statistic of the timed runs: `median`, or `min` (the run least disturbed by other
+    /// work on a shared machine).
+    #[arg(long, value_enum, default_value_t = Stat::Median)]
+    statistic: Stat,
     /// Transfer paths to time.
     #[arg(long, value_enum, default_value_t = Paths::Both)]
     paths: Paths,
@@ -100,6 +104,15 @@ pub struct Args {
     seed: u64,
 }
 
+/// `--statistic` values.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Stat {
+    /// Median run.
+    Median,
+    /// Fastest run.
+    Min,
+}
+
 /// One line of the output table.
 struct Row {
     label: String,
@@ -117,8 +130,8 @@ pub fn run(a: Args) -> Result<()> {
     let (img_w, img_h) = render::parse_size(&a.image)?;
     let gpu = Gpu::new_headless()?;
     println!(
-        "adapter: {} ({:?}); iterations: {} (median, after 1 warm-up)",
-        gpu.adapter_info.name, gpu.adapter_info.backend, a.iterations
+        "adapter: {} ({:?}); iterations: {} ({:?}, after 1 warm-up); shadow maps {}²",
+        gpu.adapter_info.name, gpu.adapter_info.backend, a.iterations, a.statistic, a.shadow_size
     );
     let mut rows = Vec::new();
     let mut jobs: Vec<(String, Option<PathBuf>, u32, usize)> = Vec::new();
@@ -205,7 +218,18 @@ pub fn run(a: Args) -> Result<()> {
             };
             let renderer = Renderer::new(&gpu, &options)?;
             let rs = renderer.prepare(&gpu, &mesh, &albedo, &atlases, &pieces)?;
-            Ok(bench_frame(&gpu, &renderer, &rs, &params, a.iterations)?)
+            let statistic = match a.statistic {
+                Stat::Median => Statistic::Median,
+                Stat::Min => Statistic::Min,
+            };
+            Ok(bench_frame_stat(
+                &gpu,
+                &renderer,
+                &rs,
+                &params,
+                a.iterations,
+                statistic,
+            )?)
         };
         let blend = match a.paths {
             Paths::Blend | Paths::Both => Some(time_path(TransferPath::Blend)?),
@@ -242,7 +266,7 @@ pub fn run(a: Args) -> Result<()> {
 
 fn print_table(rows: &[Row]) {
     println!(
-        "{:<24} {:>5} {:>5} {:>5} {:>6} {:>12} {:>9} {:>9} {:>10} {:>8} {:>8} {:>10} {:>10} {:>9} {:>8} {:>10}",
+        "{:<24} {:>5} {:>5} {:>5} {:>6} {:>12} {:>9} {:>9} {:>9} {:>10} {:>8} {:>8} {:>10} {:>10} {:>9} {:>8} {:>8} {:>10}",
         "configuration",
         "size",
         "maps",
@@ -250,6 +274,7 @@ fn print_table(rows: &[Row]) {
         "pc/map",
         "blends",
         "1st ms",
+        "1st st.ms",
         "blend ms",
         "compute ms",
         "dil ms",
@@ -258,10 +283,12 @@ fn print_table(rows: &[Row]) {
         "roofline/s",
         "roof.%",
         "fps",
+        "fps st.",
         "paper fps"
     );
     for r in rows {
-        // Rows of bench_frame: first order, transfer, dilate, display, roofline.
+        // Rows of bench_frame: first order (moving lights), transfer, dilate, display,
+        // roofline, first order (static lights).
         fn get(rep: &Option<BenchReport>, i: usize) -> Option<&passes::bench::BenchRow> {
             rep.as_ref().and_then(|x| x.rows.get(i))
         }
@@ -274,12 +301,15 @@ fn print_table(rows: &[Row]) {
         let frame_ms = [ms(0), transfer_ms, ms(2), ms(3)]
             .iter()
             .try_fold(0.0, |acc, v| v.map(|v| acc + v));
+        let static_ms = [ms(5), transfer_ms, ms(2), ms(3)]
+            .iter()
+            .try_fold(0.0, |acc, v| v.map(|v| acc + v));
         let f = |v: Option<f64>, p: usize| v.map_or("—".to_string(), |v| format!("{v:.p$}"));
         let e = |v: Option<f64>| v.map_or("—".to_string(), |v| format!("{v:.3e}"));
         let blends = blend.or(compute).map_or(0, |x| x.texel_blends);
         let rate = blend.or(compute).map(|x| x.blends_per_s);
         println!(
-            "{:<24} {:>5} {:>5} {:>5} {:>6.2} {:>12} {:>9} {:>9} {:>10} {:>8} {:>8} {:>10} {:>10} {:>9} {:>8} {:>10}",
+            "{:<24} {:>5} {:>5} {:>5} {:>6.2} {:>12} {:>9} {:>9} {:>9} {:>10} {:>8} {:>8} {:>10} {:>10} {:>9} {:>8} {:>8} {:>10}",
             r.label,
             r.size,
             r.maps,
@@ -287,6 +317,7 @@ fn print_table(rows: &[Row]) {
             r.pieces_per_map,
             blends,
             f(ms(0), 2),
+            f(ms(5), 2),
             f(blend.map(|x| x.ms), 2),
             f(compute.map(|x| x.ms), 2),
             f(ms(2), 2),
@@ -298,14 +329,50 @@ fn print_table(rows: &[Row]) {
                     .map(|(a, b)| 100.0 * a / b),
                 1
             ),
-            f(frame_ms.map(|m| 1000.0 / m), 3),
+            f(frame_ms.map(|m| 1000.0 / m), 2),
+            f(static_ms.map(|m| 1000.0 / m), 2),
             r.paper.map_or("—".to_string(), |(bins, fps)| format!(
                 "{fps:.2} ({bins} bins)"
             )),
         );
     }
     println!(
-        "fps = 1000 / (first order + transfer (blend if timed) + dilation + display); roof.% = \
-         blend-path texel blends/s ÷ full-screen additive-blend roofline at the lightmap size"
+        "fps = 1000 / (first order + transfer (blend if timed) + dilation + display) with moving \
+         lights (1st ms: shadow maps re-rendered every frame); fps st. = the same with static \
+         lights (1st st.ms: shadow maps reused); roof.% = blend-path texel blends/s ÷ \
+         full-screen additive-blend roofline at the lightmap size"
     );
+    println!();
+    println!(
+        "CPU time per run, all threads of this process (lavapipe's work; independent of waiting \
+         for cores other processes hold), ms:"
+    );
+    println!(
+        "{:<24} {:>9} {:>9} {:>9} {:>10} {:>8} {:>8} {:>10}",
+        "configuration", "1st", "1st st.", "blend", "compute", "dil", "disp", "roofline"
+    );
+    for r in rows {
+        let cpu = |rep: &Option<BenchReport>, i: usize| {
+            rep.as_ref()
+                .and_then(|x| x.rows.get(i))
+                .and_then(|x| x.cpu_ms)
+                .map_or("—".to_string(), |v| format!("{v:.2}"))
+        };
+        let any = if r.blend.is_some() {
+            &r.blend
+        } else {
+            &r.compute
+        };
+        println!(
+            "{:<24} {:>9} {:>9} {:>9} {:>10} {:>8} {:>8} {:>10}",
+            r.label,
+            cpu(any, 0),
+            cpu(any, 5),
+            cpu(&r.blend, 1),
+            cpu(&r.compute, 1),
+            cpu(any, 2),
+            cpu(any, 3),
+            cpu(any, 4),
+        );
+    }
 }
