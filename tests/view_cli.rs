@@ -1,0 +1,237 @@
+//! `ortm view` end to end through the binary: bake a tiny Cornell box, open the viewer on an
+//! X server (the test's own Xvfb when `DISPLAY` is unset), draw a few frames on lavapipe and
+//! check the screenshot (the read-back 3D image) shows the lit box: not blank, not uniform,
+//! and brighter on the side where the light is. Also: a missing or corrupt bake directory is
+//! a clear error on stderr with a non-zero exit, never a panic.
+//!
+//! The test fails (never skips) when no X server can be started: CI installs `xvfb` (see the
+//! README's test line).
+
+use std::path::Path;
+use std::process::{Child, Command, Output, Stdio};
+use std::time::{Duration, Instant};
+
+fn ortm(args: &[&str], cwd: &Path, display: Option<&str>) -> Output {
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_ortm"));
+    cmd.args(args).current_dir(cwd);
+    if let Some(d) = display {
+        cmd.env("DISPLAY", d).env_remove("WAYLAND_DISPLAY");
+    }
+    cmd.output().expect("the ortm binary runs")
+}
+
+fn text(out: &Output) -> String {
+    format!(
+        "{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    )
+}
+
+/// An Xvfb started by the test (killed on drop), or the caller's display.
+struct XServer {
+    display: String,
+    child: Option<Child>,
+}
+
+impl Drop for XServer {
+    fn drop(&mut self) {
+        if let Some(c) = &mut self.child {
+            let _ = c.kill();
+            let _ = c.wait();
+        }
+    }
+}
+
+fn x_server() -> XServer {
+    if let Ok(d) = std::env::var("DISPLAY")
+        && !d.is_empty()
+    {
+        return XServer {
+            display: d,
+            child: None,
+        };
+    }
+    let base = 90 + (std::process::id() % 50);
+    for n in base..base + 40 {
+        if Path::new(&format!("/tmp/.X{n}-lock")).exists()
+            || Path::new(&format!("/tmp/.X11-unix/X{n}")).exists()
+        {
+            continue;
+        }
+        let mut child = Command::new("Xvfb")
+            .args([
+                &format!(":{n}"),
+                "-screen",
+                "0",
+                "1280x1024x24",
+                "-nolisten",
+                "tcp",
+            ])
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .expect(
+                "cannot start Xvfb: the viewer test needs an X server (apt-get install xvfb, \
+                 see the README's test line)",
+            );
+        let t0 = Instant::now();
+        while t0.elapsed() < Duration::from_secs(20) {
+            if Path::new(&format!("/tmp/.X11-unix/X{n}")).exists() {
+                std::thread::sleep(Duration::from_millis(200));
+                return XServer {
+                    display: format!(":{n}"),
+                    child: Some(child),
+                };
+            }
+            if let Ok(Some(_)) = child.try_wait() {
+                break; // display taken by someone else: try the next one
+            }
+            std::thread::sleep(Duration::from_millis(50));
+        }
+        let _ = child.kill();
+        let _ = child.wait();
+    }
+    panic!(
+        "could not start Xvfb on any display :{base}..:{}",
+        base + 40
+    );
+}
+
+/// Mean luminance (0–255) of the pixels in columns `x0..x1` that are not background.
+fn mean_lit(img: &image::RgbaImage, x0: u32, x1: u32) -> (f64, usize) {
+    let (mut sum, mut n) = (0.0, 0usize);
+    for y in 0..img.height() {
+        for x in x0..x1 {
+            let p = img.get_pixel(x, y).0;
+            if [p[0], p[1], p[2]] == [16, 16, 20] {
+                continue; // passes::display::BACKGROUND
+            }
+            sum += 0.2126 * p[0] as f64 + 0.7152 * p[1] as f64 + 0.0722 * p[2] as f64;
+            n += 1;
+        }
+    }
+    (if n > 0 { sum / n as f64 } else { 0.0 }, n)
+}
+
+#[test]
+fn view_screenshot_shows_the_lit_box_where_the_light_is() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    let bake = ortm(
+        &[
+            "bake",
+            "cornell",
+            "--size",
+            "32",
+            "--offsets",
+            "12",
+            "--selector",
+            "jittered-grid",
+            "-o",
+            "bake",
+        ],
+        dir,
+        None,
+    );
+    assert!(bake.status.success(), "bake failed:\n{}", text(&bake));
+    let x = x_server();
+    // A point light close to the red (left, x = 0) wall, then close to the green (right,
+    // x = 0.555 m) wall; the camera looks along −z into the open side.
+    let mut sides = Vec::new();
+    for (name, light) in [
+        ("left", "point:0.06,0.28,0.3:0.3"),
+        ("right", "point:0.495,0.28,0.3:0.3"),
+    ] {
+        let png = format!("{name}.png");
+        let out = ortm(
+            &[
+                "view",
+                "bake",
+                "--size",
+                "900x560",
+                "--frames",
+                "4",
+                "--screenshot",
+                &png,
+                "--light",
+                light,
+            ],
+            dir,
+            Some(&x.display),
+        );
+        let log = text(&out);
+        assert!(out.status.success(), "ortm view failed:\n{log}");
+        assert!(!log.contains("panicked"), "{log}");
+        let img = image::open(dir.join(&png)).unwrap().to_rgba8();
+        assert!(
+            img.width() > 100 && img.height() > 100,
+            "{}x{}",
+            img.width(),
+            img.height()
+        );
+        // Not blank, not uniform.
+        let w = img.width();
+        let (all, lit) = mean_lit(&img, 0, w);
+        assert!(
+            lit > (w * img.height()) as usize / 4,
+            "{name}: box covers {lit} pixels"
+        );
+        assert!(all > 10.0, "{name}: mean luminance {all:.1} (blank?)");
+        let lum: Vec<f64> = img
+            .pixels()
+            .map(|p| 0.2126 * p[0] as f64 + 0.7152 * p[1] as f64 + 0.0722 * p[2] as f64)
+            .collect();
+        let mean = lum.iter().sum::<f64>() / lum.len() as f64;
+        let sd = (lum.iter().map(|l| (l - mean).powi(2)).sum::<f64>() / lum.len() as f64).sqrt();
+        assert!(sd > 10.0, "{name}: luminance s.d. {sd:.1} (uniform image?)");
+        let (l, _) = mean_lit(&img, 0, w / 3);
+        let (r, _) = mean_lit(&img, 2 * w / 3, w);
+        sides.push((l, r));
+    }
+    let (l0, r0) = sides[0];
+    let (l1, r1) = sides[1];
+    // The lit region follows the light: its side is clearly brighter than the other.
+    assert!(
+        l0 > 1.2 * r0,
+        "light left: left third {l0:.1}, right third {r0:.1}"
+    );
+    assert!(
+        r1 > 1.2 * l1,
+        "light right: left third {l1:.1}, right third {r1:.1}"
+    );
+}
+
+#[test]
+fn view_reports_missing_and_corrupt_bakes_without_panicking() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    // Missing directory: an error naming it, before any window opens.
+    let out = ortm(&["view", "no-such-bake", "--frames", "1"], dir, Some(":0"));
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert!(!out.status.success());
+    assert!(
+        err.contains("no-such-bake") && !err.contains("panicked"),
+        "{err}"
+    );
+    // Corrupt index.json.
+    std::fs::create_dir(dir.join("bad")).unwrap();
+    std::fs::write(dir.join("bad/index.json"), b"{ this is not json").unwrap();
+    let out = ortm(&["view", "bad", "--scene", "cornell"], dir, Some(":0"));
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert!(!out.status.success());
+    assert!(
+        err.contains("index.json") && !err.contains("panicked"),
+        "stderr should name index.json: {err}"
+    );
+    // An empty folder (no bake at all).
+    std::fs::create_dir(dir.join("empty")).unwrap();
+    let out = ortm(&["view", "empty", "--scene", "cornell"], dir, Some(":0"));
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert!(!out.status.success());
+    assert!(err.contains("empty") && !err.contains("panicked"), "{err}");
+    // --screenshot without --frames is refused by the argument parser.
+    let out = ortm(&["view", "empty", "--screenshot", "x.png"], dir, Some(":0"));
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--frames"));
+}
