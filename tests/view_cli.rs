@@ -52,8 +52,12 @@ fn x_server() -> XServer {
             child: None,
         };
     }
-    let base = 90 + (std::process::id() % 50);
-    for n in base..base + 40 {
+    // Each test of this binary takes its own display numbers; other processes are detected
+    // by their lock files, or by our Xvfb exiting because the display is taken.
+    static NEXT: std::sync::atomic::AtomicU32 = std::sync::atomic::AtomicU32::new(0);
+    let base = 100 + (std::process::id() % 100) * 4;
+    for _ in 0..40 {
+        let n = base + NEXT.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
         if Path::new(&format!("/tmp/.X{n}-lock")).exists()
             || Path::new(&format!("/tmp/.X11-unix/X{n}")).exists()
         {
@@ -79,6 +83,9 @@ fn x_server() -> XServer {
         while t0.elapsed() < Duration::from_secs(20) {
             if Path::new(&format!("/tmp/.X11-unix/X{n}")).exists() {
                 std::thread::sleep(Duration::from_millis(200));
+                if !matches!(child.try_wait(), Ok(None)) {
+                    break; // the socket is another server's
+                }
                 return XServer {
                     display: format!(":{n}"),
                     child: Some(child),
@@ -189,6 +196,7 @@ fn view_screenshot_shows_the_lit_box_where_the_light_is() {
         let (r, _) = mean_lit(&img, 2 * w / 3, w);
         sides.push((l, r));
     }
+    eprintln!("mean luminance of the box, left third / right third: {sides:?}");
     let (l0, r0) = sides[0];
     let (l1, r1) = sides[1];
     // The lit region follows the light: its side is clearly brighter than the other.
@@ -199,6 +207,86 @@ fn view_screenshot_shows_the_lit_box_where_the_light_is() {
     assert!(
         r1 > 1.2 * l1,
         "light right: left third {l1:.1}, right third {r1:.1}"
+    );
+}
+
+#[test]
+fn view_modes_agree_with_each_other_and_the_cpu_reference() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    let bake = ortm(
+        &[
+            "bake",
+            "cornell",
+            "--size",
+            "32",
+            "--offsets",
+            "12",
+            "--selector",
+            "jittered-grid",
+            "-o",
+            "bake",
+        ],
+        dir,
+        None,
+    );
+    assert!(bake.status.success(), "bake failed:\n{}", text(&bake));
+    let x = x_server();
+    let shot = |name: &str, extra: &[&str]| -> Vec<f64> {
+        let png = format!("{name}.png");
+        let mut args = vec![
+            "view",
+            "bake",
+            "--size",
+            "900x560",
+            "--frames",
+            "3",
+            "--exposure",
+            "0.05",
+            "--screenshot",
+            &png,
+        ];
+        args.extend_from_slice(extra);
+        let out = ortm(&args, dir, Some(&x.display));
+        assert!(
+            out.status.success(),
+            "ortm view {extra:?} failed:\n{}",
+            text(&out)
+        );
+        let img = image::open(dir.join(&png)).unwrap().to_rgb8();
+        img.pixels().flat_map(|p| p.0.map(f64::from)).collect()
+    };
+    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
+    let first = shot("first", &["--view", "first-order"]);
+    let k0 = shot("k0", &["--view", "final", "--maps", "0"]);
+    let k3 = shot("k3", &["--view", "final", "--maps", "3"]);
+    let all = shot("all", &["--view", "final"]);
+    // With no transfer maps the final lightmap is the first-order one: identical frames.
+    assert_eq!(first.len(), k0.len());
+    assert!(first == k0, "final with 0 maps differs from first order");
+    // The Cornell maps are non-negative: each map adds light, so the image brightens with K.
+    let (m0, m3, ma) = (mean(&k0), mean(&k3), mean(&all));
+    eprintln!("mean pixel value with 0 / 3 / all maps: {m0:.3} / {m3:.3} / {ma:.3}");
+    assert!(m0 < m3 && m3 < ma, "{m0} {m3} {ma}");
+    // Indirect only on the GPU vs the CPU reference (ray-cast first order, CPU Eq. 9): the
+    // same up to shadow-map aliasing.
+    let gpu = shot("gpu_indirect", &["--view", "indirect"]);
+    let cpu = shot("cpu_indirect", &["--view", "indirect", "--reference"]);
+    let diff = gpu
+        .iter()
+        .zip(&cpu)
+        .map(|(a, b)| (a - b).abs())
+        .sum::<f64>()
+        / gpu.len() as f64;
+    eprintln!("indirect view, GPU vs CPU reference: mean |difference| {diff:.4} of 255");
+    assert!(
+        mean(&gpu) > 5.0,
+        "the indirect view is not black: {}",
+        mean(&gpu)
+    );
+    assert!(
+        diff < 1.0,
+        "GPU and CPU indirect views differ by {diff} on average"
     );
 }
 

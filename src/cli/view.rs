@@ -9,7 +9,34 @@ use anyhow::{Context, Result, bail};
 use ortm::render::{self, DEFAULT_ATLAS_SIDE, LIGHT_SYNTAX};
 use ortm::texels::TexelGrid;
 
+use crate::view::app::{DebugView, ViewMode};
 use crate::view::{RunOptions, ViewerInput, importance_order};
+
+/// Initial view (`--view`).
+#[derive(clap::ValueEnum, Clone, Copy, Debug)]
+pub enum ViewArg {
+    /// First-order lightmap.
+    FirstOrder,
+    /// Final lightmap.
+    Final,
+    /// Final − first order.
+    Indirect,
+    /// First order | final.
+    SideBySide,
+}
+
+/// Initial debug view (`--debug`).
+#[derive(clap::ValueEnum, Clone, Copy, Debug)]
+pub enum DebugArg {
+    /// None.
+    Off,
+    /// Covered texels and chart borders.
+    Coverage,
+    /// Texels per m².
+    Density,
+    /// One offset map's contribution (`--debug-map`).
+    Map,
+}
 
 /// Arguments of `ortm view`.
 #[derive(clap::Args, Debug)]
@@ -41,12 +68,31 @@ pub struct Args {
     /// Atlas side when the bake has no atlases.json (power of two).
     #[arg(long, default_value_t = DEFAULT_ATLAS_SIDE)]
     atlas_size: u32,
+    /// Initial view.
+    #[arg(long, value_enum, default_value_t = ViewArg::Final)]
+    view: ViewArg,
+    /// Initial debug view.
+    #[arg(long, value_enum, default_value_t = DebugArg::Off)]
+    debug: DebugArg,
+    /// Map shown by `--debug map`: its rank in importance order (0 = most important).
+    #[arg(long, default_value_t = 0)]
+    debug_map: usize,
+    /// Start in reference mode (CPU ray-traced first order + CPU transfer).
+    #[arg(long)]
+    reference: bool,
+    /// Number of transfer maps used at start (first K by importance; default all).
+    #[arg(long, value_name = "K")]
+    maps: Option<usize>,
     /// Draw N frames, then exit (for tests and documentation).
     #[arg(long, value_name = "N")]
     frames: Option<u32>,
     /// With --frames: write the last frame's 3D view (read back from the GPU) as PNG.
     #[arg(long, value_name = "PNG", requires = "frames")]
     screenshot: Option<PathBuf>,
+    /// With --frames: also write the whole window, panels included, as PNG (when the
+    /// window surface allows copies).
+    #[arg(long, value_name = "PNG", requires = "frames")]
+    window_screenshot: Option<PathBuf>,
 }
 
 /// Runs `ortm view`.
@@ -137,6 +183,22 @@ pub fn run(a: Args) -> Result<()> {
             window_size,
             exposure,
             lights_file: a.lights_file,
+            mode: match a.view {
+                ViewArg::FirstOrder => ViewMode::FirstOrder,
+                ViewArg::Final => ViewMode::Final,
+                ViewArg::Indirect => ViewMode::Indirect,
+                ViewArg::SideBySide => ViewMode::SideBySide,
+            },
+            debug: match a.debug {
+                DebugArg::Off => DebugView::Off,
+                DebugArg::Coverage => DebugView::Coverage,
+                DebugArg::Density => DebugView::Density,
+                DebugArg::Map => DebugView::MapContribution,
+            },
+            debug_map: a.debug_map,
+            reference: a.reference,
+            maps: a.maps,
+            window_screenshot: a.window_screenshot,
         },
     )?;
     Ok(())

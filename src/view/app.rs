@@ -347,8 +347,8 @@ impl AppState {
         let ctx = ui.ctx().clone();
         self.shortcuts(&ctx);
         egui::Panel::left("ortm.view.controls")
-            .resizable(true)
-            .default_size(300.0)
+            .resizable(false)
+            .exact_size(340.0)
             .show(ui, |ui| {
                 egui::ScrollArea::vertical().show(ui, |ui| self.controls(ui));
             });

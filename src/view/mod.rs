@@ -67,6 +67,19 @@ pub struct RunOptions {
     pub exposure: Option<f32>,
     /// Light set-up file shown in the save/load field.
     pub lights_file: Option<PathBuf>,
+    /// Initial view.
+    pub mode: app::ViewMode,
+    /// Initial debug view.
+    pub debug: app::DebugView,
+    /// Initial map of the one-map debug view (rank in importance order).
+    pub debug_map: usize,
+    /// Start in reference mode.
+    pub reference: bool,
+    /// Initial number of transfer maps (`None`: all).
+    pub maps: Option<usize>,
+    /// With `screenshot`: also write the whole window (UI included) here, when the surface
+    /// can be copied from.
+    pub window_screenshot: Option<PathBuf>,
 }
 
 impl ViewerInput {

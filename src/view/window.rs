@@ -73,6 +73,10 @@ struct Running {
     last_pieces_k: usize,
     last_frame: Instant,
     minimised: bool,
+    /// The surface can be copied from (window screenshots).
+    copyable: bool,
+    /// Write the next presented window image here.
+    capture_window: Option<PathBuf>,
 }
 
 impl ApplicationHandler for Handler {
@@ -112,6 +116,16 @@ impl ApplicationHandler for Handler {
             WindowEvent::RedrawRequested => {
                 if st.minimised {
                     return;
+                }
+                if self.opts.frames == Some(self.frames + 1) {
+                    if st.copyable {
+                        st.capture_window = self.opts.window_screenshot.clone();
+                    } else if self.opts.window_screenshot.is_some() {
+                        eprintln!(
+                            "warning: the window surface cannot be copied from; no window \
+                             screenshot"
+                        );
+                    }
                 }
                 match st.frame() {
                     Ok(()) => {}
@@ -205,8 +219,17 @@ impl Running {
             .or_else(|| caps.formats.first().copied())
             .context("the window surface offers no texture format")?;
         let size = window.inner_size();
+        let copyable = caps.usages.contains(wgpu::TextureUsages::COPY_SRC)
+            && matches!(
+                format,
+                wgpu::TextureFormat::Bgra8Unorm | wgpu::TextureFormat::Rgba8Unorm
+            );
         let config = wgpu::SurfaceConfiguration {
-            usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
+            usage: if copyable {
+                wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC
+            } else {
+                wgpu::TextureUsages::RENDER_ATTACHMENT
+            },
             format,
             width: size.width.max(1),
             height: size.height.max(1),
@@ -243,7 +266,9 @@ impl Running {
             transfer: passes::transfer::TransferOptions::best_for(&gpu),
             ..Default::default()
         };
-        let all_pieces = data.pieces_of_first(data.map_order.len());
+        // The transfer pass starts with every map; `frame` re-prepares it for `--maps K`.
+        let all_maps = data.map_order.len();
+        let all_pieces = data.pieces_of_first(all_maps);
         let view = ViewRenderer::new(
             gpu,
             &options,
@@ -265,6 +290,13 @@ impl Running {
         if let Some(p) = &opts.lights_file {
             app.lights_path = p.display().to_string();
         }
+        app.mode = opts.mode;
+        app.debug = opts.debug;
+        app.reference = opts.reference;
+        app.debug_map = opts.debug_map.min(app.map_count.saturating_sub(1));
+        if let Some(k) = opts.maps {
+            app.k = k.min(app.map_count);
+        }
         let mut st = Self {
             window,
             surface,
@@ -273,13 +305,15 @@ impl Running {
             egui_renderer,
             image_id: None,
             view,
-            last_pieces_k: app.k,
+            last_pieces_k: all_maps,
             app,
             data,
             vis: None,
             cpu_key: String::new(),
             last_frame: Instant::now(),
             minimised: false,
+            copyable,
+            capture_window: None,
         };
         match opts.exposure {
             Some(e) => st.app.exposure = e,
@@ -395,7 +429,33 @@ impl Running {
                 .forget_lifetime();
             self.egui_renderer.render(&mut pass, &jobs, &screen);
         }
+        let capture = self.capture_window.take().map(|p| {
+            let (buffer, padded) = copy_to_buffer(gpu, &mut enc, &frame.texture);
+            (p, buffer, padded)
+        });
         gpu.queue.submit(extra.into_iter().chain([enc.finish()]));
+        if let Some((path, buffer, padded)) = capture {
+            let bytes = gpu.map_read("ortm.view.window_screenshot", &buffer)?;
+            let (w, h) = (frame.texture.width(), frame.texture.height());
+            let bgra = frame.texture.format() == wgpu::TextureFormat::Bgra8Unorm;
+            let mut img = image::RgbaImage::new(w, h);
+            for (y, row) in bytes
+                .chunks_exact(padded as usize)
+                .take(h as usize)
+                .enumerate()
+            {
+                for x in 0..w as usize {
+                    let p = &row[4 * x..4 * x + 4];
+                    let rgba = if bgra {
+                        [p[2], p[1], p[0], 255]
+                    } else {
+                        [p[0], p[1], p[2], 255]
+                    };
+                    img.put_pixel(x as u32, y as u32, image::Rgba(rgba));
+                }
+            }
+            crate::cli::save_png_atomic(&img, &path)?;
+        }
         self.window.pre_present_notify();
         gpu.queue.present(frame);
         for id in &out.textures_delta.free {
@@ -481,9 +541,23 @@ impl Running {
                 };
                 let c = debug::map_contribution(&self.data.set, m, &fo)?;
                 let (dx, dy) = self.data.offset_of(m);
+                // One map's term is small: scale it so its 95th percentile shows like the
+                // automatic exposure would show it.
+                let mut img = debug::with_coverage(&self.data.grid, &c);
+                let gain = ortm::render::auto_exposure(&img) / exposure;
+                let gain = if gain.is_finite() && gain > 0.0 {
+                    gain
+                } else {
+                    1.0
+                };
+                for p in &mut img.rgba {
+                    for v in &mut p[..3] {
+                        *v *= gain;
+                    }
+                }
                 (
-                    debug::with_coverage(&self.data.grid, &c),
-                    format!("map {m}, offset ({dx}, {dy}) texels"),
+                    img,
+                    format!("map {m}, offset ({dx}, {dy}) texels, shown ×{gain:.3}"),
                 )
             }
             DebugView::Off => {
@@ -578,6 +652,41 @@ impl Running {
         let img = self.view.read_image()?;
         crate::cli::save_png_atomic(&img, path)
     }
+}
+
+/// Records a copy of a 4-byte-per-texel texture into a new `MAP_READ` buffer; returns it and
+/// its padded row length in bytes.
+fn copy_to_buffer(
+    gpu: &Gpu,
+    enc: &mut wgpu::CommandEncoder,
+    tex: &wgpu::Texture,
+) -> (wgpu::Buffer, u32) {
+    let (w, h) = (tex.width(), tex.height());
+    let padded =
+        (4 * w).div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT) * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
+    let buffer = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("ortm.view.window_screenshot"),
+        size: u64::from(padded) * u64::from(h),
+        usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+        mapped_at_creation: false,
+    });
+    enc.copy_texture_to_buffer(
+        tex.as_image_copy(),
+        wgpu::TexelCopyBufferInfo {
+            buffer: &buffer,
+            layout: wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(padded),
+                rows_per_image: Some(h),
+            },
+        },
+        wgpu::Extent3d {
+            width: w,
+            height: h,
+            depth_or_array_layers: 1,
+        },
+    );
+    (buffer, padded)
 }
 
 /// Writes `bytes` to `path` through a temporary file in the same folder and a rename.
