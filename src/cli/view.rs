@@ -89,6 +89,10 @@ pub struct Args {
     /// With --frames: write the last frame's 3D view (read back from the GPU) as PNG.
     #[arg(long, value_name = "PNG", requires = "frames")]
     screenshot: Option<PathBuf>,
+    /// With --frames: resize the window to WIDTHxHEIGHT after half the frames (checks that
+    /// resizing keeps drawing).
+    #[arg(long, value_name = "WxH", requires = "frames")]
+    resize: Option<String>,
     /// With --frames: also write the whole window, panels included, as PNG (when the
     /// window surface allows copies).
     #[arg(long, value_name = "PNG", requires = "frames")]
@@ -181,6 +185,7 @@ pub fn run(a: Args) -> Result<()> {
             frames: a.frames,
             screenshot: a.screenshot,
             window_size,
+            resize: a.resize.as_deref().map(render::parse_size).transpose()?,
             exposure,
             lights_file: a.lights_file,
             mode: match a.view {

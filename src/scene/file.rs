@@ -813,4 +813,52 @@ mod tests {
         assert_eq!(line_of(t, 6), 4);
         assert_eq!(line_of(t, 100), 4);
     }
+
+    #[test]
+    fn light_fragments_round_trip_and_report_bad_fields() {
+        let lights = vec![
+            Light::Point {
+                position_m: Vec3::new(0.1, -0.25, 3.5),
+                color: Vec3::new(1.0, 0.5, 0.25),
+                intensity_w_sr: 0.125,
+            },
+            Light::Spot {
+                position_m: Vec3::new(0.0, 1.0, 0.0),
+                direction: Vec3::new(0.0, -1.0, 0.0),
+                color: Vec3::ONE,
+                intensity_w_sr: 2.0,
+                inner_deg: 10.0,
+                outer_deg: 25.5,
+            },
+            Light::Directional {
+                direction: Vec3::new(0.6, -0.8, 0.0),
+                color: Vec3::new(0.9, 0.9, 1.0),
+                irradiance_w_m2: 7.0,
+            },
+        ];
+        let text = lights_to_toml(&lights);
+        let back = parse_lights_fragment(&text, Path::new("lights.toml")).unwrap();
+        assert_eq!(back, lights);
+        assert!(
+            parse_lights_fragment("", Path::new("x.toml"))
+                .unwrap()
+                .is_empty()
+        );
+        // A spot field on a point light: error names the file, line and field.
+        let bad = "[[light]]\ntype = \"point\"\nposition = [0, 0, 0]\nintensity = 1.0\n\n\
+                   [[light]]\ntype = \"point\"\nposition = [0, 0, 0]\nintensity = 1.0\n\
+                   outer_deg = 3.0\n";
+        let e = parse_lights_fragment(bad, Path::new("lights.toml"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("lights.toml:6") && e.contains("light[1].outer_deg"),
+            "{e}"
+        );
+        // Scene keys are not allowed in a light set-up.
+        let e = parse_lights_fragment("mesh = \"a.obj\"\n", Path::new("l.toml"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("mesh"), "{e}");
+    }
 }

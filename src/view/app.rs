@@ -113,6 +113,8 @@ pub struct AppState {
     /// Largest shadow-map layer count (6 per point light, 1 per spot/directional).
     pub max_shadow_layers: u32,
     drag: Option<Drag>,
+    /// The camera was framed for the real view size.
+    framed: bool,
 }
 
 /// What the UI asked the frame loop to do.
@@ -162,7 +164,13 @@ impl AppState {
         Self {
             selected: (!lights.is_empty()).then_some(0),
             lights,
-            camera: OrbitCamera::framing(bounds.0, bounds.1, super::camera::DEFAULT_FOV_DEG),
+            camera: OrbitCamera::framing(
+                bounds.0,
+                bounds.1,
+                super::camera::DEFAULT_FOV_DEG,
+                4.0 / 3.0,
+            ),
+            framed: false,
             bounds,
             mode: ViewMode::Final,
             debug: DebugView::Off,
@@ -231,6 +239,19 @@ impl AppState {
     /// Intensity (W/sr) giving about 1 W/m² at distance `1.5 r`: `I = E·d²`.
     fn suggested_intensity(&self, r: f32) -> f32 {
         (1.5 * r).powi(2)
+    }
+
+    /// Frames the mesh in the current view (one half of it in side-by-side).
+    pub fn frame_mesh(&mut self) {
+        let [w, h] = self.view_px;
+        let w = if self.mode == ViewMode::SideBySide {
+            w / 2
+        } else {
+            w
+        };
+        let aspect = w.max(1) as f32 / h.max(1) as f32;
+        self.camera =
+            OrbitCamera::framing(self.bounds.0, self.bounds.1, self.camera.fov_y_deg, aspect);
     }
 
     /// Removes the selected light.
@@ -324,10 +345,7 @@ impl AppState {
                 (Key::Plus | Key::Equals, _) => self.exposure *= 1.25,
                 (Key::Minus, _) => self.exposure /= 1.25,
                 (Key::A, _) => self.req.auto_exposure = true,
-                (Key::F, _) => {
-                    self.camera =
-                        OrbitCamera::framing(self.bounds.0, self.bounds.1, self.camera.fov_y_deg)
-                }
+                (Key::F, _) => self.frame_mesh(),
                 (Key::P, _) => self.add_light('p'),
                 (Key::L, _) => self.add_light('s'),
                 (Key::I, _) => self.add_light('d'),
@@ -397,6 +415,11 @@ impl AppState {
             ((rect.width() * ppp).round() as u32).max(2),
             ((rect.height() * ppp).round() as u32).max(1),
         ];
+        if !self.framed {
+            // Frame the mesh on load, once the view's size is known.
+            self.frame_mesh();
+            self.framed = true;
+        }
         if let Some(id) = image {
             ui.painter().image(
                 id,

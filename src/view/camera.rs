@@ -31,15 +31,17 @@ pub struct OrbitCamera {
 }
 
 impl OrbitCamera {
-    /// A camera looking along `−z` at a sphere (`centre`, `radius_m`) that fills the view
-    /// with a small margin.
-    pub fn framing(centre: Vec3, radius_m: f32, fov_y_deg: f32) -> Self {
+    /// A camera looking along `−z` at a sphere (`centre`, `radius_m`) that fills a view of
+    /// `aspect` = width/height with a small margin.
+    pub fn framing(centre: Vec3, radius_m: f32, fov_y_deg: f32, aspect: f32) -> Self {
         let r = if radius_m.is_finite() && radius_m > 0.0 {
             radius_m
         } else {
             1.0
         };
-        let half = (fov_y_deg.to_radians() * 0.5).max(1e-3);
+        let half_y = (fov_y_deg.to_radians() * 0.5).clamp(1e-3, 1.5);
+        let half_x = (half_y.tan() * aspect.max(1e-3)).atan();
+        let half = half_y.min(half_x);
         Self {
             target: centre,
             distance_m: 1.1 * r / half.sin(),
@@ -95,7 +97,7 @@ impl OrbitCamera {
     }
 
     /// The `passes` camera (near/far planes around the scene).
-    pub fn to_camera(&self) -> Camera {
+    pub fn to_camera(self) -> Camera {
         let far = self.distance_m + 4.0 * self.scene_radius_m;
         let near = (self.distance_m - 2.0 * self.scene_radius_m).max(far * 1e-4);
         Camera {
@@ -139,17 +141,23 @@ mod tests {
     #[test]
     fn target_projects_to_the_centre_and_framed_sphere_fits() {
         let c = Vec3::new(0.3, -0.2, 1.0);
-        let cam = OrbitCamera::framing(c, 0.5, 40.0);
+        let cam = OrbitCamera::framing(c, 0.5, 40.0, 800.0 / 600.0);
         let p = cam.project(c, [800.0, 600.0]).unwrap();
         assert!((p[0] - 400.0).abs() < 1e-3 && (p[1] - 300.0).abs() < 1e-3);
         // The sphere's top point (seen from the front) is inside the image, near the edge.
         let top = cam.project(c + Vec3::Y * 0.5, [800.0, 600.0]).unwrap();
         assert!(top[1] > 0.0 && top[1] < 60.0, "{top:?}");
+        // A tall view is limited by its width: the sphere's right point stays inside.
+        let cam = OrbitCamera::framing(c, 0.5, 40.0, 0.5);
+        let right = cam
+            .project(c + cam.right_up().0 * 0.5, [300.0, 600.0])
+            .unwrap();
+        assert!(right[0] < 300.0 && right[0] > 270.0, "{right:?}");
     }
 
     #[test]
     fn orbit_keeps_the_distance_and_pan_follows_the_cursor() {
-        let mut cam = OrbitCamera::framing(Vec3::ZERO, 1.0, 40.0);
+        let mut cam = OrbitCamera::framing(Vec3::ZERO, 1.0, 40.0, 1.0);
         let d = cam.distance_m;
         cam.orbit(120.0, -50.0);
         assert!(((cam.eye() - cam.target).length() - d).abs() < 1e-4);

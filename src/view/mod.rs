@@ -63,6 +63,8 @@ pub struct RunOptions {
     pub screenshot: Option<PathBuf>,
     /// Window size in physical pixels.
     pub window_size: (u32, u32),
+    /// With `frames`: resize the window to this size after half the frames.
+    pub resize: Option<(u32, u32)>,
     /// Fixed exposure; `None`: automatic.
     pub exposure: Option<f32>,
     /// Light set-up file shown in the save/load field.

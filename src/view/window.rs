@@ -117,6 +117,14 @@ impl ApplicationHandler for Handler {
                 if st.minimised {
                     return;
                 }
+                if let (Some(n), Some((w, h))) = (self.opts.frames, self.opts.resize)
+                    && self.frames == n / 2
+                {
+                    // Batch-mode resize (tests): the new size arrives as a Resized event.
+                    let _ = st
+                        .window
+                        .request_inner_size(winit::dpi::PhysicalSize::new(w, h));
+                }
                 if self.opts.frames == Some(self.frames + 1) {
                     if st.copyable {
                         st.capture_window = self.opts.window_screenshot.clone();
@@ -509,9 +517,15 @@ impl Running {
             self.app.stats.debug_note.clear();
             return Ok(gpu_shown);
         }
+        // False colours depend on the exposure; the reference does not.
+        let exposure_key = if app.debug == DebugView::Off {
+            String::new()
+        } else {
+            app.exposure.to_string()
+        };
         let key = format!(
-            "{:?} {} {:?} {} {} {:?} {}",
-            app.debug, app.reference, app.mode, app.k, app.debug_map, app.lights, app.exposure
+            "{:?} {} {:?} {} {} {:?} {exposure_key}",
+            app.debug, app.reference, app.mode, app.k, app.debug_map, app.lights
         );
         let dilate = app.debug != DebugView::Coverage;
         if key == self.cpu_key {
