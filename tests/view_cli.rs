@@ -288,6 +288,40 @@ fn view_modes_agree_with_each_other_and_the_cpu_reference() {
         diff < 1.0,
         "GPU and CPU indirect views differ by {diff} on average"
     );
+
+    // Resizing the window mid-run: the later frames are drawn at the new size, still lit.
+    let out = ortm(
+        &[
+            "view",
+            "bake",
+            "--size",
+            "900x560",
+            "--frames",
+            "6",
+            "--resize",
+            "760x800",
+            "--screenshot",
+            "resized.png",
+        ],
+        dir,
+        Some(&x.display),
+    );
+    assert!(out.status.success(), "resize run failed:\n{}", text(&out));
+    let before = image::open(dir.join("all.png")).unwrap().to_rgba8();
+    let after = image::open(dir.join("resized.png")).unwrap().to_rgba8();
+    assert!(
+        after.width() < before.width() && after.height() > before.height(),
+        "3D view {}x{} before, {}x{} after the resize",
+        before.width(),
+        before.height(),
+        after.width(),
+        after.height()
+    );
+    let (lum, lit) = mean_lit(&after, 0, after.width());
+    assert!(
+        lit > 1000 && lum > 10.0,
+        "resized frame: {lit} lit pixels, mean {lum:.1}"
+    );
 }
 
 #[test]
