@@ -359,21 +359,12 @@ impl Running {
             };
         }
         self.handle_requests();
-        if self.app.k != self.last_pieces_k {
-            let pieces = self.data.pieces_of_first(self.app.k);
-            self.view.set_pieces(&pieces)?;
-            self.last_pieces_k = self.app.k;
+        // A failing 3D frame keeps the UI alive (the error shows in the status line); the
+        // batch mode gets the error back.
+        let rendered = self.render_3d();
+        if let Err(e) = &rendered {
+            self.app.status = format!("error: {e:#}");
         }
-        let shown = self.update_cpu_view()?;
-        let lights = self.light_descs();
-        let stats = self.view.render(
-            self.app.view_px,
-            shown,
-            &lights,
-            self.app.camera.to_camera(),
-            self.app.exposure,
-        )?;
-        self.app.stats.frame = stats;
         self.register_image();
 
         // UI.
@@ -470,6 +461,26 @@ impl Running {
             self.egui_renderer.free_texture(id);
         }
         gpu.check("ortm.view.egui")?;
+        rendered
+    }
+
+    /// The 3D part of a frame: transfer maps, CPU views, the passes.
+    fn render_3d(&mut self) -> Result<()> {
+        if self.app.k != self.last_pieces_k {
+            let pieces = self.data.pieces_of_first(self.app.k);
+            self.last_pieces_k = self.app.k;
+            self.view.set_pieces(&pieces)?;
+        }
+        let shown = self.update_cpu_view()?;
+        let lights = self.light_descs();
+        let stats = self.view.render(
+            self.app.view_px,
+            shown,
+            &lights,
+            self.app.camera.to_camera(),
+            self.app.exposure,
+        )?;
+        self.app.stats.frame = stats;
         Ok(())
     }
 
@@ -545,8 +556,13 @@ impl Running {
                 let (img, (lo, hi)) = debug::density_view(&self.data.grid, exposure);
                 (img, format!("{lo:.3e} (blue) … {hi:.3e} (red) texels/m²"))
             }
+            DebugView::MapContribution if self.data.map_order.is_empty() => (
+                TexelImage::new(self.data.grid.width, self.data.grid.height),
+                "the bake has no transfer maps with stored texels".into(),
+            ),
             DebugView::MapContribution => {
-                let m = self.data.map_order[app.debug_map.min(self.data.map_order.len() - 1)];
+                let last = self.data.map_order.len() - 1;
+                let m = self.data.map_order[app.debug_map.min(last)];
                 let fo = if app.reference {
                     self.reference()?.first_order
                 } else {
