@@ -36,6 +36,4 @@ pub mod util;
 pub use error::PassError;
 pub use frame::{FrameParams, Renderer, RendererOptions};
 pub use gpu::Gpu;
-/// Blocks on a future (re-exported `pollster`, so callers share the passes' executor).
-pub use pollster::block_on;
 pub use types::{AlbedoMap, AtlasData, LightDesc, MeshData, TexelImage, TransferPiece};

@@ -204,7 +204,7 @@ impl Running {
         let surface = instance
             .create_surface(Arc::clone(&window))
             .context("cannot create a drawing surface for the window")?;
-        let adapter = passes::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
+        let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
             power_preference: wgpu::PowerPreference::HighPerformance,
             force_fallback_adapter: false,
             compatible_surface: Some(&surface),
@@ -372,17 +372,33 @@ impl Running {
         let ctx = self.egui_state.egui_ctx().clone();
         let image = self.image_id.map(|(id, _)| id);
         let app = &mut self.app;
-        let out = ctx.run_ui(raw, |ui| app.ui(ui, image));
+        let mut out = ctx.run_ui(raw, |ui| app.ui(ui, image));
         self.egui_state
             .handle_platform_output(&self.window, out.platform_output.clone());
         let jobs = ctx.tessellate(out.shapes, out.pixels_per_point);
+        // egui's texture changes: uploads now, frees after painting, whatever happens.
+        let mut textures = std::mem::take(&mut out.textures_delta);
         let gpu = &self.view.gpu;
-        for (id, deltas) in &out.textures_delta.set {
+        for (id, deltas) in &textures.set {
             for delta in deltas {
                 self.egui_renderer
                     .update_texture(&gpu.device, &gpu.queue, *id, delta);
             }
         }
+        let free = std::mem::take(&mut textures.free);
+        textures.clear();
+        let painted = self.paint(&jobs, out.pixels_per_point);
+        for id in &free {
+            self.egui_renderer.free_texture(id);
+        }
+        painted?;
+        rendered
+    }
+
+    /// Paints egui (which shows the 3D image) into the window and presents it; writes the
+    /// window screenshot when one is due.
+    fn paint(&mut self, jobs: &[egui::ClippedPrimitive], pixels_per_point: f32) -> Result<()> {
+        let gpu = &self.view.gpu;
         let frame = match self.surface.get_current_texture() {
             wgpu::CurrentSurfaceTexture::Success(t)
             | wgpu::CurrentSurfaceTexture::Suboptimal(t) => t,
@@ -394,7 +410,7 @@ impl Running {
         };
         let screen = egui_wgpu::ScreenDescriptor {
             size_in_pixels: [self.config.width, self.config.height],
-            pixels_per_point: out.pixels_per_point,
+            pixels_per_point,
         };
         let mut enc = gpu
             .device
@@ -403,7 +419,7 @@ impl Running {
             });
         let extra =
             self.egui_renderer
-                .update_buffers(&gpu.device, &gpu.queue, &mut enc, &jobs, &screen);
+                .update_buffers(&gpu.device, &gpu.queue, &mut enc, jobs, &screen);
         let target = frame
             .texture
             .create_view(&wgpu::TextureViewDescriptor::default());
@@ -426,7 +442,7 @@ impl Running {
                     multiview_mask: None,
                 })
                 .forget_lifetime();
-            self.egui_renderer.render(&mut pass, &jobs, &screen);
+            self.egui_renderer.render(&mut pass, jobs, &screen);
         }
         let capture = self.capture_window.take().map(|p| {
             let (buffer, padded) = copy_to_buffer(gpu, &mut enc, &frame.texture);
@@ -457,11 +473,8 @@ impl Running {
         }
         self.window.pre_present_notify();
         gpu.queue.present(frame);
-        for id in &out.textures_delta.free {
-            self.egui_renderer.free_texture(id);
-        }
         gpu.check("ortm.view.egui")?;
-        rendered
+        Ok(())
     }
 
     /// The 3D part of a frame: transfer maps, CPU views, the passes.
