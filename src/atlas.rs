@@ -1186,6 +1186,20 @@ pub fn read_atlas_set(dir: &Path) -> Result<AtlasSet, AtlasError> {
 /// [`AtlasError::InvalidSet`] if the set is inconsistent, [`AtlasError::FirstOrderSize`] if
 /// `first_order` does not have the set's lightmap size.
 pub fn apply_atlas_set(set: &AtlasSet, first_order: &Lightmap) -> Result<Lightmap, AtlasError> {
+    apply_atlas_pieces(set, |_| true, first_order)
+}
+
+/// [`apply_atlas_set`] with only the pieces for which `keep` is true (e.g. the maps of one
+/// offset, or the first K maps by importance, as `ortm view` shows them); same order and
+/// arithmetic.
+///
+/// # Errors
+/// As [`apply_atlas_set`].
+pub fn apply_atlas_pieces(
+    set: &AtlasSet,
+    keep: impl Fn(&AtlasPiece) -> bool,
+    first_order: &Lightmap,
+) -> Result<Lightmap, AtlasError> {
     set.validate()?;
     let (w, h) = set.lightmap_size;
     if (first_order.width, first_order.height) != (w, h)
@@ -1198,7 +1212,7 @@ pub fn apply_atlas_set(set: &AtlasSet, first_order: &Lightmap) -> Result<Lightma
         });
     }
     let mut acc: Vec<[f64; 3]> = first_order.data.iter().map(|v| v.map(f64::from)).collect();
-    let mut order: Vec<&AtlasPiece> = set.pieces.iter().collect();
+    let mut order: Vec<&AtlasPiece> = set.pieces.iter().filter(|p| keep(p)).collect();
     order.sort_by_key(|p| p.map_index); // stable: ties keep atlas order
     let aw = set.atlas_size.0 as usize;
     for p in order {

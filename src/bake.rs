@@ -479,13 +479,10 @@ impl MapPlan {
             total: grid.height as u64,
         });
         let t0 = std::time::Instant::now();
-        let iv = crate::cell_transfer::integrate(
-            transport,
-            grid,
-            &self.offsets,
-            &self.cells,
-            &|n| events(BakeEvent::Advance(n)),
-        );
+        let iv =
+            crate::cell_transfer::integrate(transport, grid, &self.offsets, &self.cells, &|n| {
+                events(BakeEvent::Advance(n))
+            });
         let st = &iv.stats;
         events(BakeEvent::Message(format!(
             "cells integrated in {:.2} s: {} near cluster pairs ({} texel pairs, {} moved to the \

@@ -2,6 +2,7 @@
 //! progress bars, messages). Each subcommand lives in `src/cli/`.
 
 mod cli;
+mod view;
 
 use clap::Parser;
 

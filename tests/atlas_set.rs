@@ -8,8 +8,8 @@ use std::path::Path;
 use glam::IVec2;
 use ortm::Lightmap;
 use ortm::atlas::{
-    ATLAS_INDEX_FILE_NAME, AtlasError, AtlasSet, apply_atlas_set, build_atlas_set,
-    read_atlas_index, read_atlas_set, write_atlas_set,
+    ATLAS_INDEX_FILE_NAME, AtlasError, AtlasSet, apply_atlas_pieces, apply_atlas_set,
+    build_atlas_set, read_atlas_index, read_atlas_set, write_atlas_set,
 };
 use ortm::maps::{self, BakeIndex, BakeKey, LightmapSize, TransferMap, write_map_file};
 use rand::{RngExt, SeedableRng};
@@ -164,6 +164,37 @@ fn apply_atlas_set_equals_maps_apply() {
         apply_atlas_set(&set, &Lightmap::new(10, 11)),
         Err(AtlasError::FirstOrderSize { .. })
     ));
+}
+
+#[test]
+fn apply_atlas_pieces_of_a_map_subset_equals_maps_apply_of_that_subset() {
+    // `ortm view` applies the first K maps and single maps through `apply_atlas_pieces`:
+    // filtering pieces by map index must equal `maps::apply` of the same maps alone.
+    let mut rng = ChaCha8Rng::seed_from_u64(7);
+    let (w, h) = (40, 30);
+    let maps = random_maps(&mut rng, w, h, 12);
+    let bo = random_lightmap(&mut rng, w, h);
+    let set = build_atlas_set(&maps, 64, 64).unwrap();
+    for keep in [
+        vec![],
+        vec![3],
+        vec![0, 5, 11],
+        (0..12).collect::<Vec<u32>>(),
+    ] {
+        let got = apply_atlas_pieces(&set, |p| keep.contains(&p.map_index), &bo).unwrap();
+        let subset: Vec<TransferMap> = keep.iter().map(|&m| maps[m as usize].clone()).collect();
+        let want = maps::apply(&subset, &bo).unwrap();
+        for (a, b) in got.data.iter().zip(&want.data) {
+            for c in 0..3 {
+                assert!(
+                    (a[c] - b[c]).abs() <= 1e-6 * a[c].abs().max(b[c].abs()),
+                    "maps {keep:?}: {} vs {}",
+                    a[c],
+                    b[c]
+                );
+            }
+        }
+    }
 }
 
 fn settings() -> serde_json::Value {

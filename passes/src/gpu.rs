@@ -80,6 +80,19 @@ impl Gpu {
             .map_err(|e| PassError::NoAdapter {
                 details: e.to_string(),
             })?;
+        Self::open_async(&adapter).await
+    }
+
+    /// Opens a device on `adapter` (chosen by the caller, e.g. one compatible with a window
+    /// surface) with the same optional features, limits and error capture as
+    /// [`Gpu::new_headless`].
+    ///
+    /// Errors: [`PassError::RequestDevice`] when the adapter refuses a device.
+    pub fn from_adapter(adapter: &wgpu::Adapter) -> Result<Self, PassError> {
+        pollster::block_on(Self::open_async(adapter))
+    }
+
+    async fn open_async(adapter: &wgpu::Adapter) -> Result<Self, PassError> {
         let adapter_info = adapter.get_info();
         let features = adapter.features() & wanted_features();
         let limits = adapter.limits();

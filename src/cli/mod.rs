@@ -8,6 +8,9 @@ mod demo;
 mod inspect;
 mod render;
 mod solve;
+mod view;
+
+pub(crate) use render::save_png_atomic;
 
 use std::path::PathBuf;
 
@@ -40,6 +43,8 @@ enum Command {
     Solve(solve::Args),
     /// Relight a bake on the GPU: frame PNG, final and first-order lightmaps (OpenEXR).
     Render(render::Args),
+    /// Interactive viewer: move lights and watch the relit bake (egui window).
+    View(view::Args),
 }
 
 /// `ortm bench render …` (a subcommand with its own options) or `ortm bench transport|bake`.
@@ -76,6 +81,7 @@ pub fn run(cli: Cli) -> Result<()> {
         }
         Command::Bin(a) => bin::run(a),
         Command::Render(a) => render::run(a),
+        Command::View(a) => view::run(a),
     }
 }
 

@@ -143,6 +143,87 @@ struct RawLight {
     outer_deg: Option<f32>,
 }
 
+/// A light set-up alone: a scene-file fragment holding only `[[light]]` tables (what
+/// `ortm view` saves and loads).
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawLightsFragment {
+    #[serde(default)]
+    light: Vec<Spanned<RawLight>>,
+}
+
+/// Reads a scene-file fragment that holds only `[[light]]` tables (same keys, units and
+/// validation as in a scene file; errors name the file, the line and the field).
+pub fn load_lights_fragment(path: &Path) -> Result<Vec<Light>, SceneError> {
+    let text = read_text_bounded(path, "light set-up file", MAX_SCENE_BYTES)?;
+    parse_lights_fragment(&text, path)
+}
+
+/// Parses the text of a `[[light]]`-only fragment; `path` is only used in error messages.
+pub fn parse_lights_fragment(text: &str, path: &Path) -> Result<Vec<Light>, SceneError> {
+    let raw: RawLightsFragment = toml::from_str(text).map_err(|e| SceneError::SceneSyntax {
+        path: path.to_path_buf(),
+        line: e.span().map(|s| line_of(text, s.start)),
+        message: e.message().trim_end_matches('\n').to_string(),
+    })?;
+    let ctx = Ctx { path, text };
+    raw.light
+        .iter()
+        .enumerate()
+        .map(|(i, l)| ctx.light(i, l))
+        .collect()
+}
+
+/// Writes lights as `[[light]]` tables of a scene file (metres, W/sr, W/m²), readable by
+/// [`parse_lights_fragment`] and pasteable into a scene file.
+pub fn lights_to_toml(lights: &[Light]) -> String {
+    let v = |a: Vec3| format!("[{}, {}, {}]", a.x, a.y, a.z);
+    let mut out = String::new();
+    for l in lights {
+        out.push_str("[[light]]\n");
+        match *l {
+            Light::Point {
+                position_m,
+                color,
+                intensity_w_sr,
+            } => {
+                out.push_str("type = \"point\"\n");
+                out.push_str(&format!("position = {}   # metres\n", v(position_m)));
+                out.push_str(&format!("color = {}\n", v(color)));
+                out.push_str(&format!("intensity = {intensity_w_sr}   # W/sr\n"));
+            }
+            Light::Spot {
+                position_m,
+                direction,
+                color,
+                intensity_w_sr,
+                inner_deg,
+                outer_deg,
+            } => {
+                out.push_str("type = \"spot\"\n");
+                out.push_str(&format!("position = {}   # metres\n", v(position_m)));
+                out.push_str(&format!("direction = {}\n", v(direction)));
+                out.push_str(&format!("color = {}\n", v(color)));
+                out.push_str(&format!("intensity = {intensity_w_sr}   # W/sr\n"));
+                out.push_str(&format!("inner_deg = {inner_deg}\n"));
+                out.push_str(&format!("outer_deg = {outer_deg}\n"));
+            }
+            Light::Directional {
+                direction,
+                color,
+                irradiance_w_m2,
+            } => {
+                out.push_str("type = \"directional\"\n");
+                out.push_str(&format!("direction = {}\n", v(direction)));
+                out.push_str(&format!("color = {}\n", v(color)));
+                out.push_str(&format!("irradiance = {irradiance_w_m2}   # W/m²\n"));
+            }
+        }
+        out.push('\n');
+    }
+    out
+}
+
 /// Reads, validates and loads a scene file; warnings are printed to stderr.
 ///
 /// See [`load_scene_with_warnings`] and `docs/scene-format.md`.
@@ -731,5 +812,53 @@ mod tests {
         assert_eq!(line_of(t, 5), 3);
         assert_eq!(line_of(t, 6), 4);
         assert_eq!(line_of(t, 100), 4);
+    }
+
+    #[test]
+    fn light_fragments_round_trip_and_report_bad_fields() {
+        let lights = vec![
+            Light::Point {
+                position_m: Vec3::new(0.1, -0.25, 3.5),
+                color: Vec3::new(1.0, 0.5, 0.25),
+                intensity_w_sr: 0.125,
+            },
+            Light::Spot {
+                position_m: Vec3::new(0.0, 1.0, 0.0),
+                direction: Vec3::new(0.0, -1.0, 0.0),
+                color: Vec3::ONE,
+                intensity_w_sr: 2.0,
+                inner_deg: 10.0,
+                outer_deg: 25.5,
+            },
+            Light::Directional {
+                direction: Vec3::new(0.6, -0.8, 0.0),
+                color: Vec3::new(0.9, 0.9, 1.0),
+                irradiance_w_m2: 7.0,
+            },
+        ];
+        let text = lights_to_toml(&lights);
+        let back = parse_lights_fragment(&text, Path::new("lights.toml")).unwrap();
+        assert_eq!(back, lights);
+        assert!(
+            parse_lights_fragment("", Path::new("x.toml"))
+                .unwrap()
+                .is_empty()
+        );
+        // A spot field on a point light: error names the file, line and field.
+        let bad = "[[light]]\ntype = \"point\"\nposition = [0, 0, 0]\nintensity = 1.0\n\n\
+                   [[light]]\ntype = \"point\"\nposition = [0, 0, 0]\nintensity = 1.0\n\
+                   outer_deg = 3.0\n";
+        let e = parse_lights_fragment(bad, Path::new("lights.toml"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("lights.toml:6") && e.contains("light[1].outer_deg"),
+            "{e}"
+        );
+        // Scene keys are not allowed in a light set-up.
+        let e = parse_lights_fragment("mesh = \"a.obj\"\n", Path::new("l.toml"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("mesh"), "{e}");
     }
 }
