@@ -49,7 +49,7 @@ use crate::transport::{Patch, Transport};
 
 /// Cluster pairs whose centroids are closer than this many times the sum of their radii get
 /// texel-exact first-bounce form factors; farther pairs use the cluster transfer.
-pub const NEAR_FACTOR: f32 = 2.0;
+pub const NEAR_FACTOR: f32 = 1.0;
 
 const NO_CELL: u32 = u32::MAX;
 
@@ -122,7 +122,10 @@ impl CellTable {
         }
         // Horizontal: the window of `b` entries starting at c is one cell.
         let mut horiz = vec![NO_CELL; stride * rows];
-        for (crow, hrow) in cell.chunks_exact(stride).zip(horiz.chunks_exact_mut(stride)) {
+        for (crow, hrow) in cell
+            .chunks_exact(stride)
+            .zip(horiz.chunks_exact_mut(stride))
+        {
             let mut run = 0usize;
             for c in (0..stride).rev() {
                 run = if c + 1 < stride && crow[c] == crow[c + 1] {
@@ -451,13 +454,15 @@ pub fn integrate(
             *p = p.max(v[0].abs().max(v[1].abs()).max(v[2].abs()) as f64);
         }
     }
-    let stats = stats.into_iter().fold(CellStats::default(), |a, b| CellStats {
-        near_cluster_pairs: a.near_cluster_pairs + b.near_cluster_pairs,
-        near_texel_pairs: a.near_texel_pairs + b.near_texel_pairs,
-        uniform_windows: a.uniform_windows + b.uniform_windows,
-        split_windows: a.split_windows + b.split_windows,
-        rehomed: a.rehomed + b.rehomed,
-    });
+    let stats = stats
+        .into_iter()
+        .fold(CellStats::default(), |a, b| CellStats {
+            near_cluster_pairs: a.near_cluster_pairs + b.near_cluster_pairs,
+            near_texel_pairs: a.near_texel_pairs + b.near_texel_pairs,
+            uniform_windows: a.uniform_windows + b.uniform_windows,
+            split_windows: a.split_windows + b.split_windows,
+            rehomed: a.rehomed + b.rehomed,
+        });
     CellValues {
         width: w,
         height: h,

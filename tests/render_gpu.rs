@@ -44,7 +44,14 @@ fn bake(mut scene: Scene, size: u32, offsets: usize) -> (Scene, TexelGrid, Vec<T
     let grid = TexelGrid::build_with_size(&scene, size, size).unwrap();
     let transport = Transport::new(&scene, &grid, Effects::default(), 8);
     let list = ortm::offsets::select_jittered_grid(size, size, offsets, 7).unwrap();
-    let maps = bake_maps(&transport, &grid, &list, ortm::bake::CellRule::Integrated, &|_: BakeEvent| {}).unwrap();
+    let maps = bake_maps(
+        &transport,
+        &grid,
+        &list,
+        ortm::bake::CellRule::Integrated,
+        &|_: BakeEvent| {},
+    )
+    .unwrap();
     (scene, grid, maps)
 }
 
