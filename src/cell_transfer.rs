@@ -103,6 +103,52 @@ struct CellTable {
     stride: usize,
     cell: Vec<u32>,
     uniform: Vec<u32>,
+    /// Half the block size (0 when the block is 1).
+    half: i32,
+    /// Cell-uniform `half × half` windows.
+    uniform_half: Vec<u32>,
+}
+
+/// For every start `(c, r)` of the table, the cell when the `b × b` window starting there lies in
+/// one cell, else [`NO_CELL`].
+fn uniform_windows(cell: &[u32], stride: usize, rows: usize, b: usize) -> Vec<u32> {
+    // Horizontal: the window of `b` entries starting at c is one cell.
+    let mut horiz = vec![NO_CELL; stride * rows];
+    for (crow, hrow) in cell
+        .chunks_exact(stride)
+        .zip(horiz.chunks_exact_mut(stride))
+    {
+        let mut run = 0usize;
+        for c in (0..stride).rev() {
+            run = if c + 1 < stride && crow[c] == crow[c + 1] {
+                run + 1
+            } else {
+                1
+            };
+            if crow[c] != NO_CELL && run >= b {
+                hrow[c] = crow[c];
+            }
+        }
+    }
+    // Vertical: `b` rows of equal horizontal windows.
+    let mut uniform = vec![NO_CELL; stride * rows];
+    for c in 0..stride {
+        let mut run = 0usize;
+        for r in (0..rows).rev() {
+            let v = horiz[r * stride + c];
+            run = if v == NO_CELL {
+                0
+            } else if r + 1 < rows && horiz[(r + 1) * stride + c] == v {
+                run + 1
+            } else {
+                1
+            };
+            if run >= b {
+                uniform[r * stride + c] = v;
+            }
+        }
+    }
+    uniform
 }
 
 impl CellTable {
@@ -120,48 +166,25 @@ impl CellTable {
                 }
             }
         }
-        // Horizontal: the window of `b` entries starting at c is one cell.
-        let mut horiz = vec![NO_CELL; stride * rows];
-        for (crow, hrow) in cell
-            .chunks_exact(stride)
-            .zip(horiz.chunks_exact_mut(stride))
-        {
-            let mut run = 0usize;
-            for c in (0..stride).rev() {
-                run = if c + 1 < stride && crow[c] == crow[c + 1] {
-                    run + 1
-                } else {
-                    1
-                };
-                if crow[c] != NO_CELL && run >= b {
-                    hrow[c] = crow[c];
-                }
-            }
-        }
-        // Vertical: `b` rows of equal horizontal windows.
-        let mut uniform = vec![NO_CELL; stride * rows];
-        for c in 0..stride {
-            let mut run = 0usize;
-            for r in (0..rows).rev() {
-                let v = horiz[r * stride + c];
-                run = if v == NO_CELL {
-                    0
-                } else if r + 1 < rows && horiz[(r + 1) * stride + c] == v {
-                    run + 1
-                } else {
-                    1
-                };
-                if run >= b {
-                    uniform[r * stride + c] = v;
-                }
-            }
-        }
+        let uniform = uniform_windows(&cell, stride, rows, b);
+        // Quadrants tile the block exactly only for even blocks.
+        let uniform_half = if b >= 2 && b % 2 == 0 {
+            uniform_windows(&cell, stride, rows, b / 2)
+        } else {
+            Vec::new()
+        };
         Self {
             w: wi,
             h: hi,
             stride,
             cell,
             uniform,
+            half: if b >= 2 && b % 2 == 0 {
+                (b / 2) as i32
+            } else {
+                0
+            },
+            uniform_half,
         }
     }
 
@@ -178,6 +201,11 @@ impl CellTable {
     #[inline]
     fn uniform(&self, dx: i32, dy: i32) -> u32 {
         self.uniform[self.index(dx, dy)]
+    }
+
+    #[inline]
+    fn uniform_half(&self, dx: i32, dy: i32) -> u32 {
+        self.uniform_half[self.index(dx, dy)]
     }
 }
 
@@ -206,6 +234,10 @@ struct Clusters {
     tile: Vec<IVec2>,
     /// Near clusters of each cluster, sorted by index.
     near: Vec<Vec<Near>>,
+    /// Texels of each cluster by quadrant of its tile: `(x, y, area share)`.
+    quads: Vec<[Vec<(i32, i32, f64)>; 4]>,
+    /// Area share of each quadrant.
+    quad_share: Vec<[f64; 4]>,
 }
 
 fn clusters(transport: &Transport, grid: &TexelGrid) -> Clusters {
@@ -274,7 +306,30 @@ fn clusters(transport: &Transport, grid: &TexelGrid) -> Clusters {
                 .collect()
         })
         .collect();
-    Clusters { texels, tile, near }
+    let half = (b / 2).max(1);
+    let mut quads: Vec<[Vec<(i32, i32, f64)>; 4]> = vec![Default::default(); nc];
+    let mut quad_share = vec![[0.0f64; 4]; nc];
+    for (c, list) in texels.iter().enumerate() {
+        let inv_area = 1.0 / rem.clusters[c].area_m2 as f64;
+        for &i in list {
+            let t = &grid.texels[i as usize];
+            let (qx, qy) = (
+                (t.x - tile[c].x as u32) / half,
+                (t.y - tile[c].y as u32) / half,
+            );
+            let q = (qx.min(1) + 2 * qy.min(1)) as usize;
+            let share = transport.patches[i as usize].area_m2 as f64 * inv_area;
+            quads[c][q].push((t.x as i32, t.y as i32, share));
+            quad_share[c][q] += share;
+        }
+    }
+    Clusters {
+        texels,
+        tile,
+        near,
+        quads,
+        quad_share,
+    }
 }
 
 /// Integrates the transfer over every cell of `cells` (the discrete Voronoi cells of `offsets`)
@@ -373,18 +428,36 @@ pub fn integrate(
                         continue;
                     }
                     st.split_windows += 1;
-                    let inv_area = 1.0 / rem.clusters[cj].area_m2 as f64;
-                    for &j in &cl.texels[cj] {
-                        let t = &grid.texels[j as usize];
-                        let cell = table.cell(t.x as i32 - xi, t.y as i32 - yi);
-                        if cell == NO_CELL {
+                    // Quadrant by quadrant: O(1) when the half-size window is one cell.
+                    for q in 0..4 {
+                        let list = &cl.quads[cj][q];
+                        if list.is_empty() {
                             continue;
                         }
-                        let pj = &transport.patches[j as usize];
-                        let share = pj.area_m2 as f64 * inv_area;
-                        let a = &mut acc[cell as usize];
-                        for c in 0..3 {
-                            a[c] += v[c] * share;
+                        if table.half > 0 {
+                            let qo = o + IVec2::new(
+                                (q as i32 % 2) * table.half,
+                                (q as i32 / 2) * table.half,
+                            );
+                            let u = table.uniform_half(qo.x - xi, qo.y - yi);
+                            if u != NO_CELL {
+                                let share = cl.quad_share[cj][q];
+                                let a = &mut acc[u as usize];
+                                for c in 0..3 {
+                                    a[c] += v[c] * share;
+                                }
+                                continue;
+                            }
+                        }
+                        for &(tx, ty, share) in list {
+                            let cell = table.cell(tx - xi, ty - yi);
+                            if cell == NO_CELL {
+                                continue;
+                            }
+                            let a = &mut acc[cell as usize];
+                            for c in 0..3 {
+                                a[c] += v[c] * share;
+                            }
                         }
                     }
                 }
