@@ -15,6 +15,7 @@ pub mod bake;
 pub mod eval;
 pub mod lighting;
 pub mod lightmap;
+pub mod limits;
 pub mod maps;
 pub mod offsets;
 pub mod raycast;
