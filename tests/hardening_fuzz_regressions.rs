@@ -49,7 +49,10 @@ fn expect_clean<T, E: std::fmt::Display>(case: &str, file: &str, r: Result<T, E>
         Ok(_) => panic!("{case}: accepted"),
         Err(e) => {
             let msg = e.to_string();
-            assert!(msg.contains(file), "{case}: error does not name {file}: {msg}");
+            assert!(
+                msg.contains(file),
+                "{case}: error does not name {file}: {msg}"
+            );
         }
     }
 }
@@ -58,7 +61,11 @@ fn expect_clean<T, E: std::fmt::Display>(case: &str, file: &str, r: Result<T, E>
 fn map_exr_regressions() {
     for (name, bytes) in cases("map_exr") {
         let path = Path::new("regression.exr");
-        expect_clean(&name, "regression.exr", ortm::maps::decode_map(path, &bytes, None));
+        expect_clean(
+            &name,
+            "regression.exr",
+            ortm::maps::decode_map(path, &bytes, None),
+        );
         expect_clean(
             &name,
             "regression.exr",
@@ -85,7 +92,11 @@ fn atlas_exr_regressions() {
         )
         .unwrap();
         fs::write(dir.path().join("atlas_000.exr"), &bytes).unwrap();
-        expect_clean(&name, "atlas_000.exr", ortm::atlas::read_atlas_set(dir.path()));
+        expect_clean(
+            &name,
+            "atlas_000.exr",
+            ortm::atlas::read_atlas_set(dir.path()),
+        );
     }
 }
 

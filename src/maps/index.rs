@@ -192,7 +192,7 @@ fn parse_map_file_name(name: &str) -> Option<(u32, IVec2)> {
 }
 
 /// Checks that `name` is a plain file name (one normal path component, no `..`).
-fn check_file_name(name: &str) -> Result<(), MapsError> {
+fn check_file_name(index: &Path, name: &str) -> Result<(), MapsError> {
     let plain = !name.is_empty()
         && !name.contains(['/', '\\', ':', '\0'])
         && !name.contains("..")
@@ -205,6 +205,7 @@ fn check_file_name(name: &str) -> Result<(), MapsError> {
         Ok(())
     } else {
         Err(MapsError::BadFileName {
+            index: index.to_owned(),
             name: name.to_owned(),
         })
     }
@@ -215,7 +216,7 @@ fn check_file_name(name: &str) -> Result<(), MapsError> {
 /// the file's size in bytes.
 fn resolve(dir: &Path, name: &str) -> Result<(PathBuf, u64), MapsError> {
     use crate::limits::Unresolved;
-    check_file_name(name)?;
+    check_file_name(&dir.join(INDEX_FILE_NAME), name)?;
     let path = dir.join(name);
     crate::limits::resolve_in_dir(dir, name).map_err(|e| match e {
         Unresolved::Missing => MapsError::MissingFile { path: path.clone() },
@@ -281,7 +282,7 @@ impl BakeIndex {
         let mut indices = HashSet::new();
         let mut files = HashSet::new();
         for (n, m) in self.maps.iter().enumerate() {
-            check_file_name(&m.file)?;
+            check_file_name(path, &m.file)?;
             if !indices.insert(m.index) {
                 return Err(bad(format!(
                     "maps[{n}]: map index {} appears twice",
@@ -690,7 +691,7 @@ mod tests {
         ] {
             let n = map_file_name(i, o);
             assert_eq!(parse_map_file_name(&n), Some((i, o)), "{n}");
-            check_file_name(&n).unwrap();
+            check_file_name(Path::new("i"), &n).unwrap();
         }
         assert_eq!(
             map_file_name(12, IVec2::new(3, -17)),
@@ -707,7 +708,10 @@ mod tests {
         for bad in [
             "", ".", "..", "../a.exr", "a/b.exr", "/abs.exr", "a\\b.exr", "C:x.exr",
         ] {
-            assert!(check_file_name(bad).is_err(), "{bad:?} accepted");
+            assert!(
+                check_file_name(Path::new("i"), bad).is_err(),
+                "{bad:?} accepted"
+            );
         }
     }
 

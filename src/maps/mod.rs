@@ -226,10 +226,13 @@ pub enum MapsError {
 
     /// A file name in the index (or one to be written) is not a plain file name.
     #[error(
-        "map file name {name:?} is not allowed (it must be a plain file name: no '/', '\\', '..', \
-         drive or absolute path); regenerate the index"
+        "{}: map file name {name:?} is not allowed (it must be a plain file name inside the bake \
+         directory: no '/', '\\', '..', drive or absolute path); regenerate the index",
+        index.display()
     )]
     BadFileName {
+        /// The index (or directory) naming the file.
+        index: PathBuf,
         /// The rejected name.
         name: String,
     },
