@@ -19,7 +19,7 @@
 //! | [`MAX_EXR_BYTES`] | 4 GiB | map and atlas OpenEXR files |
 //! | [`MAX_EXR_EXPANSION`] | 1100 | decoded pixel bytes per byte of an OpenEXR file |
 //! | [`MAX_OFFSETS`] | 65,536 | offsets (transfer maps) of a bake |
-//! | memory | physical memory, or `ORTM_MEMORY_LIMIT_BYTES` | a bake's transport ([`bake_memory_bytes`]) |
+//! | memory | physical memory, or `ORTM_MEMORY_LIMIT_BYTES` | a bake's transport ([`bake_memory_bytes`]), `ortm bin`'s atlases ([`atlas_memory_bytes`]) |
 
 use std::fs;
 use std::io::Read;
@@ -285,6 +285,47 @@ pub fn resolve_in_dir(dir: &Path, name: &str) -> Result<(std::path::PathBuf, u64
     Ok((path, meta.len()))
 }
 
+/// Bytes `ortm bin` needs to pack `stored_texels` map texels into `aw×ah` atlases: the maps
+/// (12 bytes per stored texel) plus `⌈stored / (aw·ah)⌉` atlases (at least one) of 12 bytes per
+/// texel (RGB f32).
+pub fn atlas_memory_bytes(aw: u32, ah: u32, stored_texels: u64) -> u64 {
+    let per_atlas = u64::from(aw) * u64::from(ah);
+    let atlases = stored_texels.div_ceil(per_atlas.max(1)).max(1);
+    atlases
+        .saturating_mul(per_atlas)
+        .saturating_add(stored_texels)
+        .saturating_mul(12)
+}
+
+/// Refuses an atlas size whose atlases would not fit in memory ([`atlas_memory_bytes`] against
+/// [`memory_limit_bytes`]) or exceed [`MAX_TEXELS`] per atlas, naming the bytes needed.
+///
+/// # Errors
+/// A [`LimitError`] with the number needed and the limit.
+pub fn check_atlas_request(aw: u32, ah: u32, stored_texels: u64) -> Result<(), LimitError> {
+    let texels = u64::from(aw) * u64::from(ah);
+    if texels > MAX_TEXELS {
+        return Err(LimitError {
+            what: format!("--atlas {aw}x{ah}"),
+            found: format!("{texels} texels per atlas"),
+            limit_name: "MAX_TEXELS",
+            limit: format!("{MAX_TEXELS} texels"),
+            fix: "; use a smaller atlas, e.g. --atlas 4096".into(),
+        });
+    }
+    let need = atlas_memory_bytes(aw, ah, stored_texels);
+    match memory_limit_bytes()? {
+        Some(limit) if need > limit => Err(LimitError {
+            what: format!("--atlas {aw}x{ah} for {stored_texels} stored map texels"),
+            found: format!("{need} bytes ({:.2} GiB) needed", gib(need)),
+            limit_name: "memory (physical memory or ORTM_MEMORY_LIMIT_BYTES)",
+            limit: format!("{limit} bytes ({:.2} GiB)", gib(limit)),
+            fix: "; use a smaller atlas size (--atlas)".into(),
+        }),
+        _ => Ok(()),
+    }
+}
+
 /// [`check_bake_memory`] for a rasterized lightmap: counts the clusters the coarse solve will
 /// form (one per `block×block` tile, chart and material, as `transport::coarse` does).
 ///
@@ -354,6 +395,16 @@ mod tests {
         assert!(e.to_string().contains("8193 texels"), "{e}");
         let e = check_bake_request(4096, 4096, MAX_OFFSETS + 1).unwrap_err();
         assert_eq!(e.limit_name, "MAX_OFFSETS");
+    }
+
+    #[test]
+    fn atlas_memory_counts_whole_atlases() {
+        // 100 texels in 8×8 atlases: 2 atlases of 64 texels + the maps, 12 bytes each.
+        assert_eq!(atlas_memory_bytes(8, 8, 100), (128 + 100) * 12);
+        // An empty bake still allocates one atlas.
+        assert_eq!(atlas_memory_bytes(4, 4, 0), 16 * 12);
+        let e = check_atlas_request(65536, 8192, 1).unwrap_err();
+        assert_eq!(e.limit_name, "MAX_TEXELS");
     }
 
     #[test]

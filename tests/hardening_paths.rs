@@ -216,3 +216,22 @@ fn impossible_offset_counts_and_sizes_are_refused_up_front() {
     let err = run(&["bake", "cornell", "--size", "32", "--offsets", "70000"]);
     assert!(err.contains("MAX_OFFSETS"), "{err}");
 }
+
+#[test]
+fn bin_over_the_memory_limit_is_refused_with_the_bytes_needed() {
+    let dir = fixture();
+    fs::remove_file(dir.path().join("atlases.json")).unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_ortm"))
+        .arg("bin")
+        .arg(dir.path())
+        .args(["--atlas", "4096"])
+        .env(ortm::limits::MEMORY_LIMIT_ENV, "100000000")
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    // One 4096² atlas of RGB f32 plus the fixture's 2130 stored texels.
+    let need = (4096 * 4096 + 2130) * 12;
+    assert!(err.contains(&format!("{need} bytes")), "{err}");
+    assert!(!dir.path().join("atlases.json").exists());
+}
