@@ -235,3 +235,39 @@ fn bin_over_the_memory_limit_is_refused_with_the_bytes_needed() {
     assert!(err.contains(&format!("{need} bytes")), "{err}");
     assert!(!dir.path().join("atlases.json").exists());
 }
+
+#[test]
+fn implausible_saved_selection_is_ignored_and_selected_again() {
+    let dir = tempfile::tempdir().unwrap();
+    let bake = || {
+        let out = Command::new(env!("CARGO_BIN_EXE_ortm"))
+            .args(["bake", "cornell", "--size", "32", "--offsets", "4"])
+            .args(["--iterations", "50", "-o"])
+            .arg(dir.path())
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    };
+    bake();
+    let sel = dir.path().join("selection.json");
+    let original = fs::read(&sel).unwrap();
+    let index = fs::read(dir.path().join("index.json")).unwrap();
+    // Same bake key (so it would be reused) but offsets far outside the 32×32 lightmap and
+    // repeated: a corrupt or hostile file. The bake must not trust it.
+    edit_json(&sel, |v| {
+        v["offsets"] = serde_json::json!([[100000, 0], [100000, 0], [0, -7], [3, 3]]);
+    });
+    for e in fs::read_dir(dir.path()).unwrap() {
+        let p = e.unwrap().path();
+        if p.extension().is_some_and(|x| x == "exr") || p.ends_with("index.json") {
+            fs::remove_file(p).unwrap();
+        }
+    }
+    bake();
+    assert_eq!(fs::read(&sel).unwrap(), original);
+    assert_eq!(fs::read(dir.path().join("index.json")).unwrap(), index);
+}
