@@ -29,8 +29,11 @@ pub fn scratch(name: &str) -> &'static Path {
             let e = e.expect("list fixture");
             fs::copy(e.path(), dir.join(e.file_name())).expect("copy fixture");
         }
-        fs::copy(scene_data_dir().join("two_quads.obj"), dir.join("two_quads.obj"))
-            .expect("copy two_quads.obj");
+        fs::copy(
+            scene_data_dir().join("two_quads.obj"),
+            dir.join("two_quads.obj"),
+        )
+        .expect("copy two_quads.obj");
         dir
     })
 }
