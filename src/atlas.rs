@@ -298,6 +298,20 @@ pub enum AtlasError {
         name: String,
     },
 
+    /// A file named in the atlas index resolves (through a symbolic link) outside the atlas
+    /// directory, or is not a regular file.
+    #[error(
+        "atlas file {} {problem}; an atlas directory must hold its files itself (copy the file \
+         instead of linking to it, or re-run `ortm bin`)",
+        path.display()
+    )]
+    PathEscape {
+        /// The path named by the index.
+        path: PathBuf,
+        /// What is wrong (where it resolves to).
+        problem: String,
+    },
+
     /// An atlas file listed in the index does not exist.
     #[error(
         "atlas file {} listed in the atlas index is missing; copy the complete atlas directory \
@@ -668,48 +682,57 @@ fn check_geometry(
             ));
         }
     }
-    // Disjoint in the atlases (pieces are grouped by atlas, so a stamp of atlas+1 suffices).
-    let mut stamp = vec![0u32; aw as usize * ah as usize];
-    for (i, p) in pieces.iter().enumerate() {
-        let mark = p.atlas + 1;
-        for y in p.src_y..p.src_y + p.h {
-            let row = y as usize * aw as usize;
-            for s in &mut stamp[row + p.src_x as usize..row + (p.src_x + p.w) as usize] {
-                if *s == mark {
-                    return Err(format!(
-                        "piece {i} overlaps another piece in atlas {} at row {y}",
-                        p.atlas
-                    ));
-                }
-                *s = mark;
-            }
-        }
+    // Σ piece areas ≤ the atlases' texels (necessary for disjointness); this also bounds the
+    // memory and time of the span checks below by the atlases, not by the piece list.
+    let capacity = atlas_count as u64 * u64::from(aw) * u64::from(ah);
+    let area: u64 = pieces.iter().map(|p| u64::from(p.w) * u64::from(p.h)).sum();
+    if area > capacity {
+        return Err(format!(
+            "the pieces cover {area} texels but {atlas_count} atlases of {aw}×{ah} hold only \
+             {capacity}: pieces overlap"
+        ));
     }
-    // The pieces of one map are disjoint in the lightmap (grouped by map via a sort).
-    let mut order: Vec<usize> = (0..pieces.len()).collect();
-    order.sort_by_key(|&i| pieces[i].map_index);
-    let mut stamp = vec![u32::MAX; lw as usize * lh as usize];
-    let mut group = 0u32;
-    for (k, &i) in order.iter().enumerate() {
-        let p = &pieces[i];
-        if k > 0 && pieces[order[k - 1]].map_index != p.map_index {
-            group += 1;
+    // Disjoint in the atlases: row spans (atlas, row, x0, x1, piece) sorted; two spans of one
+    // row overlap iff some consecutive pair does.
+    let spans = |key: &dyn Fn(&AtlasPiece) -> (u32, u32, u32)| {
+        let mut s: Vec<(u32, u32, u32, u32, usize)> = Vec::new();
+        for (i, p) in pieces.iter().enumerate() {
+            let (group, x, y) = key(p);
+            s.extend((y..y + p.h).map(|row| (group, row, x, x + p.w, i)));
         }
-        for y in p.dst_y..p.dst_y + p.h {
-            let row = y as usize * lw as usize;
-            for s in &mut stamp[row + p.dst_x as usize..row + (p.dst_x + p.w) as usize] {
-                if *s == group {
-                    return Err(format!(
-                        "piece {i} of map {} overlaps another piece of the same map at lightmap \
-                         row {y}",
-                        p.map_index
-                    ));
-                }
-                *s = group;
-            }
-        }
+        s.sort_unstable();
+        s.windows(2)
+            .find(|w| w[0].0 == w[1].0 && w[0].1 == w[1].1 && w[1].2 < w[0].3)
+            .map(|w| (w[1].4, w[1].0, w[1].1))
+    };
+    if let Some((i, atlas, y)) = spans(&|p| (p.atlas, p.src_x, p.src_y)) {
+        return Err(format!(
+            "piece {i} overlaps another piece in atlas {atlas} at row {y}"
+        ));
+    }
+    // The pieces of one map are disjoint in the lightmap.
+    if let Some((i, map, y)) = spans(&|p| (p.map_index, p.dst_x, p.dst_y)) {
+        return Err(format!(
+            "piece {i} of map {map} overlaps another piece of the same map at lightmap row {y}"
+        ));
     }
     Ok(())
+}
+
+/// Removes temporary files an interrupted `write_atlas_set` left (`.atlas_*.tmp`,
+/// `.atlases.json.*.tmp`: never read, since final names are only created by rename).
+fn remove_stale_temp_files(dir: &Path) {
+    let Ok(entries) = fs::read_dir(dir) else {
+        return;
+    };
+    for e in entries.flatten() {
+        let name = e.file_name();
+        let name = name.to_string_lossy();
+        let ours = name.starts_with(".atlas_") || name.starts_with(".atlases.json.");
+        if ours && name.ends_with(".tmp") && e.file_type().is_ok_and(|t| t.is_file()) {
+            let _ = fs::remove_file(e.path());
+        }
+    }
 }
 
 /// Whether `name` is a plain file name (one normal path component, no `..`, no separators).
@@ -845,6 +868,13 @@ fn decode_atlas(
     if h.deep || !matches!(h.blocks, BlockDescription::ScanLines) {
         return Err(bad("not a flat scan-line image".into()));
     }
+    crate::maps::exr_io::check_compression(h.compression).map_err(&bad)?;
+    crate::limits::check_exr_pixels(
+        &path.display().to_string(),
+        u64::from(size.0) * u64::from(size.1),
+        bytes.len() as u64,
+    )
+    .map_err(|e| bad(e.to_string()))?;
     let names: Vec<String> = h.channels.list.iter().map(|c| c.name.to_string()).collect();
     if names != ["B", "G", "R"]
         || h.channels
@@ -938,6 +968,7 @@ pub fn write_atlas_set(
         reason: format!("{} atlases is too many", set.atlases.len()),
     })?;
     fs::create_dir_all(dir).map_err(io_err("cannot create directory", dir))?;
+    remove_stale_temp_files(dir);
     let index_path = dir.join(ATLAS_INDEX_FILE_NAME);
     match fs::remove_file(&index_path) {
         Ok(()) => {}
@@ -1002,13 +1033,14 @@ pub fn write_atlas_set(
 /// [`AtlasError::BadFileName`], [`AtlasError::BakeIndex`], [`AtlasError::BakeMismatch`].
 pub fn read_atlas_index(dir: &Path) -> Result<AtlasIndex, AtlasError> {
     let path = dir.join(ATLAS_INDEX_FILE_NAME);
-    let text = match fs::read_to_string(&path) {
-        Ok(t) => t,
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
-            return Err(AtlasError::MissingIndex { path });
-        }
-        Err(e) => return Err(io_err("cannot read atlas index", &path)(e)),
-    };
+    let text =
+        match crate::limits::read_bounded(&path, crate::limits::MAX_JSON_BYTES, "MAX_JSON_BYTES") {
+            Ok(t) => t,
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+                return Err(AtlasError::MissingIndex { path });
+            }
+            Err(e) => return Err(io_err("cannot read atlas index", &path)(e)),
+        };
     let json_err = |source| AtlasError::Json {
         path: path.clone(),
         source,
@@ -1017,7 +1049,7 @@ pub fn read_atlas_index(dir: &Path) -> Result<AtlasIndex, AtlasError> {
         path: path.clone(),
         reason,
     };
-    let mut value: serde_json::Value = serde_json::from_str(&text).map_err(json_err)?;
+    let mut value: serde_json::Value = serde_json::from_slice(&text).map_err(json_err)?;
     let obj = value
         .as_object_mut()
         .ok_or_else(|| bad("the top level is not a JSON object".into()))?;
@@ -1069,6 +1101,26 @@ pub fn read_atlas_index(dir: &Path) -> Result<AtlasIndex, AtlasError> {
             )));
         }
     }
+    // The atlas files exist inside `dir` with the recorded sizes, and those sizes can hold the
+    // declared atlas size: this bounds the work of the geometry checks below by the files on
+    // disk, not by numbers in the JSON.
+    let atlas_texels = u64::from(index.atlas_size.width) * u64::from(index.atlas_size.height);
+    for a in &index.atlases {
+        let (file, len) = resolve_atlas_file(dir, &a.file)?;
+        if len != a.bytes {
+            return Err(AtlasError::FileSize {
+                path: file,
+                expected: a.bytes,
+                found: len,
+            });
+        }
+        crate::limits::check_exr_pixels(
+            &format!("atlas size in {} for {}", path.display(), file.display()),
+            atlas_texels,
+            len,
+        )
+        .map_err(|e| bad(e.to_string()))?;
+    }
     check_geometry(
         (index.atlas_size.width, index.atlas_size.height),
         (index.lightmap.width, index.lightmap.height),
@@ -1080,20 +1132,43 @@ pub fn read_atlas_index(dir: &Path) -> Result<AtlasIndex, AtlasError> {
     Ok(index)
 }
 
-/// If `dir/index.json` exists, checks its bake key and lightmap size against the atlas index.
+/// Resolves the atlas index's file `name` inside `dir` ([`crate::limits::resolve_in_dir`]).
+fn resolve_atlas_file(dir: &Path, name: &str) -> Result<(PathBuf, u64), AtlasError> {
+    use crate::limits::Unresolved;
+    let path = dir.join(name);
+    crate::limits::resolve_in_dir(dir, name).map_err(|e| match e {
+        Unresolved::Missing => AtlasError::MissingFile { path: path.clone() },
+        Unresolved::Escapes(real) => AtlasError::PathEscape {
+            path: path.clone(),
+            problem: format!(
+                "resolves to {}, outside the atlas directory {}",
+                real.display(),
+                dir.display()
+            ),
+        },
+        Unresolved::NotRegular => AtlasError::PathEscape {
+            path: path.clone(),
+            problem: "is not a regular file".into(),
+        },
+    })
+}
+
+/// If `dir/index.json` exists, checks its bake key and lightmap size against the atlas index,
+/// and that every piece's map exists in it with the piece's offset.
 fn check_bake(dir: &Path, atlas_index: &Path, index: &AtlasIndex) -> Result<(), AtlasError> {
     let path = dir.join(INDEX_FILE_NAME);
-    let text = match fs::read_to_string(&path) {
-        Ok(t) => t,
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(()),
-        Err(e) => return Err(io_err("cannot read bake index", &path)(e)),
-    };
+    let text =
+        match crate::limits::read_bounded(&path, crate::limits::MAX_JSON_BYTES, "MAX_JSON_BYTES") {
+            Ok(t) => t,
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(()),
+            Err(e) => return Err(io_err("cannot read bake index", &path)(e)),
+        };
     let bad = |reason: String| AtlasError::BakeIndex {
         path: path.clone(),
         reason,
     };
     let v: serde_json::Value =
-        serde_json::from_str(&text).map_err(|e| bad(format!("not valid JSON ({e})")))?;
+        serde_json::from_slice(&text).map_err(|e| bad(format!("not valid JSON ({e})")))?;
     if v.get("format").and_then(|f| f.as_str()) != Some(INDEX_FORMAT) {
         return Err(bad(format!("field \"format\" is not \"{INDEX_FORMAT}\"")));
     }
@@ -1118,6 +1193,38 @@ fn check_bake(dir: &Path, atlas_index: &Path, index: &AtlasIndex) -> Result<(), 
     if lightmap != index.lightmap {
         return Err(mismatch("lightmap size"));
     }
+    // Every piece's map is in the bake index with the piece's offset.
+    let offsets: Vec<Option<[i32; 2]>> = v
+        .get("maps")
+        .and_then(|m| m.as_array())
+        .ok_or_else(|| bad("field \"maps\" is missing or not an array".into()))?
+        .iter()
+        .map(|m| {
+            m.get("offset")
+                .and_then(|o| serde_json::from_value(o.clone()).ok())
+        })
+        .collect();
+    for (i, p) in index.pieces.iter().enumerate() {
+        match offsets.get(p.map_index as usize) {
+            Some(Some(o)) if *o == p.offset => {}
+            found => {
+                return Err(AtlasError::BadIndex {
+                    path: atlas_index.to_owned(),
+                    reason: format!(
+                        "piece {i} is map {} with offset {:?}, but the bake index {} has {}; the \
+                         atlases were packed from another bake: re-run `ortm bin`",
+                        p.map_index,
+                        p.offset,
+                        path.display(),
+                        match found {
+                            None => format!("{} maps", offsets.len()),
+                            Some(o) => format!("offset {o:?} for that map"),
+                        }
+                    ),
+                });
+            }
+        }
+    }
     Ok(())
 }
 
@@ -1138,8 +1245,8 @@ pub fn read_atlas_set(dir: &Path) -> Result<AtlasSet, AtlasError> {
         .par_iter()
         .enumerate()
         .map(|(i, a)| {
-            let path = dir.join(&a.file);
-            let bytes = match fs::read(&path) {
+            let (path, _) = resolve_atlas_file(dir, &a.file)?;
+            let bytes = match crate::limits::read_bounded(&path, a.bytes, "the recorded size") {
                 Ok(b) => b,
                 Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
                     return Err(AtlasError::MissingFile { path });

@@ -363,6 +363,25 @@ pub struct SelectionRecord {
     pub data_points: Vec<[f64; 3]>,
 }
 
+impl SelectionRecord {
+    /// Whether a saved selection can be reused for `count` offsets of a `w×h` lightmap: that
+    /// many distinct offsets, each inside `(−w, w) × (−h, h)`, and finite data points. A file
+    /// that fails is ignored (the bake selects again, which gives the same offsets for a seed).
+    pub fn is_plausible(&self, count: usize, w: u32, h: u32) -> bool {
+        let (w, h) = (i64::from(w), i64::from(h));
+        let inside = |o: &[i32; 2]| i64::from(o[0]).abs() < w && i64::from(o[1]).abs() < h;
+        let distinct = self
+            .offsets
+            .iter()
+            .collect::<std::collections::HashSet<_>>()
+            .len();
+        self.offsets.len() == count
+            && distinct == count
+            && self.offsets.iter().all(inside)
+            && self.data_points.iter().flatten().all(|v| v.is_finite())
+    }
+}
+
 /// Chooses the offsets (importance-sampled or jittered grid).
 pub fn select_offsets(
     transport: &Transport,
@@ -564,7 +583,11 @@ pub fn bake(
         path: dir.to_owned(),
         source,
     })?;
+    crate::limits::check_bake_request(w, h, settings.offsets)
+        .map_err(|e| BakeError::Settings(e.to_string()))?;
     let grid = TexelGrid::build_with_size(scene, w, h)?;
+    crate::limits::check_bake_memory_for_grid(&grid, settings.coarse_block)
+        .map_err(|e| BakeError::Settings(e.to_string()))?;
     let hash = scene_hash(scene);
     let settings_json = serde_json::to_value(settings).expect("settings serialise");
     let key = BakeKey::new(&hash, &settings_json);
@@ -578,10 +601,13 @@ pub fn bake(
 
     // Offsets: reuse a saved selection of the same bake.
     let sel_path = dir.join("selection.json");
-    let saved: Option<SelectionRecord> = std::fs::read(&sel_path)
-        .ok()
-        .and_then(|b| serde_json::from_slice(&b).ok())
-        .filter(|s: &SelectionRecord| s.bake_key == key.as_str());
+    let saved: Option<SelectionRecord> =
+        crate::limits::read_bounded(&sel_path, crate::limits::MAX_JSON_BYTES, "MAX_JSON_BYTES")
+            .ok()
+            .and_then(|b| serde_json::from_slice(&b).ok())
+            .filter(|s: &SelectionRecord| {
+                s.bake_key == key.as_str() && s.is_plausible(settings.offsets, w, h)
+            });
     let (offset_list, points) = match saved {
         Some(s) => {
             events(BakeEvent::Message(

@@ -17,6 +17,7 @@ pub mod eval;
 pub mod face;
 pub mod lighting;
 pub mod lightmap;
+pub mod limits;
 pub mod maps;
 pub mod offsets;
 pub mod raycast;

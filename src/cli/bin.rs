@@ -81,6 +81,13 @@ pub fn run(a: Args) -> Result<()> {
     }
     let index = BakeIndex::read(dir)
         .with_context(|| format!("reading the bake index of '{}'", dir.display()))?;
+    let stored: u64 = index
+        .maps
+        .iter()
+        .flat_map(|m| &m.rects)
+        .map(|r| r.area())
+        .sum();
+    ortm::limits::check_atlas_request(a.atlas.0, a.atlas.1, stored)?;
     let maps = index
         .load_maps(dir)
         .with_context(|| format!("loading the transfer maps of '{}'", dir.display()))?;

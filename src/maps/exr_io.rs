@@ -282,11 +282,12 @@ pub fn write_map_file(
 /// [`MapsError::Io`], [`MapsError::NotExr`], [`MapsError::Exr`], [`MapsError::BadMapFile`],
 /// [`MapsError::SizeMismatch`] (see [`decode_map`]).
 pub fn read_map_file(path: &Path, expected_size: Option<(u32, u32)>) -> Result<MapFile, MapsError> {
-    let bytes = fs::read(path).map_err(|source| MapsError::Io {
-        op: "cannot read",
-        path: path.to_owned(),
-        source,
-    })?;
+    let bytes = crate::limits::read_bounded(path, crate::limits::MAX_EXR_BYTES, "MAX_EXR_BYTES")
+        .map_err(|source| MapsError::Io {
+            op: "cannot read",
+            path: path.to_owned(),
+            source,
+        })?;
     decode_map(path, &bytes, expected_size)
 }
 
@@ -384,6 +385,14 @@ pub fn decode_map(
     for (i, h) in headers.iter().enumerate() {
         check_header(h, i, rect_count, display).map_err(&bad)?;
     }
+    // Declared pixels against the file size, before any pixel is allocated.
+    let declared: u64 = headers.iter().map(|h| h.layer_size.area() as u64).sum();
+    crate::limits::check_exr_pixels(
+        &format!("{} (sum of the parts' data windows)", path.display()),
+        declared,
+        bytes.len() as u64,
+    )
+    .map_err(|e| bad(e.to_string()))?;
 
     // Phase 2: pixels.
     let image = read()
@@ -467,6 +476,7 @@ fn check_header(
     if h.deep || !matches!(h.blocks, BlockDescription::ScanLines) {
         return Err(format!("part {i} is not a flat scan-line image"));
     }
+    check_compression(h.compression).map_err(|e| format!("part {i}: {e}"))?;
     if h.shared_attributes.display_window != display {
         return Err(format!("part {i} has a different display window"));
     }
@@ -499,6 +509,19 @@ fn check_header(
         ));
     }
     Ok(())
+}
+
+/// Accepts the lossless compressions whose expansion is bounded by deflate's (`ZIP`, `ZIPS`,
+/// `RLE`, none), so [`crate::limits::check_exr_pixels`] bounds the decoded size. ortm writes ZIP.
+pub(crate) fn check_compression(c: Compression) -> Result<(), String> {
+    match c {
+        Compression::Uncompressed | Compression::RLE | Compression::ZIP1 | Compression::ZIP16 => {
+            Ok(())
+        }
+        other => Err(format!(
+            "compression {other:?} is not supported (ortm reads ZIP, RLE or uncompressed files)"
+        )),
+    }
 }
 
 /// The metadata fields of the `ortmMeta` attribute.

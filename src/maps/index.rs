@@ -192,7 +192,7 @@ fn parse_map_file_name(name: &str) -> Option<(u32, IVec2)> {
 }
 
 /// Checks that `name` is a plain file name (one normal path component, no `..`).
-fn check_file_name(name: &str) -> Result<(), MapsError> {
+fn check_file_name(index: &Path, name: &str) -> Result<(), MapsError> {
     let plain = !name.is_empty()
         && !name.contains(['/', '\\', ':', '\0'])
         && !name.contains("..")
@@ -205,9 +205,34 @@ fn check_file_name(name: &str) -> Result<(), MapsError> {
         Ok(())
     } else {
         Err(MapsError::BadFileName {
+            index: index.to_owned(),
             name: name.to_owned(),
         })
     }
+}
+
+/// Resolves the index's file `name` inside `dir` ([`crate::limits::resolve_in_dir`]): a plain
+/// name whose real path is a regular file inside the real bake directory. Returns the path and
+/// the file's size in bytes.
+fn resolve(dir: &Path, name: &str) -> Result<(PathBuf, u64), MapsError> {
+    use crate::limits::Unresolved;
+    check_file_name(&dir.join(INDEX_FILE_NAME), name)?;
+    let path = dir.join(name);
+    crate::limits::resolve_in_dir(dir, name).map_err(|e| match e {
+        Unresolved::Missing => MapsError::MissingFile { path: path.clone() },
+        Unresolved::Escapes(real) => MapsError::PathEscape {
+            path: path.clone(),
+            problem: format!(
+                "resolves to {}, outside the bake directory {}",
+                real.display(),
+                dir.display()
+            ),
+        },
+        Unresolved::NotRegular => MapsError::PathEscape {
+            path: path.clone(),
+            problem: "is not a regular file".into(),
+        },
+    })
 }
 
 fn is_hex_digest(s: &str) -> bool {
@@ -247,10 +272,17 @@ impl BakeIndex {
         };
         let what = path.display().to_string();
         check_size(&what, self.lightmap.width, self.lightmap.height)?;
+        if self.maps.len() > crate::limits::MAX_OFFSETS {
+            return Err(bad(format!(
+                "{} maps exceed the limit MAX_OFFSETS = {}",
+                self.maps.len(),
+                crate::limits::MAX_OFFSETS
+            )));
+        }
         let mut indices = HashSet::new();
         let mut files = HashSet::new();
         for (n, m) in self.maps.iter().enumerate() {
-            check_file_name(&m.file)?;
+            check_file_name(path, &m.file)?;
             if !indices.insert(m.index) {
                 return Err(bad(format!(
                     "maps[{n}]: map index {} appears twice",
@@ -259,6 +291,13 @@ impl BakeIndex {
             }
             if !files.insert(m.file.as_str()) {
                 return Err(bad(format!("maps[{n}]: file {:?} appears twice", m.file)));
+            }
+            if m.bytes > crate::limits::MAX_EXR_BYTES {
+                return Err(bad(format!(
+                    "maps[{n}]: bytes {} exceeds the limit MAX_EXR_BYTES = {}",
+                    m.bytes,
+                    crate::limits::MAX_EXR_BYTES
+                )));
             }
             if !is_hex_digest(&m.sha256) {
                 return Err(bad(format!(
@@ -321,16 +360,18 @@ impl BakeIndex {
     /// [`MapsError::FileSize`].
     pub fn read(dir: &Path) -> Result<Self, MapsError> {
         let path = dir.join(INDEX_FILE_NAME);
-        let text = fs::read_to_string(&path).map_err(|source| MapsError::Io {
-            op: "cannot read bake index",
-            path: path.clone(),
-            source,
-        })?;
+        let text =
+            crate::limits::read_bounded(&path, crate::limits::MAX_JSON_BYTES, "MAX_JSON_BYTES")
+                .map_err(|source| MapsError::Io {
+                    op: "cannot read bake index",
+                    path: path.clone(),
+                    source,
+                })?;
         let json_err = |source| MapsError::Json {
             path: path.clone(),
             source,
         };
-        let mut value: serde_json::Value = serde_json::from_str(&text).map_err(json_err)?;
+        let mut value: serde_json::Value = serde_json::from_slice(&text).map_err(json_err)?;
         let obj = value.as_object_mut().ok_or_else(|| MapsError::BadIndex {
             path: path.clone(),
             reason: "the top level is not a JSON object".into(),
@@ -356,16 +397,12 @@ impl BakeIndex {
         let index: BakeIndex = serde_json::from_value(value).map_err(json_err)?;
         index.validate(&path)?;
         for m in &index.maps {
-            let file = dir.join(&m.file);
-            let meta = match fs::metadata(&file) {
-                Ok(meta) if meta.is_file() => meta,
-                _ => return Err(MapsError::MissingFile { path: file }),
-            };
-            if meta.len() != m.bytes {
+            let (file, len) = resolve(dir, &m.file)?;
+            if len != m.bytes {
                 return Err(MapsError::FileSize {
                     path: file,
                     expected: m.bytes,
-                    found: meta.len(),
+                    found: len,
                 });
             }
         }
@@ -397,9 +434,16 @@ impl BakeIndex {
         m: &MapEntry,
         size: (u32, u32),
     ) -> Result<TransferMap, MapsError> {
-        check_file_name(&m.file)?;
-        let path = dir.join(&m.file);
-        let bytes = fs::read(&path).map_err(|source| {
+        let (path, len) = resolve(dir, &m.file)?;
+        if len != m.bytes {
+            return Err(MapsError::FileSize {
+                path,
+                expected: m.bytes,
+                found: len,
+            });
+        }
+        let bytes = crate::limits::read_bounded(&path, m.bytes, "the size recorded in the index")
+            .map_err(|source| {
             if source.kind() == std::io::ErrorKind::NotFound {
                 MapsError::MissingFile { path: path.clone() }
             } else {
@@ -511,10 +555,19 @@ pub fn scan_finished_maps(
         let Ok(name) = entry.file_name().into_string() else {
             continue;
         };
+        // Symbolic links are never reused (they could point outside the bake directory).
+        let regular = entry.file_type().is_ok_and(|t| t.is_file());
         if name.starts_with('.') && name.ends_with(".tmp") {
-            scan.stale_temp.push(entry.path());
+            if regular {
+                scan.stale_temp.push(entry.path());
+            }
         } else if let Some((index, offset)) = parse_map_file_name(&name) {
-            candidates.push((index, offset, name));
+            if regular {
+                candidates.push((index, offset, name));
+            } else {
+                scan.rejected
+                    .push((entry.path(), "not a regular file (a link?)".into()));
+            }
         }
     }
     candidates.sort_by(|a, b| (a.0, a.1.to_array(), &a.2).cmp(&(b.0, b.1.to_array(), &b.2)));
@@ -558,7 +611,8 @@ fn check_finished(
     key: &BakeKey,
     size: (u32, u32),
 ) -> Result<MapEntry, String> {
-    let bytes = fs::read(path).map_err(|e| format!("cannot read: {e}"))?;
+    let bytes = crate::limits::read_bounded(path, crate::limits::MAX_EXR_BYTES, "MAX_EXR_BYTES")
+        .map_err(|e| format!("cannot read: {e}"))?;
     let f = decode_map(path, &bytes, Some(size)).map_err(|e| e.to_string())?;
     if f.bake_key != key.as_str() {
         return Err(format!(
@@ -637,7 +691,7 @@ mod tests {
         ] {
             let n = map_file_name(i, o);
             assert_eq!(parse_map_file_name(&n), Some((i, o)), "{n}");
-            check_file_name(&n).unwrap();
+            check_file_name(Path::new("i"), &n).unwrap();
         }
         assert_eq!(
             map_file_name(12, IVec2::new(3, -17)),
@@ -654,7 +708,10 @@ mod tests {
         for bad in [
             "", ".", "..", "../a.exr", "a/b.exr", "/abs.exr", "a\\b.exr", "C:x.exr",
         ] {
-            assert!(check_file_name(bad).is_err(), "{bad:?} accepted");
+            assert!(
+                check_file_name(Path::new("i"), bad).is_err(),
+                "{bad:?} accepted"
+            );
         }
     }
 

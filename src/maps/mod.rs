@@ -45,8 +45,9 @@ pub use index::{
 };
 pub use transfer_map::{Crop, TransferMap};
 
-/// Largest lightmap (width × height, in texels) this module accepts: 2²⁸ texels, e.g. 16384².
-pub const MAX_TEXELS: u64 = 1 << 28;
+/// Largest lightmap (width × height, in texels) this module accepts: 2²⁸ texels, e.g. 16384²
+/// (the same value as [`crate::limits::MAX_TEXELS`], where every limit is listed).
+pub const MAX_TEXELS: u64 = crate::limits::MAX_TEXELS;
 
 /// Everything that can go wrong while building, storing, loading or applying transfer maps.
 #[derive(Debug, thiserror::Error)]
@@ -225,12 +226,29 @@ pub enum MapsError {
 
     /// A file name in the index (or one to be written) is not a plain file name.
     #[error(
-        "map file name {name:?} is not allowed (it must be a plain file name: no '/', '\\', '..', \
-         drive or absolute path); regenerate the index"
+        "{}: map file name {name:?} is not allowed (it must be a plain file name inside the bake \
+         directory: no '/', '\\', '..', drive or absolute path); regenerate the index",
+        index.display()
     )]
     BadFileName {
+        /// The index (or directory) naming the file.
+        index: PathBuf,
         /// The rejected name.
         name: String,
+    },
+
+    /// A file named in an index resolves (through a symbolic link) outside its directory, or is
+    /// not a regular file.
+    #[error(
+        "{} named in the index {problem}; a bake directory must hold its files itself (copy the \
+         file into the directory instead of linking to it)",
+        path.display()
+    )]
+    PathEscape {
+        /// The path named by the index.
+        path: PathBuf,
+        /// What is wrong (where it resolves to).
+        problem: String,
     },
 
     /// A map file listed in the index does not exist.

@@ -55,12 +55,12 @@ use super::{
     read_text_bounded,
 };
 
-/// Largest scene file accepted, in bytes.
-pub const MAX_SCENE_BYTES: u64 = 16 * 1024 * 1024;
+/// Largest scene file accepted, in bytes ([`crate::limits::MAX_SCENE_BYTES`]).
+pub const MAX_SCENE_BYTES: u64 = crate::limits::MAX_SCENE_BYTES;
 /// Default lightmap width and height, in texels.
 pub const DEFAULT_LIGHTMAP_SIZE: u32 = 256;
-/// Largest lightmap width or height, in texels.
-pub const MAX_LIGHTMAP_SIZE: u32 = 8192;
+/// Largest lightmap width or height, in texels ([`crate::limits::MAX_LIGHTMAP_SIDE`]).
+pub const MAX_LIGHTMAP_SIZE: u32 = crate::limits::MAX_LIGHTMAP_SIDE;
 /// Accepted range of the relative index of refraction η.
 pub const ETA_RANGE: (f32, f32) = (1.0, 3.0);
 
@@ -597,7 +597,7 @@ impl Ctx<'_> {
                 "correct the path (it is relative to the scene file's folder)",
             ));
         }
-        let decoded = image::ImageReader::open(file)
+        let mut reader = image::ImageReader::open(file)
             .map_err(|source| SceneError::Io {
                 what: "albedo texture",
                 path: file.to_path_buf(),
@@ -608,12 +608,17 @@ impl Ctx<'_> {
                 what: "albedo texture",
                 path: file.to_path_buf(),
                 source,
-            })?
-            .decode()
-            .map_err(|source| SceneError::Texture {
-                path: file.to_path_buf(),
-                source,
             })?;
+        // The declared image size is checked against the limits before pixels are allocated.
+        let mut limits = image::Limits::default();
+        limits.max_image_width = Some(crate::limits::MAX_TEXTURE_SIDE);
+        limits.max_image_height = Some(crate::limits::MAX_TEXTURE_SIDE);
+        limits.max_alloc = Some(crate::limits::MAX_TEXTURE_DECODE_BYTES);
+        reader.limits(limits);
+        let decoded = reader.decode().map_err(|source| SceneError::Texture {
+            path: file.to_path_buf(),
+            source,
+        })?;
         let rgb = decoded.to_rgb32f();
         let data = rgb
             .pixels()

@@ -216,7 +216,15 @@ pub(crate) fn read_text_bounded(
         }
     };
     let file = std::fs::File::open(path).map_err(io_err)?;
-    let size = file.metadata().map_err(io_err)?.len();
+    let meta = file.metadata().map_err(io_err)?;
+    if !meta.is_file() {
+        // A device (`/dev/zero`), FIFO or directory: reading it could block or never end.
+        return Err(io_err(std::io::Error::new(
+            std::io::ErrorKind::InvalidInput,
+            "not a regular file (a directory, device or pipe); name a file",
+        )));
+    }
+    let size = meta.len();
     if size > limit {
         return Err(SceneError::TooLarge {
             what,

@@ -44,8 +44,8 @@ use glam::{DVec3, Vec2, Vec3};
 
 use super::{Mesh, MeshTriangle, SceneError, read_text_bounded};
 
-/// Largest OBJ file accepted, in bytes (checked before reading).
-pub const MAX_OBJ_BYTES: u64 = 512 * 1024 * 1024;
+/// Largest OBJ file accepted, in bytes, checked before reading ([`crate::limits::MAX_OBJ_BYTES`]).
+pub const MAX_OBJ_BYTES: u64 = crate::limits::MAX_OBJ_BYTES;
 /// How far outside `[0, 1]` a UV may lie and still be accepted (it is then clamped).
 pub const UV_TOLERANCE: f32 = 1e-6;
 /// A triangle whose world area is at most this × (bounding-box diagonal)² is degenerate.
