@@ -168,7 +168,7 @@ impl CellTable {
         }
         let uniform = uniform_windows(&cell, stride, rows, b);
         // Quadrants tile the block exactly only for even blocks.
-        let uniform_half = if b >= 2 && b % 2 == 0 {
+        let uniform_half = if b >= 2 && b.is_multiple_of(2) {
             uniform_windows(&cell, stride, rows, b / 2)
         } else {
             Vec::new()
@@ -179,7 +179,7 @@ impl CellTable {
             stride,
             cell,
             uniform,
-            half: if b >= 2 && b % 2 == 0 {
+            half: if b >= 2 && b.is_multiple_of(2) {
                 (b / 2) as i32
             } else {
                 0
