@@ -102,30 +102,61 @@ pub fn save_png_atomic(img: &image::RgbaImage, path: &Path) -> Result<()> {
     res.with_context(|| format!("cannot write image '{}'", path.display()))
 }
 
-/// Runs `ortm render`.
-pub fn run(a: Args) -> Result<()> {
-    let t0 = Instant::now();
-    let (img_w, img_h) = render::parse_size(&a.size)?;
-    let (index, set, source) = render::load_bake_atlases(&a.dir, a.atlas_size)
-        .with_context(|| format!("reading bake directory '{}'", a.dir.display()))?;
+/// A bake directory's atlases (built from its maps when `ortm bin` was not run) and its scene:
+/// `scene` when given, else the one the bake recorded; the scene is checked against the bake.
+pub(crate) struct BakeAndScene {
+    /// The bake index, when the directory has one.
+    pub index: Option<ortm::maps::BakeIndex>,
+    /// The atlases.
+    pub set: ortm::atlas::AtlasSet,
+    /// Where the atlases came from.
+    pub source: AtlasSource,
+    /// The scene at the bake's lightmap size.
+    pub scene: ortm::scene::Scene,
+}
+
+/// Loads a bake directory for `ortm render` and `ortm view` (see [`BakeAndScene`]).
+pub(crate) fn load_bake_and_scene(
+    dir: &Path,
+    scene: Option<&str>,
+    atlas_size: u32,
+) -> Result<BakeAndScene> {
+    let (index, set, source) = render::load_bake_atlases(dir, atlas_size)
+        .with_context(|| format!("reading bake directory '{}'", dir.display()))?;
     let scene_arg = match (
-        &a.scene,
+        scene,
         index.as_ref().and_then(render::scene_arg_from_settings),
     ) {
-        (Some(s), _) => s.clone(),
+        (Some(s), _) => s.to_owned(),
         (None, Some(s)) => s,
         (None, None) => bail!(
             "the bake in '{}' does not record which scene it was made from; pass it with \
              --scene (`cornell` or the scene file used for `ortm bake`)",
-            a.dir.display()
+            dir.display()
         ),
     };
     let (w, h) = set.lightmap_size;
     let mut scene = super::load_scene(&scene_arg, (w == h).then_some(w))?;
     scene.lightmap_size = (w, h);
     if let Some(index) = &index {
-        render::check_scene(&a.dir, index, &scene, &scene_arg)?;
+        render::check_scene(dir, index, &scene, &scene_arg)?;
     }
+    Ok(BakeAndScene {
+        index,
+        set,
+        source,
+        scene,
+    })
+}
+
+/// Runs `ortm render`.
+pub fn run(a: Args) -> Result<()> {
+    let t0 = Instant::now();
+    let (img_w, img_h) = render::parse_size(&a.size)?;
+    let BakeAndScene {
+        set, source, scene, ..
+    } = load_bake_and_scene(&a.dir, a.scene.as_deref(), a.atlas_size)?;
+    let (w, h) = set.lightmap_size;
     let grid = TexelGrid::build_with_size(&scene, w, h)?;
     let lights = if a.lights.is_empty() {
         scene.lights.clone()

@@ -121,26 +121,10 @@ pub fn run(a: Args) -> Result<()> {
             a.dir.display()
         );
     }
-    let (index, set, _source) = render::load_bake_atlases(&a.dir, a.atlas_size)
-        .with_context(|| format!("reading bake directory '{}'", a.dir.display()))?;
-    let scene_arg = match (
-        &a.scene,
-        index.as_ref().and_then(render::scene_arg_from_settings),
-    ) {
-        (Some(s), _) => s.clone(),
-        (None, Some(s)) => s,
-        (None, None) => bail!(
-            "the bake in '{}' does not record which scene it was made from; pass it with \
-             --scene (`cornell` or the scene file used for `ortm bake`)",
-            a.dir.display()
-        ),
-    };
+    let super::render::BakeAndScene {
+        index, set, scene, ..
+    } = super::render::load_bake_and_scene(&a.dir, a.scene.as_deref(), a.atlas_size)?;
     let (w, h) = set.lightmap_size;
-    let mut scene = super::load_scene(&scene_arg, (w == h).then_some(w))?;
-    scene.lightmap_size = (w, h);
-    if let Some(index) = &index {
-        render::check_scene(&a.dir, index, &scene, &scene_arg)?;
-    }
     let grid = TexelGrid::build_with_size(&scene, w, h)?;
     let lights = match (&a.lights_file, a.lights.is_empty()) {
         (Some(_), false) => bail!("give either --light or --lights FILE, not both"),
