@@ -495,7 +495,7 @@ impl MapPlan {
         }
         events(BakeEvent::Phase {
             name: "integrating cells",
-            total: grid.height as u64,
+            total: grid.texels.len() as u64,
         });
         let t0 = std::time::Instant::now();
         let iv =
@@ -505,13 +505,14 @@ impl MapPlan {
         let st = &iv.stats;
         events(BakeEvent::Message(format!(
             "cells integrated in {:.2} s: {} near cluster pairs ({} texel pairs, {} moved to the \
-             origin's cell), {} far windows in one cell, {} split",
+             origin's cell), {} far windows in one cell, {} split, {} receiver cells with an uncovered site moved",
             t0.elapsed().as_secs_f64(),
             st.near_cluster_pairs,
             st.near_texel_pairs,
             st.rehomed,
             st.uniform_windows,
-            st.split_windows
+            st.split_windows,
+            st.moved_uncovered
         )));
         self.integrated = Some(iv);
     }
@@ -532,6 +533,25 @@ impl MapPlan {
         k: usize,
     ) -> Result<TransferMap, BakeError> {
         self.prepare(transport, grid, &|_| {});
+        self.map_prepared(transport, grid, k)
+    }
+
+    /// The `k`-th map, without preparing: for [`CellRule::Integrated`], [`MapPlan::prepare`] must
+    /// have run (else the map is computed by the sampled rule's code path, which is an error).
+    ///
+    /// # Errors
+    /// [`BakeError::Settings`] when the integrated rule was not prepared.
+    pub fn map_prepared(
+        &self,
+        transport: &Transport,
+        grid: &TexelGrid,
+        k: usize,
+    ) -> Result<TransferMap, BakeError> {
+        if self.rule == CellRule::Integrated && self.integrated.is_none() {
+            return Err(BakeError::Settings(
+                "internal: MapPlan::map_prepared before MapPlan::prepare".into(),
+            ));
+        }
         let (values, importance) = match &self.integrated {
             Some(iv) => (iv.map(k), iv.peak[k]),
             None => {
@@ -658,26 +678,55 @@ pub fn bake(
         name: "writing transfer maps",
         total: total as u64,
     });
+    // Maps are independent: crop, encode (ZIP) and write them in parallel. Each file is written
+    // atomically, so an interruption leaves only whole maps behind, whatever the order.
+    let written = std::sync::atomic::AtomicUsize::new(0);
+    let results: Vec<Result<(maps::MapEntry, bool, u64), BakeError>> = offset_list
+        .par_iter()
+        .enumerate()
+        .map(|(k, &offset)| {
+            if let Some(e) = scan.finished.get(&(k as u32))
+                && e.offset == offset.to_array()
+            {
+                let stored = e.rects.iter().map(|r| r.area()).sum::<u64>();
+                events(BakeEvent::Advance(1));
+                return Ok((e.clone(), true, stored));
+            }
+            if cancel.load(Ordering::Relaxed) {
+                return Err(BakeError::Interrupted {
+                    done: written.load(Ordering::Relaxed),
+                    total,
+                });
+            }
+            let map = plan.map_prepared(&transport, &grid, k)?;
+            let entry = maps::write_map_file(dir, k as u32, &map, &key)?;
+            written.fetch_add(1, Ordering::Relaxed);
+            events(BakeEvent::Advance(1));
+            Ok((entry, false, map.stored_texels()))
+        })
+        .collect();
     let mut entries = Vec::with_capacity(total);
     let mut reused = 0;
     let mut stored = 0u64;
-    for (k, &offset) in offset_list.iter().enumerate() {
-        if let Some(e) = scan.finished.get(&(k as u32))
-            && e.offset == offset.to_array()
-        {
-            entries.push(e.clone());
-            stored += e.rects.iter().map(|r| r.area()).sum::<u64>();
-            reused += 1;
-            events(BakeEvent::Advance(1));
-            continue;
+    let mut interrupted = None;
+    for r in results {
+        match r {
+            Ok((e, was_reused, texels)) => {
+                reused += usize::from(was_reused);
+                stored += texels;
+                entries.push(e);
+            }
+            Err(BakeError::Interrupted { .. }) => {
+                interrupted = Some(BakeError::Interrupted {
+                    done: written.load(Ordering::Relaxed),
+                    total,
+                });
+            }
+            Err(e) => return Err(e),
         }
-        if cancel.load(Ordering::Relaxed) {
-            return Err(BakeError::Interrupted { done: k, total });
-        }
-        let map = plan.map(&transport, &grid, k)?;
-        stored += map.stored_texels();
-        entries.push(maps::write_map_file(dir, k as u32, &map, &key)?);
-        events(BakeEvent::Advance(1));
+    }
+    if let Some(e) = interrupted {
+        return Err(e);
     }
     let importance: Vec<f64> = entries.iter().map(|e| e.importance).collect();
     let index = BakeIndex::new(

@@ -19,7 +19,12 @@
 //! coarse level ([`crate::transport::coarse`]):
 //! - **far clusters**: the cluster transfer `R(I, J)` of the dense coarse solve, shared by area.
 //!   When the cluster's tile, seen from `t`, lies inside one cell (a precomputed table of
-//!   cell-uniform windows) it adds in O(1); otherwise texel by texel.
+//!   cell-uniform windows) it adds to that cell in O(1); otherwise each quadrant of the tile
+//!   goes whole to the cell of its texel nearest the quadrant's centre. So for far pairs the
+//!   partition of offset space is the Voronoi one up to ±`P/4` texels (±2 at the default 8×8
+//!   clusters; exact for 1×1 and 2×2 clusters) — still a partition, so every sender's transfer
+//!   is counted once, only the site whose first-order light it multiplies can be a neighbouring
+//!   one. Resolving those windows texel by texel cost more than half of the bake.
 //! - **near clusters** (centroids closer than [`NEAR_FACTOR`]·(r_I + r_J), or within reach of
 //!   the subsurface profile's support): the coarse remainder by area, plus texel by texel the
 //!   exact subsurface term (within the profile's support) and the exact first bounce (shadow
@@ -34,8 +39,14 @@
 //! total transfer of `t` is unchanged; only which first-order sample it multiplies.
 //!
 //! A receiver whose site `t + Δt_k` is uncovered cannot be reached by map `k` (its first-order
-//! light is 0 there); such values are dropped, as with Eq. 10.
-//!
+//! light is 0 there). Its transfer in that cell is counted with the receiver's own cell (the
+//! one holding `Δt = 0`; if that cell's site is uncovered too, the covered site nearest to
+//! `Δt = 0`): like a seam crossing, `B_o` near the receiver is a far better sample than the
+//! unrelated chart a neighbouring site would land on, and dropping it (as Eq. 10 must) lost
+//! whole cells of transfer wherever a site fell off the charts. On the head at 64² that loss was
+//! the largest and most seed-dependent part of the error; moving it to the nearest covered site
+//! in offset space instead was worse still (`bake_exact` tests, this session's notes).
+
 //! The error of each choice against the exact solve (head, 64²) is printed by the
 //! `bake_exact` tests.
 
@@ -82,6 +93,8 @@ pub struct CellStats {
     pub split_windows: u64,
     /// Texel-exact pairs moved to the origin's cell (sender nearer the receiver than its site).
     pub rehomed: u64,
+    /// Receiver cells whose site was uncovered, moved to the nearest cell with a covered site.
+    pub moved_uncovered: u64,
 }
 
 impl CellValues {
@@ -95,18 +108,17 @@ impl CellValues {
     }
 }
 
-/// Offset → cell lookup with a table of cell-uniform `block × block` windows.
+/// Offset → cell lookup with a table of cell-uniform `P × P` windows (`P` = the cluster block
+/// rounded up to a power of two).
 struct CellTable {
     w: i32,
     h: i32,
-    /// Row length of the tables (`2W − 1 + block`).
+    /// Row length of the tables (`2W − 1 + P`).
     stride: usize,
     cell: Vec<u32>,
+    /// For each window origin, the cell when the `P × P` window starting there lies in one
+    /// cell, else [`NO_CELL`] (empty when `P` = 1).
     uniform: Vec<u32>,
-    /// Half the block size (0 when the block is 1).
-    half: i32,
-    /// Cell-uniform `half × half` windows.
-    uniform_half: Vec<u32>,
 }
 
 /// For every start `(c, r)` of the table, the cell when the `b × b` window starting there lies in
@@ -152,11 +164,10 @@ fn uniform_windows(cell: &[u32], stride: usize, rows: usize, b: usize) -> Vec<u3
 }
 
 impl CellTable {
-    fn new(cells: &DiscreteCells, w: u32, h: u32, block: u32) -> Self {
+    fn new(cells: &DiscreteCells, w: u32, h: u32, p: usize) -> Self {
         let (wi, hi) = (w as i32, h as i32);
-        let b = block.max(1) as usize;
-        let stride = (2 * w as usize - 1) + b;
-        let rows = (2 * h as usize - 1) + b;
+        let stride = (2 * w as usize - 1) + p;
+        let rows = (2 * h as usize - 1) + p;
         let mut cell = vec![NO_CELL; stride * rows];
         for (k, runs) in cells.real.iter().enumerate() {
             for r in runs {
@@ -166,10 +177,8 @@ impl CellTable {
                 }
             }
         }
-        let uniform = uniform_windows(&cell, stride, rows, b);
-        // Quadrants tile the block exactly only for even blocks.
-        let uniform_half = if b >= 2 && b.is_multiple_of(2) {
-            uniform_windows(&cell, stride, rows, b / 2)
+        let uniform = if p >= 2 {
+            uniform_windows(&cell, stride, rows, p)
         } else {
             Vec::new()
         };
@@ -179,12 +188,6 @@ impl CellTable {
             stride,
             cell,
             uniform,
-            half: if b >= 2 && b.is_multiple_of(2) {
-                (b / 2) as i32
-            } else {
-                0
-            },
-            uniform_half,
         }
     }
 
@@ -197,16 +200,16 @@ impl CellTable {
     fn cell(&self, dx: i32, dy: i32) -> u32 {
         self.cell[self.index(dx, dy)]
     }
+}
 
-    #[inline]
-    fn uniform(&self, dx: i32, dy: i32) -> u32 {
-        self.uniform[self.index(dx, dy)]
-    }
-
-    #[inline]
-    fn uniform_half(&self, dx: i32, dy: i32) -> u32 {
-        self.uniform_half[self.index(dx, dy)]
-    }
+/// A far sender cluster as the offset-space window of its tile.
+struct Tile {
+    /// Tile origin, texels.
+    origin: IVec2,
+    /// Per quadrant of the `P × P` tile (index `qx + 2·qy`): the quadrant's texel nearest its
+    /// centre (it picks the quadrant's cell when the window straddles cells) and the quadrant's
+    /// area share (0 for an empty quadrant).
+    quads: [(IVec2, f64); 4],
 }
 
 /// A near cluster of a receiving cluster.
@@ -230,14 +233,10 @@ pub const FF_EXACT_PITCHES: f32 = 3.0;
 struct Clusters {
     /// Texel indices of each cluster.
     texels: Vec<Vec<u32>>,
-    /// Tile origin (texels) of each cluster.
-    tile: Vec<IVec2>,
+    /// Each cluster's texels as a quadtree over its tile.
+    tiles: Vec<Tile>,
     /// Near clusters of each cluster, sorted by index.
     near: Vec<Vec<Near>>,
-    /// Texels of each cluster by quadrant of its tile: `(x, y, area share)`.
-    quads: Vec<[Vec<(i32, i32, f64)>; 4]>,
-    /// Area share of each quadrant.
-    quad_share: Vec<[f64; 4]>,
 }
 
 fn clusters(transport: &Transport, grid: &TexelGrid) -> Clusters {
@@ -306,35 +305,54 @@ fn clusters(transport: &Transport, grid: &TexelGrid) -> Clusters {
                 .collect()
         })
         .collect();
-    let half = (b / 2).max(1);
-    let mut quads: Vec<[Vec<(i32, i32, f64)>; 4]> = vec![Default::default(); nc];
-    let mut quad_share = vec![[0.0f64; 4]; nc];
-    for (c, list) in texels.iter().enumerate() {
-        let inv_area = 1.0 / rem.clusters[c].area_m2 as f64;
-        for &i in list {
-            let t = &grid.texels[i as usize];
-            let (qx, qy) = (
-                (t.x - tile[c].x as u32) / half,
-                (t.y - tile[c].y as u32) / half,
-            );
-            let q = (qx.min(1) + 2 * qy.min(1)) as usize;
-            let share = transport.patches[i as usize].area_m2 as f64 * inv_area;
-            quads[c][q].push((t.x as i32, t.y as i32, share));
-            quad_share[c][q] += share;
-        }
-    }
+    let p = b.next_power_of_two() as i32;
+    let tiles = texels
+        .iter()
+        .enumerate()
+        .map(|(c, list)| {
+            let inv_area = 1.0 / rem.clusters[c].area_m2 as f64;
+            let origin = tile[c];
+            let half = (p / 2).max(1);
+            let ideal =
+                [0, 1, 2, 3].map(|q| origin + IVec2::new((q % 2) * half + p / 4, (q / 2) * half + p / 4));
+            // (representative texel, its squared distance to the ideal centre, share)
+            let mut best = [(IVec2::ZERO, i32::MAX, 0.0f64); 4];
+            for &i in list {
+                let t = &grid.texels[i as usize];
+                let at = IVec2::new(t.x as i32, t.y as i32);
+                let rel = at - origin;
+                let q = ((rel.x / half).min(1) + 2 * (rel.y / half).min(1)) as usize;
+                let d2 = (at - ideal[q]).length_squared();
+                let e = &mut best[q];
+                if d2 < e.1 {
+                    e.0 = at;
+                    e.1 = d2;
+                }
+                e.2 += transport.patches[i as usize].area_m2 as f64 * inv_area;
+            }
+            let quads = best.map(|(at, _, share)| (at, share));
+            Tile { origin, quads }
+        })
+        .collect();
     Clusters {
         texels,
-        tile,
+        tiles,
         near,
-        quads,
-        quad_share,
     }
 }
 
+/// The offset nearest to `Δt = 0` for which `valid` holds (ties by index).
+fn nearest_valid_to_zero(offsets: &[IVec2], valid: &dyn Fn(usize) -> bool) -> Option<usize> {
+    (0..offsets.len())
+        .filter(|&j| valid(j))
+        .min_by_key(|&j| (offsets[j].length_squared(), j))
+}
+
 /// Integrates the transfer over every cell of `cells` (the discrete Voronoi cells of `offsets`)
-/// for every receiver; see the module docs. `progress` is called with the number of lightmap rows
-/// finished.
+/// for every receiver; see the module docs. Receivers are processed cluster by cluster (a far
+/// cluster pair's transfer is read once for all receivers of the cluster, and the receivers'
+/// table lookups stay within a few cache lines). `progress` is called with the number of
+/// receivers (covered texels) finished.
 pub fn integrate(
     transport: &Transport,
     grid: &TexelGrid,
@@ -346,33 +364,101 @@ pub fn integrate(
     let kmaps = offsets.len();
     let rem = &transport.remainder;
     let nc = rem.clusters.len();
-    let table = CellTable::new(cells, w, h, rem.block);
+    let p = rem.block.max(1).next_power_of_two() as usize;
+    let table = CellTable::new(cells, w, h, p);
     let cl = clusters(transport, grid);
     let origin = match table.cell(0, 0) {
         NO_CELL => None,
         c => Some(c),
     };
     let kern = &transport.kernels;
-    let mut values = vec![[0.0f32; 3]; (w * h) as usize * kmaps];
-    let stats: Vec<CellStats> = values
-        .par_chunks_mut(w as usize * kmaps)
-        .enumerate()
-        .map(|(y, row)| {
+    let per_cluster: Vec<(Vec<[f32; 3]>, CellStats)> = (0..nc)
+        .into_par_iter()
+        .map(|ci| {
             let mut st = CellStats::default();
-            let mut acc = vec![[0.0f64; 3]; kmaps];
-            let mut sites: Vec<Option<Vec3>> = vec![None; kmaps];
-            for x in 0..w as i32 {
-                let Some(i) = grid.at(x, y as i32) else {
-                    continue;
-                };
-                acc.fill([0.0; 3]);
-                let (xi, yi) = (x, y as i32);
-                let pi = &transport.patches[i as usize];
+            let recv = &cl.texels[ci];
+            let n = recv.len();
+            let xy: Vec<(i32, i32)> = recv
+                .iter()
+                .map(|&i| {
+                    let t = &grid.texels[i as usize];
+                    (t.x as i32, t.y as i32)
+                })
+                .collect();
+            let mut acc = vec![[0.0f64; 3]; n * kmaps];
+            let mut sites: Vec<Option<Vec3>> = vec![None; n * kmaps];
+            for (r, &(xi, yi)) in xy.iter().enumerate() {
                 for (k, o) in offsets.iter().enumerate() {
-                    sites[k] = grid
+                    sites[r * kmaps + k] = grid
                         .at(xi + o.x, yi + o.y)
                         .map(|j| transport.patches[j as usize].position_m);
                 }
+            }
+            let near = &cl.near[ci];
+            // The share-able first bounce of a near cluster (0 when it is texel-exact).
+            let near_bounce = |n: &Near| -> [f64; 3] {
+                if n.exact_bounce {
+                    [0.0; 3]
+                } else {
+                    n.bounce.map(f64::from)
+                }
+            };
+            // Every cluster by area share: the cluster transfer for far clusters; the
+            // remainder plus the point-to-cluster bounce for near ones (their subsurface part
+            // and near-singular bounce are added texel by texel below).
+            let mut next_near = 0usize;
+            for cj in 0..nc {
+                let k = ci * nc + cj;
+                let v: [f64; 3] =
+                    if next_near < near.len() && near[next_near].cluster as usize == cj {
+                        let b = near_bounce(&near[next_near]);
+                        next_near += 1;
+                        [0, 1, 2].map(|c| rem.rem[c][k] as f64 + b[c])
+                    } else {
+                        [0, 1, 2].map(|c| rem.full[c][k] as f64)
+                    };
+                if v == [0.0; 3] {
+                    continue;
+                }
+                let tile = &cl.tiles[cj];
+                for (r, &(xi, yi)) in xy.iter().enumerate() {
+                    let acc = &mut acc[r * kmaps..(r + 1) * kmaps];
+                    if !table.uniform.is_empty() {
+                        let u = table.uniform[table.index(tile.origin.x - xi, tile.origin.y - yi)];
+                        if u != NO_CELL {
+                            st.uniform_windows += 1;
+                            let a = &mut acc[u as usize];
+                            for c in 0..3 {
+                                a[c] += v[c];
+                            }
+                            continue;
+                        }
+                    }
+                    // The window straddles cells: each quadrant goes whole to the cell of its
+                    // centre texel (see the module docs).
+                    st.split_windows += 1;
+                    for &(centre, share) in &tile.quads {
+                        if share == 0.0 {
+                            continue;
+                        }
+                        let cell = table.cell(centre.x - xi, centre.y - yi);
+                        if cell == NO_CELL {
+                            continue;
+                        }
+                        let a = &mut acc[cell as usize];
+                        for c in 0..3 {
+                            a[c] += v[c] * share;
+                        }
+                    }
+                }
+            }
+            // The exact zone, texel by texel: the subsurface term within the profile's
+            // support and the texel form factor of near-singular neighbours (replacing their
+            // point-to-cluster share).
+            for (r, (&i, &(xi, yi))) in recv.iter().zip(&xy).enumerate() {
+                let pi = &transport.patches[i as usize];
+                let sites = &sites[r * kmaps..(r + 1) * kmaps];
+                let acc = &mut acc[r * kmaps..(r + 1) * kmaps];
                 // The cell that represents a sender at `p` whose offset lies in `cell`: the
                 // cell's site, unless the receiver itself is nearer the sender (a seam crossing:
                 // the receiver's own first-order light is the better sample).
@@ -389,81 +475,6 @@ pub fn integrate(
                         _ => cell,
                     }
                 };
-                let ci = rem.cluster_of[i as usize] as usize;
-                let near = &cl.near[ci];
-                // The share-able first bounce of a near cluster (0 when it is texel-exact).
-                let near_bounce = |n: &Near| -> [f64; 3] {
-                    if n.exact_bounce {
-                        [0.0; 3]
-                    } else {
-                        n.bounce.map(f64::from)
-                    }
-                };
-                // Every cluster by area share: the cluster transfer for far clusters; the
-                // remainder plus the point-to-cluster bounce for near ones (their subsurface part
-                // and near-singular bounce are added texel by texel below).
-                let mut next_near = 0usize;
-                for cj in 0..nc {
-                    let k = ci * nc + cj;
-                    let v: [f64; 3] =
-                        if next_near < near.len() && near[next_near].cluster as usize == cj {
-                            let b = near_bounce(&near[next_near]);
-                            next_near += 1;
-                            [0, 1, 2].map(|c| rem.rem[c][k] as f64 + b[c])
-                        } else {
-                            [0, 1, 2].map(|c| rem.full[c][k] as f64)
-                        };
-                    if v == [0.0; 3] {
-                        continue;
-                    }
-                    let o = cl.tile[cj];
-                    let u = table.uniform(o.x - xi, o.y - yi);
-                    if u != NO_CELL {
-                        st.uniform_windows += 1;
-                        let cell = u;
-                        let a = &mut acc[cell as usize];
-                        for c in 0..3 {
-                            a[c] += v[c];
-                        }
-                        continue;
-                    }
-                    st.split_windows += 1;
-                    // Quadrant by quadrant: O(1) when the half-size window is one cell.
-                    for q in 0..4 {
-                        let list = &cl.quads[cj][q];
-                        if list.is_empty() {
-                            continue;
-                        }
-                        if table.half > 0 {
-                            let qo = o + IVec2::new(
-                                (q as i32 % 2) * table.half,
-                                (q as i32 / 2) * table.half,
-                            );
-                            let u = table.uniform_half(qo.x - xi, qo.y - yi);
-                            if u != NO_CELL {
-                                let share = cl.quad_share[cj][q];
-                                let a = &mut acc[u as usize];
-                                for c in 0..3 {
-                                    a[c] += v[c] * share;
-                                }
-                                continue;
-                            }
-                        }
-                        for &(tx, ty, share) in list {
-                            let cell = table.cell(tx - xi, ty - yi);
-                            if cell == NO_CELL {
-                                continue;
-                            }
-                            let a = &mut acc[cell as usize];
-                            for c in 0..3 {
-                                a[c] += v[c] * share;
-                            }
-                        }
-                    }
-                }
-                // The exact zone, texel by texel: the subsurface term within the profile's
-                // support and the texel form factor of near-singular neighbours (replacing their
-                // point-to-cluster share).
                 let translucent = kern.is_translucent(pi.material);
                 let support2 = if translucent {
                     (kern.support_m[pi.material as usize] as f32).powi(2)
@@ -510,17 +521,57 @@ pub fn integrate(
                         }
                     }
                 }
-                let out = &mut row[x as usize * kmaps..(x as usize + 1) * kmaps];
-                for (k, o) in out.iter_mut().enumerate() {
-                    if sites[k].is_some() {
-                        *o = acc[k].map(|v| v as f32);
+            }
+            // Cells whose site is uncovered for this receiver: their transfer is counted with
+            // the receiver's own cell (the one holding Δt = 0), or, when that cell's site is
+            // uncovered too, the cell with a covered site nearest to Δt = 0.
+            for r in 0..n {
+                let valid = |k: usize| sites[r * kmaps + k].is_some();
+                let Some(home) = origin
+                    .map(|o| o as usize)
+                    .filter(|&o| valid(o))
+                    .or_else(|| nearest_valid_to_zero(offsets, &valid))
+                else {
+                    continue;
+                };
+                for k in 0..kmaps {
+                    if valid(k) || acc[r * kmaps + k] == [0.0; 3] {
+                        continue;
+                    }
+                    st.moved_uncovered += 1;
+                    let moved = std::mem::take(&mut acc[r * kmaps + k]);
+                    let a = &mut acc[r * kmaps + home];
+                    for c in 0..3 {
+                        a[c] += moved[c];
                     }
                 }
             }
-            progress(1);
-            st
+            let out: Vec<[f32; 3]> = acc
+                .iter()
+                .zip(&sites)
+                .map(|(a, s)| {
+                    if s.is_some() {
+                        a.map(|v| v as f32)
+                    } else {
+                        [0.0; 3]
+                    }
+                })
+                .collect();
+            progress(n as u64);
+            (out, st)
         })
         .collect();
+    let mut values = vec![[0.0f32; 3]; (w * h) as usize * kmaps];
+    let mut stats = Vec::with_capacity(nc);
+    for ((out, st), recv) in per_cluster.into_iter().zip(&cl.texels) {
+        for (r, &i) in recv.iter().enumerate() {
+            let t = &grid.texels[i as usize];
+            let slot = (t.y * w + t.x) as usize;
+            values[slot * kmaps..(slot + 1) * kmaps]
+                .copy_from_slice(&out[r * kmaps..(r + 1) * kmaps]);
+        }
+        stats.push(st);
+    }
     let mut peak = vec![0.0f64; kmaps];
     for px in values.chunks_exact(kmaps) {
         for (p, v) in peak.iter_mut().zip(px) {
@@ -535,6 +586,7 @@ pub fn integrate(
             uniform_windows: a.uniform_windows + b.uniform_windows,
             split_windows: a.split_windows + b.split_windows,
             rehomed: a.rehomed + b.rehomed,
+            moved_uncovered: a.moved_uncovered + b.moved_uncovered,
         });
     CellValues {
         width: w,

@@ -134,7 +134,15 @@ pub fn run(a: Args) -> Result<()> {
                 .with_message(name);
         }
         BakeEvent::Advance(n) => bar.lock().expect("progress lock").inc(n),
-        BakeEvent::Message(m) => bar.lock().expect("progress lock").println(m),
+        BakeEvent::Message(m) => {
+            let b = bar.lock().expect("progress lock");
+            // A hidden bar (stderr is not a terminal) drops `println`: print plainly instead.
+            if b.is_hidden() {
+                eprintln!("{m}");
+            } else {
+                b.println(m);
+            }
+        }
     };
     let summary = bake(&scene, &s, &a.output, &events, &cancel)
         .with_context(|| format!("baking '{}' into '{}'", a.scene, a.output.display()));

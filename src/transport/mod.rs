@@ -46,7 +46,7 @@ use serde::{Deserialize, Serialize};
 use crate::raycast::Visibility;
 use crate::scene::Scene;
 use crate::texels::TexelGrid;
-use dipole::Profile;
+use dipole::{Profile, RdTable};
 use form_factor::{FfPatch, unoccluded_form_factor};
 
 /// Which transport effects a bake includes.
@@ -119,6 +119,8 @@ pub struct Kernels {
     pub profiles: Vec<Option<Profile>>,
     /// Support radius per material's profile, metres (beyond it `R_d` is negligible).
     pub support_m: Vec<f64>,
+    /// Per material, the profile tabulated on `[0, support_m]` (what the pair kernels read).
+    pub tables: Vec<Option<RdTable>>,
     /// Ray caster over the scene.
     pub visibility: Arc<Visibility>,
 }
@@ -148,10 +150,16 @@ impl Kernels {
             .iter()
             .map(|p| p.map_or(0.0, |p| p.support_radius(1e-4)))
             .collect();
+        let tables = profiles
+            .iter()
+            .zip(&support_m)
+            .map(|(p, &r)| p.as_ref().map(|p| RdTable::new(p, r)))
+            .collect();
         Self {
             effects,
             profiles,
             support_m,
+            tables,
             visibility,
         }
     }
@@ -193,7 +201,10 @@ impl Kernels {
         if r > self.support_m[a.material as usize] {
             return Some([0.0; 3]);
         }
-        let rd = p.rd(r);
+        let rd = match &self.tables[a.material as usize] {
+            Some(t) => t.rd(r),
+            None => p.rd(r),
+        };
         let area = b.area_m2 as f64;
         Some([rd[0] * area, rd[1] * area, rd[2] * area])
     }
