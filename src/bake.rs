@@ -505,13 +505,14 @@ impl MapPlan {
         let st = &iv.stats;
         events(BakeEvent::Message(format!(
             "cells integrated in {:.2} s: {} near cluster pairs ({} texel pairs, {} moved to the \
-             origin's cell), {} far windows in one cell, {} split, {} receiver cells with an uncovered site moved",
+             origin's cell), {} far windows in one cell, {} split, {} far windows and {} receiver cells with an uncovered site moved to the origin's cell",
             t0.elapsed().as_secs_f64(),
             st.near_cluster_pairs,
             st.near_texel_pairs,
             st.rehomed,
             st.uniform_windows,
             st.split_windows,
+            st.rehomed_far,
             st.moved_uncovered
         )));
         self.integrated = Some(iv);

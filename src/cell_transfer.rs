@@ -93,6 +93,8 @@ pub struct CellStats {
     pub split_windows: u64,
     /// Texel-exact pairs moved to the origin's cell (sender nearer the receiver than its site).
     pub rehomed: u64,
+    /// Far cluster windows moved to the origin's cell (cluster nearer the receiver than the site).
+    pub rehomed_far: u64,
     /// Receiver cells whose site was uncovered, moved to the nearest cell with a covered site.
     pub moved_uncovered: u64,
 }
@@ -313,8 +315,8 @@ fn clusters(transport: &Transport, grid: &TexelGrid) -> Clusters {
             let inv_area = 1.0 / rem.clusters[c].area_m2 as f64;
             let origin = tile[c];
             let half = (p / 2).max(1);
-            let ideal =
-                [0, 1, 2, 3].map(|q| origin + IVec2::new((q % 2) * half + p / 4, (q / 2) * half + p / 4));
+            let ideal = [0, 1, 2, 3]
+                .map(|q| origin + IVec2::new((q % 2) * half + p / 4, (q / 2) * half + p / 4));
             // (representative texel, its squared distance to the ideal centre, share)
             let mut best = [(IVec2::ZERO, i32::MAX, 0.0f64); 4];
             for &i in list {
@@ -338,6 +340,31 @@ fn clusters(transport: &Transport, grid: &TexelGrid) -> Clusters {
         texels,
         tiles,
         near,
+    }
+}
+
+/// The cell whose site represents a sender at `p_m` whose offset lies in `cell`, for a receiver
+/// at `receiver_m` with sites `sites` (per cell, `None` when uncovered): the cell's own site,
+/// unless the receiver is physically nearer the sender (a seam crossing, or a chart the site's
+/// offset does not reach) — then the origin's cell, whose first-order light is sampled at or
+/// next to the receiver.
+#[inline]
+fn place(
+    cell: u32,
+    p_m: Vec3,
+    receiver_m: Vec3,
+    sites: &[Option<Vec3>],
+    origin: Option<u32>,
+    rehomed: &mut u64,
+) -> u32 {
+    match (origin, sites[cell as usize]) {
+        (Some(o), Some(site))
+            if o != cell && (p_m - receiver_m).length_squared() < (p_m - site).length_squared() =>
+        {
+            *rehomed += 1;
+            o
+        }
+        _ => cell,
     }
 }
 
@@ -421,12 +448,16 @@ pub fn integrate(
                     continue;
                 }
                 let tile = &cl.tiles[cj];
+                let pj = rem.clusters[cj].position_m;
                 for (r, &(xi, yi)) in xy.iter().enumerate() {
                     let acc = &mut acc[r * kmaps..(r + 1) * kmaps];
+                    let sites = &sites[r * kmaps..(r + 1) * kmaps];
+                    let pi = transport.patches[recv[r] as usize].position_m;
                     if !table.uniform.is_empty() {
                         let u = table.uniform[table.index(tile.origin.x - xi, tile.origin.y - yi)];
                         if u != NO_CELL {
                             st.uniform_windows += 1;
+                            let u = place(u, pj, pi, sites, origin, &mut st.rehomed_far);
                             let a = &mut acc[u as usize];
                             for c in 0..3 {
                                 a[c] += v[c];
@@ -445,6 +476,7 @@ pub fn integrate(
                         if cell == NO_CELL {
                             continue;
                         }
+                        let cell = place(cell, pj, pi, sites, origin, &mut st.rehomed_far);
                         let a = &mut acc[cell as usize];
                         for c in 0..3 {
                             a[c] += v[c] * share;
@@ -459,22 +491,6 @@ pub fn integrate(
                 let pi = &transport.patches[i as usize];
                 let sites = &sites[r * kmaps..(r + 1) * kmaps];
                 let acc = &mut acc[r * kmaps..(r + 1) * kmaps];
-                // The cell that represents a sender at `p` whose offset lies in `cell`: the
-                // cell's site, unless the receiver itself is nearer the sender (a seam crossing:
-                // the receiver's own first-order light is the better sample).
-                let place = |cell: u32, p: Vec3, st: &mut CellStats| -> u32 {
-                    match (origin, sites[cell as usize]) {
-                        (Some(o), Some(site))
-                            if o != cell
-                                && (p - pi.position_m).length_squared()
-                                    < (p - site).length_squared() =>
-                        {
-                            st.rehomed += 1;
-                            o
-                        }
-                        _ => cell,
-                    }
-                };
                 let translucent = kern.is_translucent(pi.material);
                 let support2 = if translucent {
                     (kern.support_m[pi.material as usize] as f32).powi(2)
@@ -506,7 +522,14 @@ pub fn integrate(
                             continue;
                         }
                         st.near_texel_pairs += 1;
-                        let cell = place(cell, pj.position_m, &mut st);
+                        let cell = place(
+                            cell,
+                            pj.position_m,
+                            pi.position_m,
+                            sites,
+                            origin,
+                            &mut st.rehomed,
+                        );
                         let mut e = kern.r_subsurface(pi, pj, i == j);
                         if in_ff {
                             let b = kern.r_bounce(pi, pj, i == j);
@@ -587,6 +610,7 @@ pub fn integrate(
             split_windows: a.split_windows + b.split_windows,
             rehomed: a.rehomed + b.rehomed,
             moved_uncovered: a.moved_uncovered + b.moved_uncovered,
+            rehomed_far: a.rehomed_far + b.rehomed_far,
         });
     CellValues {
         width: w,

@@ -173,7 +173,12 @@ fn importance_sampled_offsets_converge_on_the_head_and_beat_the_jittered_grid() 
     let draws: Vec<&Vec<f64>> = per_k.iter().map(|(_, e)| e).collect();
     let (jittered, jittered_draws) = mean(100, Selector::JitteredGrid, bake::CellRule::Integrated);
     let sampled = error(100, Selector::Importance, bake::CellRule::Sampled, seeds[0]);
-    let sampled_jittered = error(100, Selector::JitteredGrid, bake::CellRule::Sampled, seeds[0]);
+    let sampled_jittered = error(
+        100,
+        Selector::JitteredGrid,
+        bake::CellRule::Sampled,
+        seeds[0],
+    );
     eprintln!(
         "head 64², radiosity + subsurface, relative RMSE of the indirect term, mean of seeds \
          {seeds:?}: importance K = 25/50/100/200: {errs:.4?} (per seed {draws:.4?}); jittered \

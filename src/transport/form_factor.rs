@@ -148,14 +148,7 @@ pub fn unoccluded_form_factor(i: &FfPatch, j: &FfPatch) -> f32 {
         return 0.0;
     }
     // The receiver is the smaller patch (deterministic tie-break, so c_ij = c_ji bit for bit).
-    let key = |p: &FfPatch| {
-        (
-            p.area_m2,
-            p.position_m.x,
-            p.position_m.y,
-            p.position_m.z,
-        )
-    };
+    let key = |p: &FfPatch| (p.area_m2, p.position_m.x, p.position_m.y, p.position_m.z);
     let (r, s) = if key(i).partial_cmp(&key(j)) == Some(std::cmp::Ordering::Greater) {
         (j, i)
     } else {
@@ -278,14 +271,7 @@ mod tests {
         }
         // Above a corner of a 2 × 2 square (centre offset by (1, 1)), height 0.7.
         let exact = corner_ff(2.0, 2.0, 0.7);
-        let f = point_to_square(
-            Vec3::ZERO,
-            Vec3::Z,
-            Vec3::new(1.0, 1.0, 0.7),
-            t1,
-            t2,
-            2.0,
-        );
+        let f = point_to_square(Vec3::ZERO, Vec3::Z, Vec3::new(1.0, 1.0, 0.7), t1, t2, 2.0);
         assert!((f as f64 - exact).abs() < 1e-5, "{f} vs {exact}");
         // Half below the horizon: a vertical unit square facing the receiver and centred on
         // its plane is clipped to its upper half, which two unclipped 0.5-squares tile exactly.
