@@ -53,7 +53,9 @@
 //! # Limits
 //! Overlapping UV triangles: the last drawn wins. One `encode` per submit (light data is
 //! written with `Queue::write_buffer`). At most [`FirstOrderOptions::max_shadow_layers`]
-//! layers (a point light takes 6).
+//! layers (a point light takes 6); lights and layer matrices are uniform arrays of that many
+//! entries, so it is also bounded by the device's uniform-binding size (80 bytes per entry:
+//! 819 layers at the 64 KiB minimum).
 
 use bytemuck::{Pod, Zeroable};
 use glam::camera::rh::proj::directx as proj_dx;
@@ -477,7 +479,13 @@ impl FirstOrderPass {
             options.shadow_map_size,
             options.shadow_map_size,
         )?;
-        let layer_limit = gpu.device.limits().max_texture_array_layers;
+        // Lights and layer matrices live in uniform arrays of `max_shadow_layers` entries
+        // (a light takes ≥ 1 layer, so there are never more lights than layers): both must
+        // fit one uniform binding, as well as the shadow-map array its layer count.
+        let limits = gpu.device.limits();
+        let ubo_entries =
+            limits.max_uniform_buffer_binding_size / std::mem::size_of::<GpuLight>() as u64;
+        let layer_limit = (limits.max_texture_array_layers as u64).min(ubo_entries) as u32;
         if options.max_shadow_layers > layer_limit {
             return Err(PassError::TooLarge {
                 what: "FirstOrderOptions.max_shadow_layers".into(),
@@ -491,7 +499,11 @@ impl FirstOrderPass {
                 include_str!("../shaders/lights.wgsl"),
                 include_str!("../shaders/first_order.wgsl")
             );
-            let module = util::shader(device, "ortm.first_order.shader", source);
+            // Fixed-size uniform arrays (see first_order.wgsl): llvmpipe loads uniforms with
+            // plain vector loads but storage buffers lane by lane, which made the lighting
+            // pass ~2.5× slower (docs/render.md).
+            let source = source.replace("MAX_LAYERS", &options.max_shadow_layers.to_string());
+            let module = util::shader(device, "ortm.first_order.shader", &source);
             let vf = wgpu::ShaderStages::VERTEX_FRAGMENT;
             let fs = wgpu::ShaderStages::FRAGMENT;
             // Order = @binding order in first_order.wgsl.
@@ -499,8 +511,8 @@ impl FirstOrderPass {
                 label: Some("ortm.first_order.layout"),
                 entries: &[
                     util::uniform_entry(0, vf),
-                    util::storage_entry(1, fs, true),
-                    util::storage_entry(2, vf, true),
+                    util::uniform_entry(1, fs),
+                    util::uniform_entry(2, vf),
                     util::texture_entry(3, fs),
                     wgpu::BindGroupLayoutEntry {
                         binding: 4,
@@ -531,7 +543,7 @@ impl FirstOrderPass {
             // holds only binding 2 (the layer matrices), same slot as in the main layout.
             let shadow_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
                 label: Some("ortm.first_order.shadow_layout"),
-                entries: &[util::storage_entry(2, wgpu::ShaderStages::VERTEX, true)],
+                entries: &[util::uniform_entry(2, wgpu::ShaderStages::VERTEX)],
             });
             let shadow_pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
                 label: Some("ortm.first_order.shadow_pipeline_layout"),
@@ -716,13 +728,13 @@ impl FirstOrderPass {
         let lights = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("ortm.first_order.lights"),
             size: (std::mem::size_of::<GpuLight>() as u32 * layers) as u64,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
         let matrices = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("ortm.first_order.layer_matrices"),
             size: 64 * layers as u64,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
         let s = self.options.shadow_map_size;
