@@ -202,6 +202,11 @@ impl Bounds {
         (c, (0.5 * (self.max - self.min).length()).max(1e-3))
     }
 
+    /// Whether `p` lies in the box (boundary included).
+    pub fn contains(&self, p: Vec3) -> bool {
+        p.cmpge(self.min).all() && p.cmple(self.max).all()
+    }
+
     /// Largest distance from `p` to a corner.
     pub fn farthest_corner(&self, p: Vec3) -> f32 {
         let mut d: f32 = 0.0;
@@ -399,7 +404,8 @@ pub struct FirstOrderPass {
     options: FirstOrderOptions,
     layout: wgpu::BindGroupLayout,
     shadow_layout: wgpu::BindGroupLayout,
-    shadow_pipeline: wgpu::RenderPipeline,
+    /// Shadow pipelines: `[both sides, back faces culled]`.
+    shadow_pipelines: [wgpu::RenderPipeline; 2],
     lightmap_pipeline: wgpu::RenderPipeline,
     gbuffer_pipeline: wgpu::RenderPipeline,
     sampler: wgpu::Sampler,
@@ -412,6 +418,9 @@ pub struct FirstOrderScene {
     pub lightmap_size: [u32; 2],
     /// Mesh bounds (for shadow frusta).
     pub bounds: Bounds,
+    /// [`MeshData::is_closed_outward`]: back faces may be culled for lights outside the
+    /// bounds.
+    closed_outward: bool,
     vertices: wgpu::Buffer,
     positions: wgpu::Buffer,
     indices: wgpu::Buffer,
@@ -550,35 +559,42 @@ impl FirstOrderPass {
                 bind_group_layouts: &[Some(&shadow_layout)],
                 immediate_size: 0,
             });
-            let shadow_pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-                label: Some("ortm.first_order.shadow_pipeline"),
-                layout: Some(&shadow_pl),
-                vertex: wgpu::VertexState {
-                    module: &module,
-                    entry_point: Some("vs_shadow"),
-                    compilation_options: Default::default(),
-                    buffers: &[Some(position_layout())],
-                },
-                primitive: wgpu::PrimitiveState {
-                    cull_mode: None,
-                    ..Default::default()
-                },
-                depth_stencil: Some(wgpu::DepthStencilState {
-                    format: wgpu::TextureFormat::Depth32Float,
-                    depth_write_enabled: Some(true),
-                    depth_compare: Some(wgpu::CompareFunction::Less),
-                    stencil: Default::default(),
-                    bias: wgpu::DepthBiasState {
-                        constant: 0,
-                        slope_scale: options.slope_bias,
-                        clamp: 0.0,
+            // Two shadow pipelines: both sides of every triangle, and back faces culled (used
+            // for a closed outward mesh lit from outside its bounds: the nearest surface seen
+            // from the light is then always a front face, so the depths are the same and
+            // about half the triangles are never rasterised).
+            let shadow = |cull_mode: Option<wgpu::Face>| {
+                device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                    label: Some("ortm.first_order.shadow_pipeline"),
+                    layout: Some(&shadow_pl),
+                    vertex: wgpu::VertexState {
+                        module: &module,
+                        entry_point: Some("vs_shadow"),
+                        compilation_options: Default::default(),
+                        buffers: &[Some(position_layout())],
                     },
-                }),
-                multisample: Default::default(),
-                fragment: None,
-                multiview_mask: None,
-                cache: None,
-            });
+                    primitive: wgpu::PrimitiveState {
+                        cull_mode,
+                        ..Default::default()
+                    },
+                    depth_stencil: Some(wgpu::DepthStencilState {
+                        format: wgpu::TextureFormat::Depth32Float,
+                        depth_write_enabled: Some(true),
+                        depth_compare: Some(wgpu::CompareFunction::Less),
+                        stencil: Default::default(),
+                        bias: wgpu::DepthBiasState {
+                            constant: 0,
+                            slope_scale: options.slope_bias,
+                            clamp: 0.0,
+                        },
+                    }),
+                    multisample: Default::default(),
+                    fragment: None,
+                    multiview_mask: None,
+                    cache: None,
+                })
+            };
+            let shadow_pipelines = [shadow(None), shadow(Some(wgpu::Face::Back))];
             let lightmap_pipeline =
                 device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
                     label: Some("ortm.first_order.lightmap_pipeline"),
@@ -652,7 +668,7 @@ impl FirstOrderPass {
                 options: *options,
                 layout,
                 shadow_layout,
-                shadow_pipeline,
+                shadow_pipelines,
                 lightmap_pipeline,
                 gbuffer_pipeline,
                 sampler,
@@ -879,6 +895,7 @@ impl FirstOrderPass {
         Ok(FirstOrderScene {
             lightmap_size: size,
             bounds: Bounds::of(&mesh.positions_m),
+            closed_outward: mesh.is_closed_outward(),
             vertices,
             positions,
             indices,
@@ -959,7 +976,23 @@ impl FirstOrderPass {
                 occlusion_query_set: None,
                 multiview_mask: None,
             });
-            pass.set_pipeline(&self.shadow_pipeline);
+            // The light owning this layer; cull back faces when it is outside the bounds
+            // of a closed outward mesh (a directional light always is).
+            let cull = scene.closed_outward
+                && lights
+                    .iter()
+                    .zip(inputs.lights)
+                    .find(|(g, _)| {
+                        (g.first_layer..g.first_layer + g.layer_count).contains(&(layer as u32))
+                    })
+                    .is_some_and(|(_, l)| match *l {
+                        LightDesc::Directional { .. } => true,
+                        LightDesc::Point { position_m, .. }
+                        | LightDesc::Spot { position_m, .. } => {
+                            !scene.bounds.contains(Vec3::from(position_m))
+                        }
+                    });
+            pass.set_pipeline(&self.shadow_pipelines[usize::from(cull)]);
             pass.set_bind_group(0, &scene.shadow_bind_group, &[]);
             pass.set_vertex_buffer(0, scene.positions.slice(..));
             pass.set_index_buffer(scene.indices.slice(..), wgpu::IndexFormat::Uint32);
