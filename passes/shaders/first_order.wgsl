@@ -12,8 +12,8 @@
 //              uncovered texels 0.
 //
 // Bindings (bind-group order = @binding order; must match `FirstOrderPass` in first_order.rs):
-//   group 0: 0 = Params (uniform), 1 = lights (storage, read), 2 = layer matrices (storage,
-//            read), 3 = albedo (RGBA32F texture, textureLoad), 4 = shadow maps (depth 2D array),
+//   group 0: 0 = Params (uniform), 1 = lights (uniform array), 2 = layer matrices (uniform
+//            array), 3 = albedo (RGBA32F texture, textureLoad), 4 = shadow maps (depth 2D array),
 //            5 = comparison sampler, 6 = G-buffer position (RGBA32F, w = coverage),
 //            7 = G-buffer normal (RGBA32F)
 //   vs_gbuffer/fs_gbuffer use no bindings.
@@ -31,8 +31,10 @@ struct Params {
 }
 
 @group(0) @binding(0) var<uniform> params: Params;
-@group(0) @binding(1) var<storage, read> lights: array<GpuLight>;
-@group(0) @binding(2) var<storage, read> layer_view_proj: array<mat4x4<f32>>;
+// MAX_LAYERS is replaced by FirstOrderOptions::max_shadow_layers when the module is built
+// (uniform, not storage, arrays: llvmpipe reads storage buffers lane by lane).
+@group(0) @binding(1) var<uniform> lights: array<GpuLight, MAX_LAYERS>;
+@group(0) @binding(2) var<uniform> layer_view_proj: array<mat4x4<f32>, MAX_LAYERS>;
 @group(0) @binding(3) var albedo: texture_2d<f32>;
 @group(0) @binding(4) var shadow_maps: texture_depth_2d_array;
 @group(0) @binding(5) var shadow_sampler: sampler_comparison;

@@ -140,13 +140,16 @@ pub struct DisplayPass {
     options: DisplayOptions,
     view_layout: wgpu::BindGroupLayout,
     map_layout: wgpu::BindGroupLayout,
-    pipeline: wgpu::RenderPipeline,
+    /// `[both sides, back faces culled]`.
+    pipelines: [wgpu::RenderPipeline; 2],
 }
 
 /// Per-scene GPU data.
 #[derive(Debug)]
 pub struct DisplayScene {
     bounds: Bounds,
+    /// [`MeshData::is_closed_outward`].
+    closed_outward: bool,
     vertices: wgpu::Buffer,
     indices: wgpu::Buffer,
     index_count: u32,
@@ -220,45 +223,50 @@ impl DisplayPass {
                 bind_group_layouts: &[Some(&view_layout), Some(&map_layout)],
                 immediate_size: 0,
             });
-            let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-                label: Some("ortm.display.pipeline"),
-                layout: Some(&pl),
-                vertex: wgpu::VertexState {
-                    module: &module,
-                    entry_point: Some("vs_main"),
-                    compilation_options: Default::default(),
-                    buffers: &[Some(vertex_layout())],
-                },
-                primitive: wgpu::PrimitiveState {
-                    cull_mode: None,
-                    ..Default::default()
-                },
-                depth_stencil: Some(wgpu::DepthStencilState {
-                    format: wgpu::TextureFormat::Depth32Float,
-                    depth_write_enabled: Some(true),
-                    depth_compare: Some(wgpu::CompareFunction::Less),
-                    stencil: Default::default(),
-                    bias: Default::default(),
-                }),
-                multisample: Default::default(),
-                fragment: Some(wgpu::FragmentState {
-                    module: &module,
-                    entry_point: Some("fs_main"),
-                    compilation_options: Default::default(),
-                    targets: &[Some(wgpu::ColorTargetState {
-                        format: wgpu::TextureFormat::Rgba8Unorm,
-                        blend: None,
-                        write_mask: wgpu::ColorWrites::ALL,
-                    })],
-                }),
-                multiview_mask: None,
-                cache: None,
-            });
+            // `[both sides, back faces culled]`; the second for closed outward meshes seen
+            // from outside (see `DisplayPass::encode`).
+            let pipeline = |cull_mode: Option<wgpu::Face>| {
+                device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                    label: Some("ortm.display.pipeline"),
+                    layout: Some(&pl),
+                    vertex: wgpu::VertexState {
+                        module: &module,
+                        entry_point: Some("vs_main"),
+                        compilation_options: Default::default(),
+                        buffers: &[Some(vertex_layout())],
+                    },
+                    primitive: wgpu::PrimitiveState {
+                        cull_mode,
+                        ..Default::default()
+                    },
+                    depth_stencil: Some(wgpu::DepthStencilState {
+                        format: wgpu::TextureFormat::Depth32Float,
+                        depth_write_enabled: Some(true),
+                        depth_compare: Some(wgpu::CompareFunction::Less),
+                        stencil: Default::default(),
+                        bias: Default::default(),
+                    }),
+                    multisample: Default::default(),
+                    fragment: Some(wgpu::FragmentState {
+                        module: &module,
+                        entry_point: Some("fs_main"),
+                        compilation_options: Default::default(),
+                        targets: &[Some(wgpu::ColorTargetState {
+                            format: wgpu::TextureFormat::Rgba8Unorm,
+                            blend: None,
+                            write_mask: wgpu::ColorWrites::ALL,
+                        })],
+                    }),
+                    multiview_mask: None,
+                    cache: None,
+                })
+            };
+            let pipelines = [pipeline(None), pipeline(Some(wgpu::Face::Back))];
             Self {
                 options: *options,
                 view_layout,
                 map_layout,
-                pipeline,
+                pipelines,
             }
         })
     }
@@ -333,6 +341,7 @@ impl DisplayPass {
         gpu.check("ortm.display.prepare")?;
         Ok(DisplayScene {
             bounds: Bounds::of(&mesh.positions_m),
+            closed_outward: mesh.is_closed_outward(),
             vertices,
             indices,
             index_count: mesh.indices.len() as u32,
@@ -447,7 +456,20 @@ impl DisplayPass {
             occlusion_query_set: None,
             multiview_mask: None,
         });
-        pass.set_pipeline(&self.pipeline);
+        // Back faces of a closed outward mesh are hidden behind its front faces for an eye
+        // outside it, unless the near plane cuts into the mesh: cull them when the eye is
+        // farther from the bounding box than any point of the near-plane rectangle
+        // (saves shading back faces drawn before the front face covering them).
+        let cam = &inputs.camera;
+        let t = (0.5 * cam.fov_y_deg.to_radians()).tan();
+        let aspect = half_w as f32 / h as f32;
+        let near_reach = cam.near * (1.0 + t * t * (1.0 + aspect * aspect)).sqrt();
+        let grown = Bounds {
+            min: scene.bounds.min - Vec3::splat(near_reach),
+            max: scene.bounds.max + Vec3::splat(near_reach),
+        };
+        let cull = scene.closed_outward && !grown.contains(Vec3::from(cam.eye));
+        pass.set_pipeline(&self.pipelines[usize::from(cull)]);
         pass.set_bind_group(0, &scene.view_group, &[]);
         pass.set_vertex_buffer(0, scene.vertices.slice(..));
         pass.set_index_buffer(scene.indices.slice(..), wgpu::IndexFormat::Uint32);

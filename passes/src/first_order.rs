@@ -53,7 +53,9 @@
 //! # Limits
 //! Overlapping UV triangles: the last drawn wins. One `encode` per submit (light data is
 //! written with `Queue::write_buffer`). At most [`FirstOrderOptions::max_shadow_layers`]
-//! layers (a point light takes 6).
+//! layers (a point light takes 6); lights and layer matrices are uniform arrays of that many
+//! entries, so it is also bounded by the device's uniform-binding size (80 bytes per entry:
+//! 819 layers at the 64 KiB minimum).
 
 use bytemuck::{Pod, Zeroable};
 use glam::camera::rh::proj::directx as proj_dx;
@@ -198,6 +200,11 @@ impl Bounds {
     pub fn sphere(&self) -> (Vec3, f32) {
         let c = 0.5 * (self.min + self.max);
         (c, (0.5 * (self.max - self.min).length()).max(1e-3))
+    }
+
+    /// Whether `p` lies in the box (boundary included).
+    pub fn contains(&self, p: Vec3) -> bool {
+        p.cmpge(self.min).all() && p.cmple(self.max).all()
     }
 
     /// Largest distance from `p` to a corner.
@@ -397,7 +404,8 @@ pub struct FirstOrderPass {
     options: FirstOrderOptions,
     layout: wgpu::BindGroupLayout,
     shadow_layout: wgpu::BindGroupLayout,
-    shadow_pipeline: wgpu::RenderPipeline,
+    /// Shadow pipelines: `[both sides, back faces culled]`.
+    shadow_pipelines: [wgpu::RenderPipeline; 2],
     lightmap_pipeline: wgpu::RenderPipeline,
     gbuffer_pipeline: wgpu::RenderPipeline,
     sampler: wgpu::Sampler,
@@ -410,6 +418,9 @@ pub struct FirstOrderScene {
     pub lightmap_size: [u32; 2],
     /// Mesh bounds (for shadow frusta).
     pub bounds: Bounds,
+    /// [`MeshData::is_closed_outward`]: back faces may be culled for lights outside the
+    /// bounds.
+    closed_outward: bool,
     vertices: wgpu::Buffer,
     positions: wgpu::Buffer,
     indices: wgpu::Buffer,
@@ -477,7 +488,13 @@ impl FirstOrderPass {
             options.shadow_map_size,
             options.shadow_map_size,
         )?;
-        let layer_limit = gpu.device.limits().max_texture_array_layers;
+        // Lights and layer matrices live in uniform arrays of `max_shadow_layers` entries
+        // (a light takes ≥ 1 layer, so there are never more lights than layers): both must
+        // fit one uniform binding, as well as the shadow-map array its layer count.
+        let limits = gpu.device.limits();
+        let ubo_entries =
+            limits.max_uniform_buffer_binding_size / std::mem::size_of::<GpuLight>() as u64;
+        let layer_limit = (limits.max_texture_array_layers as u64).min(ubo_entries) as u32;
         if options.max_shadow_layers > layer_limit {
             return Err(PassError::TooLarge {
                 what: "FirstOrderOptions.max_shadow_layers".into(),
@@ -491,7 +508,11 @@ impl FirstOrderPass {
                 include_str!("../shaders/lights.wgsl"),
                 include_str!("../shaders/first_order.wgsl")
             );
-            let module = util::shader(device, "ortm.first_order.shader", source);
+            // Fixed-size uniform arrays (see first_order.wgsl): llvmpipe loads uniforms with
+            // plain vector loads but storage buffers lane by lane, which made the lighting
+            // pass ~2.5× slower (docs/render.md).
+            let source = source.replace("MAX_LAYERS", &options.max_shadow_layers.to_string());
+            let module = util::shader(device, "ortm.first_order.shader", &source);
             let vf = wgpu::ShaderStages::VERTEX_FRAGMENT;
             let fs = wgpu::ShaderStages::FRAGMENT;
             // Order = @binding order in first_order.wgsl.
@@ -499,8 +520,8 @@ impl FirstOrderPass {
                 label: Some("ortm.first_order.layout"),
                 entries: &[
                     util::uniform_entry(0, vf),
-                    util::storage_entry(1, fs, true),
-                    util::storage_entry(2, vf, true),
+                    util::uniform_entry(1, fs),
+                    util::uniform_entry(2, vf),
                     util::texture_entry(3, fs),
                     wgpu::BindGroupLayoutEntry {
                         binding: 4,
@@ -531,42 +552,49 @@ impl FirstOrderPass {
             // holds only binding 2 (the layer matrices), same slot as in the main layout.
             let shadow_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
                 label: Some("ortm.first_order.shadow_layout"),
-                entries: &[util::storage_entry(2, wgpu::ShaderStages::VERTEX, true)],
+                entries: &[util::uniform_entry(2, wgpu::ShaderStages::VERTEX)],
             });
             let shadow_pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
                 label: Some("ortm.first_order.shadow_pipeline_layout"),
                 bind_group_layouts: &[Some(&shadow_layout)],
                 immediate_size: 0,
             });
-            let shadow_pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-                label: Some("ortm.first_order.shadow_pipeline"),
-                layout: Some(&shadow_pl),
-                vertex: wgpu::VertexState {
-                    module: &module,
-                    entry_point: Some("vs_shadow"),
-                    compilation_options: Default::default(),
-                    buffers: &[Some(position_layout())],
-                },
-                primitive: wgpu::PrimitiveState {
-                    cull_mode: None,
-                    ..Default::default()
-                },
-                depth_stencil: Some(wgpu::DepthStencilState {
-                    format: wgpu::TextureFormat::Depth32Float,
-                    depth_write_enabled: Some(true),
-                    depth_compare: Some(wgpu::CompareFunction::Less),
-                    stencil: Default::default(),
-                    bias: wgpu::DepthBiasState {
-                        constant: 0,
-                        slope_scale: options.slope_bias,
-                        clamp: 0.0,
+            // Two shadow pipelines: both sides of every triangle, and back faces culled (used
+            // for a closed outward mesh lit from outside its bounds: the nearest surface seen
+            // from the light is then always a front face, so the depths are the same and
+            // about half the triangles are never rasterised).
+            let shadow = |cull_mode: Option<wgpu::Face>| {
+                device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                    label: Some("ortm.first_order.shadow_pipeline"),
+                    layout: Some(&shadow_pl),
+                    vertex: wgpu::VertexState {
+                        module: &module,
+                        entry_point: Some("vs_shadow"),
+                        compilation_options: Default::default(),
+                        buffers: &[Some(position_layout())],
                     },
-                }),
-                multisample: Default::default(),
-                fragment: None,
-                multiview_mask: None,
-                cache: None,
-            });
+                    primitive: wgpu::PrimitiveState {
+                        cull_mode,
+                        ..Default::default()
+                    },
+                    depth_stencil: Some(wgpu::DepthStencilState {
+                        format: wgpu::TextureFormat::Depth32Float,
+                        depth_write_enabled: Some(true),
+                        depth_compare: Some(wgpu::CompareFunction::Less),
+                        stencil: Default::default(),
+                        bias: wgpu::DepthBiasState {
+                            constant: 0,
+                            slope_scale: options.slope_bias,
+                            clamp: 0.0,
+                        },
+                    }),
+                    multisample: Default::default(),
+                    fragment: None,
+                    multiview_mask: None,
+                    cache: None,
+                })
+            };
+            let shadow_pipelines = [shadow(None), shadow(Some(wgpu::Face::Back))];
             let lightmap_pipeline =
                 device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
                     label: Some("ortm.first_order.lightmap_pipeline"),
@@ -640,7 +668,7 @@ impl FirstOrderPass {
                 options: *options,
                 layout,
                 shadow_layout,
-                shadow_pipeline,
+                shadow_pipelines,
                 lightmap_pipeline,
                 gbuffer_pipeline,
                 sampler,
@@ -716,13 +744,13 @@ impl FirstOrderPass {
         let lights = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("ortm.first_order.lights"),
             size: (std::mem::size_of::<GpuLight>() as u32 * layers) as u64,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
         let matrices = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("ortm.first_order.layer_matrices"),
             size: 64 * layers as u64,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
         let s = self.options.shadow_map_size;
@@ -867,6 +895,7 @@ impl FirstOrderPass {
         Ok(FirstOrderScene {
             lightmap_size: size,
             bounds: Bounds::of(&mesh.positions_m),
+            closed_outward: mesh.is_closed_outward(),
             vertices,
             positions,
             indices,
@@ -947,7 +976,23 @@ impl FirstOrderPass {
                 occlusion_query_set: None,
                 multiview_mask: None,
             });
-            pass.set_pipeline(&self.shadow_pipeline);
+            // The light owning this layer; cull back faces when it is outside the bounds
+            // of a closed outward mesh (a directional light always is).
+            let cull = scene.closed_outward
+                && lights
+                    .iter()
+                    .zip(inputs.lights)
+                    .find(|(g, _)| {
+                        (g.first_layer..g.first_layer + g.layer_count).contains(&(layer as u32))
+                    })
+                    .is_some_and(|(_, l)| match *l {
+                        LightDesc::Directional { .. } => true,
+                        LightDesc::Point { position_m, .. }
+                        | LightDesc::Spot { position_m, .. } => {
+                            !scene.bounds.contains(Vec3::from(position_m))
+                        }
+                    });
+            pass.set_pipeline(&self.shadow_pipelines[usize::from(cull)]);
             pass.set_bind_group(0, &scene.shadow_bind_group, &[]);
             pass.set_vertex_buffer(0, scene.positions.slice(..));
             pass.set_index_buffer(scene.indices.slice(..), wgpu::IndexFormat::Uint32);

@@ -85,6 +85,53 @@ impl MeshData {
     }
 }
 
+impl MeshData {
+    /// Whether the mesh is a closed surface with consistent, outward-facing
+    /// counter-clockwise winding: every directed edge (vertices compared by position, so
+    /// UV seams do not break it) is matched by exactly one opposite edge, and the signed
+    /// volume is positive. Then, for a viewer or light *outside* the mesh, back faces are
+    /// always hidden behind front faces and can be culled without changing any visible
+    /// pixel or shadow-map depth. `false` for open, non-manifold or inside-out meshes.
+    pub fn is_closed_outward(&self) -> bool {
+        use std::collections::HashMap;
+        let key = |i: u32| -> Option<[u32; 3]> {
+            self.positions_m
+                .get(i as usize)
+                .map(|p| [p[0].to_bits(), p[1].to_bits(), p[2].to_bits()])
+        };
+        let mut ids: HashMap<[u32; 3], u32> = HashMap::new();
+        let mut id = |i: u32| -> Option<u32> {
+            let k = key(i)?;
+            let n = ids.len() as u32;
+            Some(*ids.entry(k).or_insert(n))
+        };
+        let mut edges: HashMap<(u32, u32), u32> = HashMap::new();
+        let mut volume6 = 0.0f64;
+        for t in self.indices.chunks_exact(3) {
+            let (Some(a), Some(b), Some(c)) = (id(t[0]), id(t[1]), id(t[2])) else {
+                return false;
+            };
+            if a == b || b == c || c == a {
+                continue; // degenerate: no area, no edges of its own
+            }
+            for e in [(a, b), (b, c), (c, a)] {
+                *edges.entry(e).or_insert(0) += 1;
+            }
+            let p = |i: u32| self.positions_m[i as usize].map(f64::from);
+            let (p0, p1, p2) = (p(t[0]), p(t[1]), p(t[2]));
+            // p0 · (p1 × p2): six times the signed volume of the tetrahedron with the origin.
+            volume6 += p0[0] * (p1[1] * p2[2] - p1[2] * p2[1])
+                + p0[1] * (p1[2] * p2[0] - p1[0] * p2[2])
+                + p0[2] * (p1[0] * p2[1] - p1[1] * p2[0]);
+        }
+        !edges.is_empty()
+            && edges
+                .iter()
+                .all(|(&(u, v), &n)| n == 1 && edges.get(&(v, u)) == Some(&1))
+            && volume6 > 0.0
+    }
+}
+
 /// Diffuse reflectance ρ per lightmap texel (`B_o = ρ·E`); for subsurface materials the
 /// profile's total diffuse reflectance. Same layout as the lightmap.
 #[derive(Clone, Debug, PartialEq)]
@@ -292,5 +339,66 @@ impl TexelImage {
     #[inline]
     pub fn at_mut(&mut self, x: u32, y: u32) -> &mut [f32; 4] {
         &mut self.rgba[y as usize * self.width as usize + x as usize]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::MeshData;
+
+    /// Unit cube, 8 shared vertices, 12 triangles CCW seen from outside.
+    fn cube() -> MeshData {
+        let positions_m: Vec<[f32; 3]> = (0..8)
+            .map(|i| [(i & 1) as f32, ((i >> 1) & 1) as f32, ((i >> 2) & 1) as f32])
+            .collect();
+        // Quads as (a, b, c, d) CCW from outside.
+        let quads = [
+            [0, 2, 3, 1], // z = 0, normal −z
+            [4, 5, 7, 6], // z = 1, +z
+            [0, 1, 5, 4], // y = 0, −y
+            [2, 6, 7, 3], // y = 1, +y
+            [0, 4, 6, 2], // x = 0, −x
+            [1, 3, 7, 5], // x = 1, +x
+        ];
+        let indices = quads
+            .iter()
+            .flat_map(|q| [q[0], q[1], q[2], q[0], q[2], q[3]])
+            .collect();
+        MeshData {
+            normals: vec![[0.0, 0.0, 1.0]; 8],
+            lightmap_uvs: vec![[0.5, 0.5]; 8],
+            positions_m,
+            indices,
+        }
+    }
+
+    #[test]
+    fn closed_outward_cube_and_its_failures() {
+        let c = cube();
+        assert!(c.is_closed_outward());
+        // Inside out: every triangle reversed.
+        let mut inv = c.clone();
+        for t in inv.indices.chunks_exact_mut(3) {
+            t.swap(1, 2);
+        }
+        assert!(!inv.is_closed_outward());
+        // Open: one face missing.
+        let mut open = c.clone();
+        open.indices.truncate(30);
+        assert!(!open.is_closed_outward());
+        // One triangle flipped: inconsistent winding.
+        let mut flip = c.clone();
+        flip.indices.swap(1, 2);
+        assert!(!flip.is_closed_outward());
+        // Split vertices (same positions, e.g. at UV seams) keep it closed.
+        let mut split = c.clone();
+        for i in 0..split.indices.len() {
+            let v = split.indices[i] as usize;
+            split.positions_m.push(split.positions_m[v]);
+            split.normals.push(split.normals[v]);
+            split.lightmap_uvs.push(split.lightmap_uvs[v]);
+            split.indices[i] = (split.positions_m.len() - 1) as u32;
+        }
+        assert!(split.is_closed_outward());
     }
 }

@@ -283,3 +283,65 @@ fn end_to_end_frame_lit_side_is_brighter() {
         "lit (+x) side {right} not brighter than {left}"
     );
 }
+
+/// Back-face culling of a closed outward mesh seen from outside changes no pixel: the same
+/// boxes drawn with culling (closed) and with both sides (the same mesh opened by a hidden
+/// triangle inside a box), under a lightmap that differs per chart, give the same image.
+#[test]
+fn back_face_culling_of_closed_mesh_changes_no_pixel() {
+    let gpu = gpu();
+    let boxes = [
+        ([0.0, 0.25, 0.0], [0.25, 0.25, 0.25]),
+        ([0.6, 0.1, -0.3], [0.2, 0.1, 0.3]),
+    ];
+    let closed = common::closed_boxes(&boxes);
+    let open = common::opened(&closed, [0.0, 0.25, 0.0]);
+    assert!(closed.is_closed_outward());
+    assert!(!open.is_closed_outward());
+    // A lightmap that varies across texels (so front and back faces would shade differently).
+    let n = 64usize;
+    let texels: Vec<[f32; 4]> = (0..n * n)
+        .map(|i| [(i % n) as f32 * 0.05, (i / n) as f32 * 0.05, 1.0, 1.0])
+        .collect();
+    let tex = gpu
+        .create_rgba32f_texture(
+            "test.gradient",
+            n as u32,
+            n as u32,
+            &texels,
+            wgpu::TextureUsages::TEXTURE_BINDING,
+        )
+        .unwrap();
+    let view = tex.create_view(&Default::default());
+    let options = DisplayOptions {
+        width: 160,
+        height: 120,
+        side_by_side: false,
+    };
+    let draw_with = |mesh: &MeshData| {
+        render(&gpu, mesh, options, |scene, draw| {
+            draw(&DisplayInputs {
+                scene,
+                final_lightmap: &view,
+                lightmap_size: [n as u32, n as u32],
+                first_order: None,
+                camera: oblique_camera(),
+                exposure: 1.0,
+                lights: &[],
+                specular: None,
+            })
+        })
+    };
+    let (a, b) = (draw_with(&closed), draw_with(&open));
+    let covered = a.pixels().filter(|p| p.0 != BACKGROUND).count();
+    assert!(
+        covered > 160 * 120 / 50,
+        "boxes cover only {covered} pixels"
+    );
+    let differ = a
+        .pixels()
+        .zip(b.pixels())
+        .filter(|(p, q)| !close(p.0, q.0, 0))
+        .count();
+    assert_eq!(differ, 0, "{differ} of {covered} mesh pixels changed");
+}

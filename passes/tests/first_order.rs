@@ -12,13 +12,13 @@ mod common;
 use common::gpu;
 use glam::Vec3;
 use passes::AlbedoMap;
-use passes::LightDesc;
 use passes::cpu::first_order as mirror;
 use passes::demo::{demo_lights, floor_and_box};
 use passes::first_order::{
     FirstOrderInputs, FirstOrderOptions, FirstOrderPass, LIGHT_DIRECTIONAL, LIGHT_POINT,
     shadow_layers,
 };
+use passes::{LightDesc, MeshData};
 
 const SIZE: u32 = 64;
 
@@ -203,4 +203,91 @@ fn shadow_map_cache_follows_moving_lights() {
     assert_eq!(b1, b2);
     assert_eq!(a1, a2);
     assert_eq!(a1, a3);
+}
+
+/// Shadow maps of a closed outward mesh lit from outside its bounds are drawn with back
+/// faces culled; the lightmap must be the same as with both sides drawn (the same mesh
+/// opened by a hidden triangle inside the slab), for point, spot and directional lights,
+/// and the small box must really shadow the slab. The box sinks 2 cm into the slab, so the
+/// slab top under it lies between the box's front and back faces: culling the wrong side
+/// (front faces) would light it.
+#[test]
+fn back_face_culled_shadow_maps_change_no_texel() {
+    let boxes = [
+        ([0.0, -0.05, 0.0], [1.0, 0.05, 1.0]),
+        ([0.1, 0.18, 0.0], [0.2, 0.2, 0.2]),
+    ];
+    let closed = common::closed_boxes(&boxes);
+    let open = common::opened(&closed, [0.0, -0.05, 0.0]);
+    assert!(closed.is_closed_outward() && !open.is_closed_outward());
+    let size = 128u32;
+    let albedo = AlbedoMap::uniform(size, size, [0.5, 0.5, 0.5]);
+    let lights = [
+        LightDesc::Point {
+            position_m: [0.4, 2.2, 0.3],
+            color: [1.0; 3],
+            intensity_w_sr: 2.0,
+        },
+        LightDesc::Spot {
+            position_m: [-0.8, 1.5, -0.5],
+            direction: [0.8, -1.5, 0.5],
+            color: [1.0; 3],
+            intensity_w_sr: 2.0,
+            inner_deg: 30.0,
+            outer_deg: 50.0,
+        },
+        LightDesc::Directional {
+            direction: [0.3, -1.0, 0.2],
+            color: [1.0; 3],
+            irradiance_w_m2: 1.0,
+        },
+    ];
+    let options = FirstOrderOptions {
+        shadow_map_size: 512,
+        max_shadow_layers: 16,
+        ..Default::default()
+    };
+    let gpu = gpu();
+    let pass = FirstOrderPass::new(&gpu, &options).unwrap();
+    let render = |mesh: &MeshData, lights: &[LightDesc]| {
+        let scene = pass.prepare(&gpu, mesh, &albedo).unwrap();
+        let mut enc = gpu.device.create_command_encoder(&Default::default());
+        let out = pass
+            .encode(
+                &gpu,
+                &mut enc,
+                &FirstOrderInputs {
+                    scene: &scene,
+                    lights,
+                },
+            )
+            .unwrap();
+        gpu.submit_and_wait("test.first_order_cull", enc).unwrap();
+        gpu.read_texel_image("test.first_order_cull", &out.first_order_tex)
+            .unwrap()
+    };
+    for (i, light) in lights.iter().enumerate() {
+        let (a, b) = (render(&closed, &[*light]), render(&open, &[*light]));
+        assert_eq!(a.rgba.len(), b.rgba.len());
+        let max = a.rgba.iter().map(|p| p[0]).fold(0.0f32, f32::max);
+        assert!(max > 0.0, "light {i} lights nothing");
+        for (k, (p, q)) in a.rgba.iter().zip(&b.rgba).enumerate() {
+            assert!(
+                (p[0] - q[0]).abs() <= 1e-6 * max && p[3] == q[3],
+                "light {i}, texel {k}: culled {p:?} vs both sides {q:?}"
+            );
+        }
+        // The slab's top face (chart cell 2: x in [32, 48), y in [0, 16)) has both lit and
+        // shadowed texels.
+        let top: Vec<f32> = (2..14)
+            .flat_map(|y| (34..46).map(move |x| (x, y)))
+            .map(|(x, y)| a.get(x, y)[0])
+            .collect();
+        let lit = top.iter().filter(|&&v| v > 0.25 * max).count();
+        let dark = top.iter().filter(|&&v| v < 0.05 * max).count();
+        assert!(
+            lit > 0 && dark > 0,
+            "light {i}: lit {lit}, dark {dark} on the slab top"
+        );
+    }
 }

@@ -130,7 +130,8 @@ pub fn run(a: Args) -> Result<()> {
     let (img_w, img_h) = render::parse_size(&a.image)?;
     let gpu = Gpu::new_headless()?;
     println!(
-        "adapter: {} ({:?}); iterations: {} ({:?}, after 1 warm-up); shadow maps {}²",
+        "adapter: {} ({:?}); iterations: {} ({:?}, after 1 warm-up); shadow maps {}²; \
+         display {img_w}×{img_h}",
         gpu.adapter_info.name, gpu.adapter_info.backend, a.iterations, a.statistic, a.shadow_size
     );
     let mut rows = Vec::new();

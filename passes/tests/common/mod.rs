@@ -36,3 +36,58 @@ impl Rng {
 pub fn gpu() -> Gpu {
     Gpu::new_headless().unwrap_or_else(|e| panic!("{e}"))
 }
+
+/// Axis-aligned boxes `(centre, half extents)` in metres as one closed mesh with outward CCW
+/// faces, 4 vertices per face (so positions repeat across faces, as at UV seams). Face `k`
+/// of all boxes gets the lightmap chart at cell `k` of an 8×8 grid (one cell = 1/8 of the
+/// map, a 1/64-map margin inside it).
+pub fn closed_boxes(boxes: &[([f32; 3], [f32; 3])]) -> passes::MeshData {
+    use glam::Vec3;
+    let mut mesh = passes::MeshData::default();
+    let mut cell = 0u32;
+    for &(c, h) in boxes {
+        let (c, h) = (Vec3::from(c), Vec3::from(h));
+        // (normal, t, b) with t × b = normal.
+        let faces = [
+            (Vec3::X, Vec3::NEG_Z, Vec3::Y),
+            (Vec3::NEG_X, Vec3::Z, Vec3::Y),
+            (Vec3::Y, Vec3::X, Vec3::NEG_Z),
+            (Vec3::NEG_Y, Vec3::X, Vec3::Z),
+            (Vec3::Z, Vec3::X, Vec3::Y),
+            (Vec3::NEG_Z, Vec3::NEG_X, Vec3::Y),
+        ];
+        for (n, t, b) in faces {
+            let base = mesh.positions_m.len() as u32;
+            let (gx, gy) = ((cell % 8) as f32, (cell / 8) as f32);
+            for (s, r) in [(0.0f32, 0.0f32), (1.0, 0.0), (1.0, 1.0), (0.0, 1.0)] {
+                let p = c + (n + t * (2.0 * s - 1.0) + b * (2.0 * r - 1.0)) * h;
+                mesh.positions_m.push(p.into());
+                mesh.normals.push(n.into());
+                let u = (gx + 0.125 + 0.75 * s) / 8.0;
+                let v = 1.0 - (gy + 0.125 + 0.75 * (1.0 - r)) / 8.0;
+                mesh.lightmap_uvs.push([u, v]);
+            }
+            mesh.indices
+                .extend([base, base + 1, base + 2, base, base + 2, base + 3]);
+            cell += 1;
+        }
+    }
+    mesh
+}
+
+/// `mesh` plus one tiny triangle at `at` (metres) with UVs outside the map: the mesh is no
+/// longer closed, so no pass culls back faces, while what is rendered stays the same when
+/// `at` lies inside a closed part (the triangle is hidden there, covers no texel and does
+/// not change the bounds).
+pub fn opened(mesh: &passes::MeshData, at: [f32; 3]) -> passes::MeshData {
+    let mut m = mesh.clone();
+    let base = m.positions_m.len() as u32;
+    for d in [[0.0, 0.0, 0.0], [0.01, 0.0, 0.0], [0.0, 0.01, 0.0]] {
+        m.positions_m
+            .push([at[0] + d[0], at[1] + d[1], at[2] + d[2]]);
+        m.normals.push([0.0, 0.0, 1.0]);
+        m.lightmap_uvs.push([2.0, 2.0]);
+    }
+    m.indices.extend([base, base + 1, base + 2]);
+    m
+}
