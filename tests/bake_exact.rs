@@ -179,11 +179,37 @@ fn importance_sampled_offsets_converge_on_the_head_and_beat_the_jittered_grid() 
         bake::CellRule::Sampled,
         seeds[0],
     );
+    // What the 2×2 clusters cost: the same K = 200 bakes over the exact transport (1×1 clusters).
+    let exact_transport = Transport::new(&scene, &grid, effects, 1);
+    let unclustered: Vec<f64> = seeds
+        .iter()
+        .map(|&seed| {
+            let settings = BakeSettings {
+                size: (64, 64),
+                offsets: 200,
+                effects,
+                seed,
+                ..BakeSettings::default()
+            };
+            let (offsets, _) =
+                bake::select_offsets(&exact_transport, &grid, &settings, &|_| {}).unwrap();
+            let maps = bake::bake_maps(
+                &exact_transport,
+                &grid,
+                &offsets,
+                bake::CellRule::Integrated,
+                &|_| {},
+            )
+            .unwrap();
+            reference.indirect_error(&grid, &maps)
+        })
+        .collect();
     eprintln!(
         "head 64², radiosity + subsurface, relative RMSE of the indirect term, mean of seeds \
          {seeds:?}: importance K = 25/50/100/200: {errs:.4?} (per seed {draws:.4?}); jittered \
          grid K = 100: {jittered:.4} (per seed {jittered_draws:.4?}); the paper's Eq. 10 rule at \
-         K = 100, seed {}: importance {sampled:.4}, jittered grid {sampled_jittered:.4}",
+         K = 100, seed {}: importance {sampled:.4}, jittered grid {sampled_jittered:.4}; K = 200 \
+         over 1×1 clusters (the exact transport), per seed: {unclustered:.4?}",
         seeds[0]
     );
     for w in errs.windows(2) {
