@@ -504,8 +504,9 @@ impl MapPlan {
             });
         let st = &iv.stats;
         events(BakeEvent::Message(format!(
-            "cells integrated in {:.2} s: {} near cluster pairs ({} texel pairs, {} moved to the \
-             origin's cell), {} far windows in one cell, {} split, {} far windows and {} receiver cells with an uncovered site moved to the origin's cell",
+            "cells integrated in {:.2} s: {} near cluster pairs ({} texel pairs, {} of them \
+             counted at a nearer site), {} far windows in one cell, {} split, {} counted at a \
+             nearer site, {} receiver cells with an uncovered site moved to the receiver's cell",
             t0.elapsed().as_secs_f64(),
             st.near_cluster_pairs,
             st.near_texel_pairs,

@@ -33,10 +33,14 @@
 //!   cluster's, by area).
 //!
 //! # Seams
-//! A texel-exact sender that is physically nearer the receiver than its cell's site (it lies
-//! across a UV seam, or in a chart the site's offset does not reach) is moved to the origin's
-//! cell: `B_o(t)` is a far better sample of its first-order light than `B_o(t + Δt_k)`. The
-//! total transfer of `t` is unchanged; only which first-order sample it multiplies.
+//! Texture-space Voronoi assumes the first-order light is smooth across a cell. Where a cell
+//! straddles a UV seam or several charts, its site can land on an unrelated surface. So every
+//! sender (texel-exact or far cluster) is counted with whichever of its cell's site, the sites
+//! of the cell's Voronoi neighbours and the receiver itself lies physically nearest to it. The
+//! total transfer of `t` is unchanged; only which first-order sample it multiplies. Measured
+//! (`bake_exact` tests): on the head a 2.7 mm seam partner had put 1.57 of red transfer on a lit
+//! site 17 texels away; on the Cornell box at 48² the Voronoi neighbours lower the error of the
+//! indirect term by about a quarter against the receiver-only rule.
 //!
 //! A receiver whose site `t + Δt_k` is uncovered cannot be reached by map `k` (its first-order
 //! light is 0 there). Its transfer in that cell is counted with the receiver's own cell (the
@@ -91,9 +95,9 @@ pub struct CellStats {
     pub uniform_windows: u64,
     /// Far cluster windows split texel by texel.
     pub split_windows: u64,
-    /// Texel-exact pairs moved to the origin's cell (sender nearer the receiver than its site).
+    /// Texel-exact pairs counted at a nearer site than their own cell's (module docs, "Seams").
     pub rehomed: u64,
-    /// Far cluster windows moved to the origin's cell (cluster nearer the receiver than the site).
+    /// Far cluster windows counted at a nearer site than their own cell's (module docs, "Seams").
     pub rehomed_far: u64,
     /// Receiver cells whose site was uncovered, moved to the nearest cell with a covered site.
     pub moved_uncovered: u64,
@@ -344,28 +348,63 @@ fn clusters(transport: &Transport, grid: &TexelGrid) -> Clusters {
 }
 
 /// The cell whose site represents a sender at `p_m` whose offset lies in `cell`, for a receiver
-/// at `receiver_m` with sites `sites` (per cell, `None` when uncovered): the cell's own site,
-/// unless the receiver is physically nearer the sender (a seam crossing, or a chart the site's
-/// offset does not reach) — then the origin's cell, whose first-order light is sampled at or
-/// next to the receiver.
+/// with sites `sites` (per cell, `None` when uncovered): of the cell's own site, its Voronoi
+/// neighbours' sites and the origin's (the receiver itself), the one physically nearest the
+/// sender. Texture-space Voronoi assumes the first-order light is smooth across a cell; where
+/// the cell straddles a UV seam or several charts, its own site can land on an unrelated surface
+/// while a neighbouring site (or the receiver, for a sender across a seam) lies next to the
+/// sender.
 #[inline]
 fn place(
     cell: u32,
     p_m: Vec3,
-    receiver_m: Vec3,
     sites: &[Option<Vec3>],
     origin: Option<u32>,
-    rehomed: &mut u64,
+    neighbours: &[Vec<u32>],
+    moved: &mut u64,
 ) -> u32 {
-    match (origin, sites[cell as usize]) {
-        (Some(o), Some(site))
-            if o != cell && (p_m - receiver_m).length_squared() < (p_m - site).length_squared() =>
+    let dist = |k: u32| sites[k as usize].map(|s| (p_m - s).length_squared());
+    let mut best = cell;
+    let mut d_best = dist(cell).unwrap_or(f32::INFINITY);
+    for &k in neighbours[cell as usize].iter().chain(origin.iter()) {
+        if let Some(d) = dist(k)
+            && d < d_best
         {
-            *rehomed += 1;
-            o
+            best = k;
+            d_best = d;
         }
-        _ => cell,
     }
+    if best != cell {
+        *moved += 1;
+    }
+    best
+}
+
+/// Voronoi neighbours of every cell: cells whose offsets touch in the lookup table.
+fn cell_neighbours(table: &CellTable, cells: usize) -> Vec<Vec<u32>> {
+    let mut n: Vec<Vec<u32>> = vec![Vec::new(); cells];
+    let rows = table.cell.len() / table.stride;
+    for r in 0..rows {
+        for c in 0..table.stride {
+            let a = table.cell[r * table.stride + c];
+            if a == NO_CELL {
+                continue;
+            }
+            let right = (c + 1 < table.stride).then(|| table.cell[r * table.stride + c + 1]);
+            let down = (r + 1 < rows).then(|| table.cell[(r + 1) * table.stride + c]);
+            for b in [right, down].into_iter().flatten() {
+                if b != NO_CELL && b != a {
+                    n[a as usize].push(b);
+                    n[b as usize].push(a);
+                }
+            }
+        }
+    }
+    for v in &mut n {
+        v.sort_unstable();
+        v.dedup();
+    }
+    n
 }
 
 /// The offset nearest to `Δt = 0` for which `valid` holds (ties by index).
@@ -399,6 +438,7 @@ pub fn integrate(
         c => Some(c),
     };
     let kern = &transport.kernels;
+    let neighbours = cell_neighbours(&table, kmaps);
     let per_cluster: Vec<(Vec<[f32; 3]>, CellStats)> = (0..nc)
         .into_par_iter()
         .map(|ci| {
@@ -452,12 +492,11 @@ pub fn integrate(
                 for (r, &(xi, yi)) in xy.iter().enumerate() {
                     let acc = &mut acc[r * kmaps..(r + 1) * kmaps];
                     let sites = &sites[r * kmaps..(r + 1) * kmaps];
-                    let pi = transport.patches[recv[r] as usize].position_m;
                     if !table.uniform.is_empty() {
                         let u = table.uniform[table.index(tile.origin.x - xi, tile.origin.y - yi)];
                         if u != NO_CELL {
                             st.uniform_windows += 1;
-                            let u = place(u, pj, pi, sites, origin, &mut st.rehomed_far);
+                            let u = place(u, pj, sites, origin, &neighbours, &mut st.rehomed_far);
                             let a = &mut acc[u as usize];
                             for c in 0..3 {
                                 a[c] += v[c];
@@ -476,7 +515,8 @@ pub fn integrate(
                         if cell == NO_CELL {
                             continue;
                         }
-                        let cell = place(cell, pj, pi, sites, origin, &mut st.rehomed_far);
+                        let cell =
+                            place(cell, pj, sites, origin, &neighbours, &mut st.rehomed_far);
                         let a = &mut acc[cell as usize];
                         for c in 0..3 {
                             a[c] += v[c] * share;
@@ -525,9 +565,9 @@ pub fn integrate(
                         let cell = place(
                             cell,
                             pj.position_m,
-                            pi.position_m,
                             sites,
                             origin,
+                            &neighbours,
                             &mut st.rehomed,
                         );
                         let mut e = kern.r_subsurface(pi, pj, i == j);
