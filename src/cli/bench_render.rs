@@ -102,6 +102,22 @@ pub struct Args {
     /// Seed of the synthetic offsets.
     #[arg(long, default_value_t = 1)]
     seed: u64,
+    /// Blend path with paired pieces (`TransferOptions::pair_pieces`, two maps per
+    /// fragment): `off`, `on` (instead of the unpaired blend path) or `both` (each, same
+    /// session, for comparison).
+    #[arg(long, value_enum, default_value_t = Pair::Off)]
+    pair: Pair,
+}
+
+/// `--pair` values.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Pair {
+    /// Unpaired blend path only.
+    Off,
+    /// Paired blend path only.
+    On,
+    /// Both blend paths.
+    Both,
 }
 
 /// `--statistic` values.
@@ -121,6 +137,7 @@ struct Row {
     bins: usize,
     pieces_per_map: f64,
     blend: Option<BenchReport>,
+    paired: Option<BenchReport>,
     compute: Option<BenchReport>,
     paper: Option<(u32, f64)>,
 }
@@ -199,7 +216,7 @@ pub fn run(a: Args) -> Result<()> {
             exposure: 1.0,
             specular: None,
         };
-        let time_path = |path: TransferPath| -> Result<BenchReport> {
+        let time_path = |path: TransferPath, pair_pieces: bool| -> Result<BenchReport> {
             let options = RendererOptions {
                 first_order: FirstOrderOptions {
                     shadow_map_size: a.shadow_size,
@@ -208,6 +225,7 @@ pub fn run(a: Args) -> Result<()> {
                 },
                 transfer: TransferOptions {
                     path,
+                    pair_pieces,
                     ..TransferOptions::best_for(&gpu)
                 },
                 display: DisplayOptions {
@@ -232,12 +250,19 @@ pub fn run(a: Args) -> Result<()> {
                 statistic,
             )?)
         };
-        let blend = match a.paths {
-            Paths::Blend | Paths::Both => Some(time_path(TransferPath::Blend)?),
-            Paths::Compute => None,
+        let blend_timed = matches!(a.paths, Paths::Blend | Paths::Both);
+        let blend = if blend_timed && a.pair != Pair::On {
+            Some(time_path(TransferPath::Blend, false)?)
+        } else {
+            None
+        };
+        let paired = if blend_timed && a.pair != Pair::Off {
+            Some(time_path(TransferPath::Blend, true)?)
+        } else {
+            None
         };
         let compute = match a.paths {
-            Paths::Compute | Paths::Both => Some(time_path(TransferPath::Compute)?),
+            Paths::Compute | Paths::Both => Some(time_path(TransferPath::Compute, false)?),
             Paths::Blend => None,
         };
         let paper = TABLE_1
@@ -251,18 +276,80 @@ pub fn run(a: Args) -> Result<()> {
             bins: stats.atlases,
             pieces_per_map: stats.mean_pieces_per_map,
             blend,
+            paired,
             compute,
             paper,
         });
     }
-    if let Some(r) = rows
-        .iter()
-        .find_map(|r| r.blend.as_ref().or(r.compute.as_ref()))
-    {
+    if let Some(r) = rows.iter().find_map(|r| {
+        r.blend
+            .as_ref()
+            .or(r.paired.as_ref())
+            .or(r.compute.as_ref())
+    }) {
         println!("timing: {}", r.timing);
     }
     print_table(&rows);
+    print_paired(&rows);
     Ok(())
+}
+
+/// The paired blend path's rows (`--pair on|both`): its transfer time, CPU time, both
+/// counts of work and both roofline ratios, and the frame rate with it as the transfer.
+fn print_paired(rows: &[Row]) {
+    if rows.iter().all(|r| r.paired.is_none()) {
+        return;
+    }
+    println!();
+    println!(
+        "paired blend path (two maps per fragment): contributions = map texels added (+ the \
+         copy), the same count as the unpaired path's blends; fragments = quads' texels \
+         actually blended (pair bounding boxes + unpaired pieces + the copy)"
+    );
+    println!(
+        "{:<24} {:>9} {:>9} {:>12} {:>12} {:>10} {:>10} {:>10} {:>9} {:>9} {:>8} {:>8}",
+        "configuration",
+        "pair ms",
+        "pair cpu",
+        "contrib.",
+        "fragments",
+        "contrib/s",
+        "frag/s",
+        "roofline/s",
+        "roof.%c",
+        "roof.%f",
+        "fps",
+        "fps st."
+    );
+    for r in rows {
+        let Some(p) = &r.paired else { continue };
+        let Some(t) = p.rows.get(1) else { continue };
+        let ms = |i: usize| p.rows.get(i).map(|x| x.ms);
+        let roof = p.rows.get(4).map(|x| x.blends_per_s);
+        let fps = |first: Option<f64>| {
+            [first, Some(t.ms), ms(2), ms(3)]
+                .iter()
+                .try_fold(0.0, |acc, v| v.map(|v| acc + v))
+                .map_or("—".to_string(), |m| format!("{:.2}", 1000.0 / m))
+        };
+        let pct = |v: f64| roof.map_or("—".to_string(), |r| format!("{:.1}", 100.0 * v / r));
+        println!(
+            "{:<24} {:>9.2} {:>9} {:>12} {:>12} {:>10.3e} {:>10.3e} {:>10} {:>9} {:>9} {:>8} {:>8}",
+            r.label,
+            t.ms,
+            t.cpu_ms.map_or("—".to_string(), |c| format!("{c:.2}")),
+            t.texel_blends,
+            t.fragments,
+            t.blends_per_s,
+            t.fragments_per_s(),
+            roof.map_or("—".to_string(), |v| format!("{v:.3e}")),
+            pct(t.blends_per_s),
+            pct(t.fragments_per_s()),
+            fps(ms(0)),
+            fps(ms(5)),
+        );
+        println!("{:<24} {}", "", t.name);
+    }
 }
 
 fn print_table(rows: &[Row]) {
