@@ -20,12 +20,13 @@
 //! # Error bound (derived; checked by `tests/transfer.rs`)
 //! `k` is chosen per piece so that the piece's largest magnitude `M` lands in
 //! `M·2^k ∈ [2^14, 2^15)` (below binary16's maximum 65504, so nothing overflows). A scaled
-//! value `v·2^k ≥ 2^−14` is a *normal* binary16 after rounding to nearest: relative error
-//! `≤ u = 2^−11`. A smaller one is subnormal, with absolute error `≤ 2^−25` (half the spacing
-//! `2^−24`), i.e. `≤ 2^−25·2^−k ≤ 2^−25·M·2^−14 = 2^−39·M` unscaled. So every stored value has
-//! `|â − a| ≤ 2^−11·|a| + 2^−39·M`; values within `2^−28·M` of the maximum are never
-//! subnormal. Scaling by powers of two is exact in f32. A texel's transfer sum then errs by at
-//! most `2^−11·Σ|a·f| + 2^−39·Σ M·|f|` plus f32 summation-order rounding.
+//! value `|v|·2^k ≥ 2^−14` is a *normal* binary16 after rounding to nearest: relative error
+//! `≤ u = 2^−11`. No value is stored subnormal (so no decoder's flush-to-zero mode can change
+//! it): a smaller one is stored as 0 or `±2^−14`, whichever is nearer, absolute error
+//! `≤ 2^−15` scaled, i.e. `≤ 2^−15·2^−k ≤ 2^−15·M·2^−14 = 2^−29·M` unscaled. So every stored
+//! value has `|â − a| ≤ 2^−11·|a| + 2^−29·M`, and values `≥ 2^−28·M` keep the pure relative
+//! bound. Scaling by powers of two is exact in f32. A texel's transfer sum then errs by at
+//! most `2^−11·Σ|a·f| + 2^−29·Σ M·|f|` plus f32 summation-order rounding.
 //!
 //! # Pairing rule
 //! A pair fragment costs more than a single-piece fragment (one more first-order fetch and the
@@ -136,6 +137,16 @@ pub fn f32_to_f16(x: f32) -> u16 {
         h += 1; // a carry into the exponent is the correct rounding
     }
     sign | h as u16
+}
+
+/// [`f32_to_f16`] without subnormal results: magnitudes below `2^−14` (the smallest normal)
+/// become 0 or `±2^−14`, whichever is nearer (ties to `2^−14`).
+pub fn f32_to_f16_normal(x: f32) -> u16 {
+    if x.abs() < 2f32.powi(-14) {
+        let sign = ((x.to_bits() >> 16) & 0x8000) as u16;
+        return sign | if x.abs() >= 2f32.powi(-15) { 0x0400 } else { 0 };
+    }
+    f32_to_f16(x)
 }
 
 /// The power of two `k` with `m·2^k ∈ [2^14, 2^15)` for `m > 0` finite, clamped to
@@ -315,7 +326,7 @@ pub fn pair_schedule(
             let s =
                 (inst.src[1] + t[1] - inst.dst[1]) * at.width + inst.src[0] + t[0] - inst.dst[0];
             let s2 = 2f32.powi(k);
-            at.rgb[s as usize].map(|c| f32_to_f16(c * s2))
+            at.rgb[s as usize].map(|c| f32_to_f16_normal(c * s2))
         };
         let pg = &mut pages[page];
         for jj in 0..size[1] {
@@ -382,6 +393,17 @@ mod tests {
         }
         assert_eq!(f32_to_f16(1e6), 0x7c00);
         assert_eq!(f32_to_f16(-1e6), 0xfc00);
+        // No subnormals from the pair encoder: nearest of 0 and ±2^−14 below 2^−14.
+        let min_normal = 2f32.powi(-14);
+        assert_eq!(f32_to_f16_normal(0.49 * min_normal), 0);
+        assert_eq!(f32_to_f16_normal(0.5 * min_normal), 0x0400);
+        assert_eq!(f32_to_f16_normal(-0.9 * min_normal), 0x8400);
+        assert_eq!(f32_to_f16_normal(1.5), f32_to_f16(1.5));
+        for h in 1u16..0x0400 {
+            let v = f16_to_f32(h);
+            let e = f16_to_f32(f32_to_f16_normal(v));
+            assert!((e - v).abs() <= 2f32.powi(-15), "{h:#06x}");
+        }
     }
 
     #[test]
