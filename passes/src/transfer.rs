@@ -84,12 +84,14 @@ pub struct TransferOptions {
     /// Blend path only: draw overlapping pieces two per quad ([`crate::pairing`]): one
     /// binary16 pair-texel fetch, two first-order fetches and one blend per fragment. Values
     /// rounded to binary16 with a per-piece power-of-two scale (relative error ≤ 2⁻¹¹, see
-    /// the module docs of `pairing`). Off by default (see `docs/render.md` for its speed).
+    /// the module docs of `pairing`). On in [`TransferOptions::best_for`], off in `default()`
+    /// (exact f32 atlases); see `docs/render.md` for its speed.
     pub pair_pieces: bool,
 }
 
 impl TransferOptions {
-    /// Blend path in RGBA32F when the device can blend it, else RGBA16F.
+    /// Blend path in RGBA32F when the device can blend it, else RGBA16F, with paired pieces
+    /// (~28 % less transfer CPU on lavapipe at 256²/100, `docs/render.md`).
     pub fn best_for(gpu: &Gpu) -> Self {
         Self {
             path: TransferPath::Blend,
@@ -98,7 +100,7 @@ impl TransferOptions {
             } else {
                 AccumFormat::Rgba16Float
             },
-            pair_pieces: false,
+            pair_pieces: true,
         }
     }
 }
