@@ -450,7 +450,7 @@ mod tests {
                 ],
             }],
         };
-        let p = pair_schedule(&s, &[atlas.clone()], 8192).unwrap();
+        let p = pair_schedule(&s, std::slice::from_ref(&atlas), 8192).unwrap();
         assert_eq!(p.pairs, 1);
         assert_eq!(
             p.singles.batches[0].instances,
