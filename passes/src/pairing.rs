@@ -25,7 +25,9 @@
 //! it): a smaller one is stored as 0 or `±2^−14`, whichever is nearer, absolute error
 //! `≤ 2^−15` scaled, i.e. `≤ 2^−15·2^−k ≤ 2^−15·M·2^−14 = 2^−29·M` unscaled. So every stored
 //! value has `|â − a| ≤ 2^−11·|a| + 2^−29·M`, and values `≥ 2^−28·M` keep the pure relative
-//! bound. Scaling by powers of two is exact in f32. A texel's transfer sum then errs by at
+//! bound. (`k` is clamped to `[−126, 126]`; only a piece with `M < 2^−112` has `M·2^k` below
+//! `2^14`, and its flushed values err by `≤ 2^−141` absolute.) Scaling by powers of two is
+//! exact in f32. A texel's transfer sum then errs by at
 //! most `2^−11·Σ|a·f| + 2^−29·Σ M·|f|` plus f32 summation-order rounding.
 //!
 //! # Pairing rule

@@ -12,6 +12,10 @@
 //!   first-order RGBA (alpha = coverage) into the accumulation target; then per atlas one
 //!   instanced draw of all its pieces — a quad per piece rasterised at `dst`, reading the
 //!   atlas and first-order texels with `textureLoad`, blended additively (One + One).
+//! - **Paired pieces** (blend path with [`TransferOptions::pair_pieces`], the default of
+//!   [`TransferOptions::best_for`]; `shaders/transfer_pair.wgsl`, [`crate::pairing`]):
+//!   overlapping pieces drawn two per quad from binary16 pair pages (one pair fetch, two
+//!   first-order fetches, one blend per fragment); unpaired pieces as above.
 //! - **Compute path** (`shaders/transfer_gather.wgsl`, [`crate::transfer_gather`]): per atlas
 //!   one dispatch, one workgroup per non-empty 8×8 tile gathering the pieces covering it into
 //!   an RGBA32F storage buffer; no blending, no atomics. Same result up to float summation

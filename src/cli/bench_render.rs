@@ -9,7 +9,9 @@
 //! transfer needs. Reported: milliseconds per pass (median of `--iterations` runs, GPU
 //! timestamps when the adapter has them), texel blends per frame and per second, the blend
 //! path's fraction of the roofline, and the frame rate of first order + blend transfer +
-//! dilation + display.
+//! dilation + display. `--pair off|on|both` times the blend path without and/or with
+//! paired pieces (`TransferOptions::pair_pieces`); the paired rows print both map-texel
+//! contributions and fragments per second against the roofline.
 //!
 //! # Where the maps come from
 //! `--bake DIR` (repeatable) benches real bakes (atlases from `atlases.json`, or packed in
@@ -103,9 +105,10 @@ pub struct Args {
     #[arg(long, default_value_t = 1)]
     seed: u64,
     /// Blend path with paired pieces (`TransferOptions::pair_pieces`, two maps per
-    /// fragment): `off`, `on` (instead of the unpaired blend path) or `both` (each, same
-    /// session, for comparison).
-    #[arg(long, value_enum, default_value_t = Pair::Off)]
+    /// fragment, the renderer's default): `on` (the default path), `off` (the unpaired blend
+    /// path) or `both` (each, same session, for comparison). The main table shows the
+    /// unpaired path when it is timed, else the paired one; the paired rows follow it.
+    #[arg(long, value_enum, default_value_t = Pair::On)]
     pair: Pair,
 }
 
@@ -380,11 +383,17 @@ fn print_table(rows: &[Row]) {
         fn get(rep: &Option<BenchReport>, i: usize) -> Option<&passes::bench::BenchRow> {
             rep.as_ref().and_then(|x| x.rows.get(i))
         }
-        let any = r.blend.as_ref().or(r.compute.as_ref());
+        // The unpaired blend path when timed, else the paired one (`--pair on`).
+        let blend_rep = if r.blend.is_some() {
+            &r.blend
+        } else {
+            &r.paired
+        };
+        let any = blend_rep.as_ref().or(r.compute.as_ref());
         let ms = |i: usize| any.and_then(|x| x.rows.get(i)).map(|x| x.ms);
-        let blend = get(&r.blend, 1);
+        let blend = get(blend_rep, 1);
         let compute = get(&r.compute, 1);
-        let roof = get(&r.blend, 4).or(get(&r.compute, 4));
+        let roof = get(blend_rep, 4).or(get(&r.compute, 4));
         let transfer_ms = blend.or(compute).map(|x| x.ms);
         let frame_ms = [ms(0), transfer_ms, ms(2), ms(3)]
             .iter()
@@ -428,7 +437,9 @@ fn print_table(rows: &[Row]) {
         "fps = 1000 / (first order + transfer (blend if timed) + dilation + display) with moving \
          lights (1st ms: shadow maps re-rendered every frame); fps st. = the same with static \
          lights (1st st.ms: shadow maps reused); roof.% = blend-path texel blends/s ÷ \
-         full-screen additive-blend roofline at the lightmap size"
+         full-screen additive-blend roofline at the lightmap size; blend = the unpaired blend \
+         path with --pair off|both, the paired one with --pair on (texel blends = map-texel \
+         contributions; fragments in the paired table below)"
     );
     println!();
     println!(
@@ -446,8 +457,13 @@ fn print_table(rows: &[Row]) {
                 .and_then(|x| x.cpu_ms)
                 .map_or("—".to_string(), |v| format!("{v:.2}"))
         };
-        let any = if r.blend.is_some() {
+        let blend_rep = if r.blend.is_some() {
             &r.blend
+        } else {
+            &r.paired
+        };
+        let any = if blend_rep.is_some() {
+            blend_rep
         } else {
             &r.compute
         };
@@ -456,7 +472,7 @@ fn print_table(rows: &[Row]) {
             r.label,
             cpu(any, 0),
             cpu(any, 5),
-            cpu(&r.blend, 1),
+            cpu(blend_rep, 1),
             cpu(&r.compute, 1),
             cpu(any, 2),
             cpu(any, 3),
