@@ -83,6 +83,7 @@ pub struct PairPage {
     /// Height in texels.
     pub height: u32,
     /// `width·height` texels, row-major (layout in the module docs; 0 where no pair lies).
+    /// Empty in a prepared `TransferScene` (uploaded, then dropped).
     pub texels: Vec<[u32; 4]>,
     /// The pairs stored in this page.
     pub instances: Vec<PairInstance>,
@@ -189,6 +190,25 @@ pub fn pair_schedule(
                 what: format!("schedule instance {k}"),
                 problem: format!("names atlas {a} but only {} were given", atlases.len()),
             })?;
+        let inside = atlas.rgb.len() == atlas.width as usize * atlas.height as usize
+            && inst.src[0] as u64 + inst.size[0] as u64 <= atlas.width as u64
+            && inst.src[1] as u64 + inst.size[1] as u64 <= atlas.height as u64;
+        if !inside {
+            return Err(PassError::InvalidInput {
+                what: format!("schedule instance {k}"),
+                problem: format!(
+                    "its source rectangle ({}, {}) + {}×{} is not inside atlas {a} ({}×{}, {} \
+                     values); build the schedule from these atlases",
+                    inst.src[0],
+                    inst.src[1],
+                    inst.size[0],
+                    inst.size[1],
+                    atlas.width,
+                    atlas.height,
+                    atlas.rgb.len()
+                ),
+            });
+        }
         let mut m = 0f32;
         for j in 0..inst.size[1] {
             let row = ((inst.src[1] + j) * atlas.width + inst.src[0]) as usize;
@@ -490,6 +510,27 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn instances_outside_their_atlas_are_an_error() {
+        let atlas = AtlasData {
+            width: 4,
+            height: 4,
+            rgb: vec![[1.0; 3]; 16],
+        };
+        let s = FrameSchedule {
+            lightmap_size: [8, 8],
+            batches: vec![AtlasBatch {
+                atlas: 0,
+                instances: vec![inst([0, 0], [3, 3], [2, 0])],
+            }],
+        };
+        assert!(pair_schedule(&s, std::slice::from_ref(&atlas), 64).is_err());
+        let mut one = s.clone();
+        one.batches[0].instances[0].src = [1, 1];
+        assert!(pair_schedule(&one, &[atlas], 64).is_ok());
+        assert!(pair_schedule(&one, &[], 64).is_err());
     }
 
     #[test]

@@ -153,6 +153,8 @@ pub struct TransferScene {
     /// Compute-path data.
     gather: Option<GatherScene>,
     /// Paired pieces (blend path with `TransferOptions::pair_pieces`); `None` otherwise.
+    /// The pages' `texels` are emptied once uploaded (they live on the GPU);
+    /// [`pair_schedule`] on `schedule` rebuilds them (deterministic) for a CPU mirror.
     pub paired: Option<PairedSchedule>,
     /// Paired path: views of the pair pages, instance buffers per page, instance buffers of
     /// the unpaired pieces per batch of `paired.singles`.
@@ -498,8 +500,11 @@ impl TransferPass {
         let (paired, pair_gpu) =
             if self.options.path == TransferPath::Blend && self.options.pair_pieces {
                 let limit = device.limits().max_texture_dimension_2d;
-                let paired = pair_schedule(&schedule, atlases, limit)?;
+                let mut paired = pair_schedule(&schedule, atlases, limit)?;
                 let g = Self::upload_pairs(gpu, &paired)?;
+                for page in &mut paired.pages {
+                    page.texels = Vec::new();
+                }
                 (Some(paired), Some(g))
             } else {
                 (None, None)
