@@ -108,7 +108,10 @@ fn gpu_lightmaps(
 /// where the terms cancel (subsurface maps hold the negative point mass at Δt = 0), where a
 /// relative tolerance on the small result would be meaningless. `(2n + 1)·2⁻¹²⁶` more allows
 /// for GPUs flushing subnormal results to zero (WGSL permits it; lavapipe does), one smallest
-/// normal float per operation. Returns the number of texels
+/// normal float per operation. The default blend path pairs pieces and stores their values as
+/// binary16 with a per-piece power-of-two scale (`passes::pairing`): each value errs by at
+/// most `2⁻¹¹·|v| + 2⁻²⁹·M` (M = the piece's largest |value|, bounded here by its map's), so
+/// `2⁻¹¹·Σ|map(t)·B_o(t+Δt)| + 2⁻²⁹·Σ M·|B_o(t+Δt)|` more. Returns the number of texels
 /// where the transfer added more than 1 % of the first order.
 fn check_final(maps: &[TransferMap], fo: &TexelImage, fin: &TexelImage) -> usize {
     let b_o = render::to_lightmap(fo);
@@ -116,6 +119,21 @@ fn check_final(maps: &[TransferMap], fo: &TexelImage, fin: &TexelImage) -> usize
     let (w, h) = (b_o.width, b_o.height);
     let mut brighter = 0;
     let mut worst = 0f64;
+    // Largest |value| of each map (over its texels and channels).
+    let map_max: Vec<f64> = maps
+        .iter()
+        .map(|m| {
+            let mut mx = 0f64;
+            for y in 0..h {
+                for x in 0..w {
+                    for v in m.value_at(x, y) {
+                        mx = mx.max((v as f64).abs());
+                    }
+                }
+            }
+            mx
+        })
+        .collect();
     for y in 0..h {
         for x in 0..w {
             let g = fin.get(x, y);
@@ -124,17 +142,24 @@ fn check_final(maps: &[TransferMap], fo: &TexelImage, fin: &TexelImage) -> usize
             for ch in 0..3 {
                 let mut s = bo[ch].abs() as f64;
                 let mut n = 1;
-                for m in maps {
+                let mut products = 0f64;
+                let mut scaled = 0f64;
+                for (m, mx) in maps.iter().zip(&map_max) {
                     let p = IVec2::new(x as i32, y as i32) + m.offset;
                     let v = m.value_at(x, y)[ch] as f64;
                     if v != 0.0 {
                         let src = b_o.get_checked(p).map_or(0.0, |b| b[ch] as f64);
                         s += (v * src).abs();
+                        products += (v * src).abs();
+                        scaled += mx * src.abs();
                         n += 1;
                     }
                 }
                 let ops = (2 * n + 1) as f64;
-                let tol = 1e-3 * c[ch].abs() as f64 + ops * (2f64.powi(-24) * s + 2f64.powi(-126));
+                let binary16 = 2f64.powi(-11) * products + 2f64.powi(-29) * scaled;
+                let tol = 1e-3 * c[ch].abs() as f64
+                    + ops * (2f64.powi(-24) * s + 2f64.powi(-126))
+                    + binary16;
                 let err = (g[ch] as f64 - c[ch] as f64).abs();
                 worst = worst.max(err / tol.max(f64::MIN_POSITIVE));
                 assert!(

@@ -1,7 +1,7 @@
 //! Renders the built-in floor-and-box scene (side by side: first order | final with a
 //! synthetic blur transfer) to a PNG and prints a benchmark table.
 //!
-//! `cargo run -p passes --release --example demo -- [out.png] [lightmap size] [blur radius] [f16|f32|compute]`
+//! `cargo run -p passes --release --example demo -- [out.png] [lightmap size] [blur radius] [f16|f32|unpaired|compute]` (f32 = `TransferOptions::best_for`, paired pieces; unpaired = the same without pairing)
 
 use passes::bench::bench_frame;
 use passes::demo::{blur_transfer, demo_lights, floor_and_box};
@@ -23,10 +23,16 @@ fn main() -> Result<(), PassError> {
         "f16" => TransferOptions {
             path: TransferPath::Blend,
             accum_format: AccumFormat::Rgba16Float,
+            pair_pieces: false,
         },
         "compute" => TransferOptions {
             path: TransferPath::Compute,
             accum_format: AccumFormat::Rgba32Float,
+            pair_pieces: false,
+        },
+        "unpaired" => TransferOptions {
+            pair_pieces: false,
+            ..TransferOptions::best_for(&gpu)
         },
         _ => TransferOptions::best_for(&gpu),
     };

@@ -77,8 +77,13 @@ pub struct BenchRow {
     pub name: String,
     /// Median milliseconds per run.
     pub ms: f64,
-    /// Texel blends per run (0 where not meaningful).
+    /// Texel blends per run (0 where not meaningful): map-texel contributions (one per
+    /// piece texel, plus the initial copy), whether or not pieces are paired.
     pub texel_blends: u64,
+    /// Fragments blended into the target per run: equal to `texel_blends` except with
+    /// paired pieces, where one fragment carries two contributions (and pair bounding
+    /// boxes add fragments carrying none).
+    pub fragments: u64,
     /// `texel_blends / seconds` (0 where not meaningful).
     pub blends_per_s: f64,
     /// CPU time the whole process (every thread, so lavapipe's too) spent per timed run, in
@@ -95,11 +100,21 @@ impl BenchRow {
             ms,
             cpu_ms: None,
             texel_blends,
+            fragments: texel_blends,
             blends_per_s: if ms > 0.0 {
                 texel_blends as f64 / (ms * 1e-3)
             } else {
                 0.0
             },
+        }
+    }
+
+    /// Fragments blended per second (`fragments / seconds`).
+    pub fn fragments_per_s(&self) -> f64 {
+        if self.ms > 0.0 {
+            self.fragments as f64 / (self.ms * 1e-3)
+        } else {
+            0.0
         }
     }
 
@@ -134,18 +149,19 @@ impl std::fmt::Display for BenchReport {
         )?;
         writeln!(
             f,
-            "{:<48} {:>10} {:>10} {:>14} {:>14}",
-            "pass", "ms", "cpu ms", "texel blends", "blends/s"
+            "{:<48} {:>10} {:>10} {:>14} {:>14} {:>14}",
+            "pass", "ms", "cpu ms", "texel blends", "blends/s", "fragments"
         )?;
         for r in &self.rows {
             writeln!(
                 f,
-                "{:<48} {:>10.3} {:>10} {:>14} {:>14.3e}",
+                "{:<48} {:>10.3} {:>10} {:>14} {:>14.3e} {:>14}",
                 r.name,
                 r.ms,
                 r.cpu_ms.map_or("—".to_string(), |c| format!("{c:.3}")),
                 r.texel_blends,
-                r.blends_per_s
+                r.blends_per_s,
+                r.fragments
             )?;
         }
         Ok(())
@@ -446,19 +462,28 @@ pub fn bench_frame_stat(
             );
             Ok(())
         })?;
-    let name = match path {
-        TransferPath::Blend => format!(
-            "transfer, blend {:?} ({} pieces)",
+    let pieces = schedule
+        .batches
+        .iter()
+        .map(|b| b.instances.len())
+        .sum::<usize>();
+    let name = match (path, &scene.transfer.paired) {
+        (TransferPath::Blend, Some(p)) => format!(
+            "transfer, blend {:?} ({pieces} pieces, {} pairs)",
             renderer.transfer.options().accum_format,
-            schedule
-                .batches
-                .iter()
-                .map(|b| b.instances.len())
-                .sum::<usize>()
+            p.pairs
         ),
-        TransferPath::Compute => "transfer, compute gather".to_string(),
+        (TransferPath::Blend, None) => format!(
+            "transfer, blend {:?} ({pieces} pieces)",
+            renderer.transfer.options().accum_format,
+        ),
+        (TransferPath::Compute, _) => "transfer, compute gather".to_string(),
     };
-    rows.push(BenchRow::new(name, ms, blends).with_cpu(cpu));
+    let mut row = BenchRow::new(name, ms, blends).with_cpu(cpu);
+    if let Some(p) = &scene.transfer.paired {
+        row.fragments = p.fragments() + w as u64 * h as u64;
+    }
+    rows.push(row);
 
     let (ms, _, cpu) = time_encoded_stat(gpu, "ortm.bench.dilate", iterations, statistic, |enc| {
         renderer.dilate.encode(

@@ -27,6 +27,7 @@ pub mod error;
 pub mod first_order;
 pub mod frame;
 pub mod gpu;
+pub mod pairing;
 pub mod schedule;
 pub mod transfer;
 pub mod transfer_gather;

@@ -12,6 +12,10 @@
 //!   first-order RGBA (alpha = coverage) into the accumulation target; then per atlas one
 //!   instanced draw of all its pieces — a quad per piece rasterised at `dst`, reading the
 //!   atlas and first-order texels with `textureLoad`, blended additively (One + One).
+//! - **Paired pieces** (blend path with [`TransferOptions::pair_pieces`], the default of
+//!   [`TransferOptions::best_for`]; `shaders/transfer_pair.wgsl`, [`crate::pairing`]):
+//!   overlapping pieces drawn two per quad from binary16 pair pages (one pair fetch, two
+//!   first-order fetches, one blend per fragment); unpaired pieces as above.
 //! - **Compute path** (`shaders/transfer_gather.wgsl`, [`crate::transfer_gather`]): per atlas
 //!   one dispatch, one workgroup per non-empty 8×8 tile gathering the pieces covering it into
 //!   an RGBA32F storage buffer; no blending, no atomics. Same result up to float summation
@@ -38,6 +42,7 @@ use bytemuck::{Pod, Zeroable};
 
 use crate::error::PassError;
 use crate::gpu::Gpu;
+use crate::pairing::{PairInstance, PairedSchedule, pair_schedule};
 use crate::schedule::{FrameSchedule, build_schedule};
 use crate::transfer_gather::{GatherPass, GatherScene};
 use crate::types::{AtlasData, TransferPiece};
@@ -80,10 +85,17 @@ pub struct TransferOptions {
     pub path: TransferPath,
     /// Accumulation format of the blend path (the compute path always uses RGBA32F).
     pub accum_format: AccumFormat,
+    /// Blend path only: draw overlapping pieces two per quad ([`crate::pairing`]): one
+    /// binary16 pair-texel fetch, two first-order fetches and one blend per fragment. Values
+    /// rounded to binary16 with a per-piece power-of-two scale (relative error ≤ 2⁻¹¹, see
+    /// the module docs of `pairing`). On in [`TransferOptions::best_for`], off in `default()`
+    /// (exact f32 atlases); see `docs/render.md` for its speed.
+    pub pair_pieces: bool,
 }
 
 impl TransferOptions {
-    /// Blend path in RGBA32F when the device can blend it, else RGBA16F.
+    /// Blend path in RGBA32F when the device can blend it, else RGBA16F, with paired pieces
+    /// (~28 % less transfer CPU on lavapipe at 256²/100, `docs/render.md`).
     pub fn best_for(gpu: &Gpu) -> Self {
         Self {
             path: TransferPath::Blend,
@@ -92,6 +104,7 @@ impl TransferOptions {
             } else {
                 AccumFormat::Rgba16Float
             },
+            pair_pieces: true,
         }
     }
 }
@@ -116,6 +129,8 @@ struct BlendPipelines {
     atlas_layout: wgpu::BindGroupLayout,
     copy: wgpu::RenderPipeline,
     piece: wgpu::RenderPipeline,
+    /// Paired pieces (with `TransferOptions::pair_pieces`): group 1 layout and pipeline.
+    pair: Option<(wgpu::BindGroupLayout, wgpu::RenderPipeline)>,
 }
 
 /// The transfer pass (either path).
@@ -137,7 +152,22 @@ pub struct TransferScene {
     instance_buffers: Vec<wgpu::Buffer>,
     /// Compute-path data.
     gather: Option<GatherScene>,
+    /// Paired pieces (blend path with `TransferOptions::pair_pieces`); `None` otherwise.
+    /// The pages' `texels` are emptied once uploaded (they live on the GPU);
+    /// [`pair_schedule`] on `schedule` rebuilds them (deterministic) for a CPU mirror.
+    pub paired: Option<PairedSchedule>,
+    /// Paired path: views of the pair pages, instance buffers per page, instance buffers of
+    /// the unpaired pieces per batch of `paired.singles`.
+    pair_gpu: Option<PairGpu>,
     final_tex: wgpu::Texture,
+}
+
+/// GPU objects of the paired path.
+#[derive(Debug)]
+struct PairGpu {
+    page_views: Vec<wgpu::TextureView>,
+    page_buffers: Vec<wgpu::Buffer>,
+    single_buffers: Vec<wgpu::Buffer>,
 }
 
 /// Per-frame inputs.
@@ -177,7 +207,11 @@ impl TransferPass {
         match options.path {
             TransferPath::Blend => {
                 let blend = gpu.scoped("ortm.transfer.new", || {
-                    Self::blend_pipelines(&gpu.device, options.accum_format.texture_format())
+                    Self::blend_pipelines(
+                        &gpu.device,
+                        options.accum_format.texture_format(),
+                        options.pair_pieces,
+                    )
                 })?;
                 Ok(Self {
                     options: *options,
@@ -198,7 +232,11 @@ impl TransferPass {
         &self.options
     }
 
-    fn blend_pipelines(device: &wgpu::Device, format: wgpu::TextureFormat) -> BlendPipelines {
+    fn blend_pipelines(
+        device: &wgpu::Device,
+        format: wgpu::TextureFormat,
+        pair_pieces: bool,
+    ) -> BlendPipelines {
         let module = util::shader(
             device,
             "ortm.transfer.shader",
@@ -295,12 +333,86 @@ impl TransferPass {
             multiview_mask: None,
             cache: None,
         });
+        let pair =
+            pair_pieces.then(|| Self::pair_pipeline(device, format, &frame_layout, additive));
         BlendPipelines {
             frame_layout,
             atlas_layout,
             copy,
             piece,
+            pair,
         }
+    }
+
+    fn pair_pipeline(
+        device: &wgpu::Device,
+        format: wgpu::TextureFormat,
+        frame_layout: &wgpu::BindGroupLayout,
+        additive: wgpu::BlendComponent,
+    ) -> (wgpu::BindGroupLayout, wgpu::RenderPipeline) {
+        let module = util::shader(
+            device,
+            "ortm.transfer.pair_shader",
+            include_str!("../shaders/transfer_pair.wgsl"),
+        );
+        let page_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("ortm.transfer.page_layout"),
+            entries: &[wgpu::BindGroupLayoutEntry {
+                binding: 0,
+                visibility: wgpu::ShaderStages::FRAGMENT,
+                ty: wgpu::BindingType::Texture {
+                    sample_type: wgpu::TextureSampleType::Uint,
+                    view_dimension: wgpu::TextureViewDimension::D2,
+                    multisampled: false,
+                },
+                count: None,
+            }],
+        });
+        let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("ortm.transfer.pair_pipeline_layout"),
+            bind_group_layouts: &[Some(frame_layout), Some(&page_layout)],
+            immediate_size: 0,
+        });
+        let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("ortm.transfer.pair_pipeline"),
+            layout: Some(&layout),
+            vertex: wgpu::VertexState {
+                module: &module,
+                entry_point: Some("vs_pair"),
+                compilation_options: Default::default(),
+                // Must match `PairInstance` (pairing.rs) and `PairIn` (transfer_pair.wgsl).
+                buffers: &[Some(wgpu::VertexBufferLayout {
+                    array_stride: std::mem::size_of::<PairInstance>() as u64,
+                    step_mode: wgpu::VertexStepMode::Instance,
+                    attributes: &wgpu::vertex_attr_array![
+                        0 => Uint32x2, 1 => Uint32x2, 2 => Uint32x2, 3 => Sint32x2,
+                        4 => Sint32x2, 5 => Float32x2
+                    ],
+                })],
+            },
+            primitive: wgpu::PrimitiveState {
+                cull_mode: None,
+                ..Default::default()
+            },
+            depth_stencil: None,
+            multisample: wgpu::MultisampleState::default(),
+            fragment: Some(wgpu::FragmentState {
+                module: &module,
+                entry_point: Some("fs_pair"),
+                compilation_options: Default::default(),
+                targets: &[Some(wgpu::ColorTargetState {
+                    format,
+                    blend: Some(wgpu::BlendState {
+                        color: additive,
+                        alpha: additive,
+                    }),
+                    write_mask: wgpu::ColorWrites::ALL,
+                })],
+            }),
+            multiview_mask: None,
+            cache: None,
+        });
+        (page_layout, pipeline)
     }
 
     /// Uploads atlases, validates and schedules the pieces, allocates the output.
@@ -385,6 +497,18 @@ impl TransferPass {
                 (Vec::new(), Some(scene), tex)
             }
         };
+        let (paired, pair_gpu) =
+            if self.options.path == TransferPath::Blend && self.options.pair_pieces {
+                let limit = device.limits().max_texture_dimension_2d;
+                let mut paired = pair_schedule(&schedule, atlases, limit)?;
+                let g = Self::upload_pairs(gpu, &paired)?;
+                for page in &mut paired.pages {
+                    page.texels = Vec::new();
+                }
+                (Some(paired), Some(g))
+            } else {
+                (None, None)
+            };
         gpu.check("ortm.transfer.prepare")?;
         Ok(TransferScene {
             schedule,
@@ -392,7 +516,70 @@ impl TransferPass {
             atlas_views,
             instance_buffers,
             gather,
+            paired,
+            pair_gpu,
             final_tex,
+        })
+    }
+
+    fn upload_pairs(gpu: &Gpu, paired: &PairedSchedule) -> Result<PairGpu, PassError> {
+        let device = &gpu.device;
+        let mut page_views = Vec::with_capacity(paired.pages.len());
+        let mut page_buffers = Vec::with_capacity(paired.pages.len());
+        for (i, p) in paired.pages.iter().enumerate() {
+            let label = format!("ortm.transfer.pair_page{i}");
+            gpu.check_texture_size(&label, p.width, p.height)?;
+            let tex = util::texture_2d(
+                device,
+                &label,
+                [p.width, p.height],
+                wgpu::TextureFormat::Rgba32Uint,
+                wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+            );
+            gpu.queue.write_texture(
+                wgpu::TexelCopyTextureInfo {
+                    texture: &tex,
+                    mip_level: 0,
+                    origin: wgpu::Origin3d::ZERO,
+                    aspect: wgpu::TextureAspect::All,
+                },
+                bytemuck::cast_slice(&p.texels),
+                wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some(p.width * 16),
+                    rows_per_image: Some(p.height),
+                },
+                wgpu::Extent3d {
+                    width: p.width,
+                    height: p.height,
+                    depth_or_array_layers: 1,
+                },
+            );
+            page_views.push(util::view(&tex));
+            page_buffers.push(util::buffer_init(
+                device,
+                &format!("ortm.transfer.pair_instances{i}"),
+                bytemuck::cast_slice(&p.instances),
+                wgpu::BufferUsages::VERTEX,
+            ));
+        }
+        let single_buffers = paired
+            .singles
+            .batches
+            .iter()
+            .map(|b| {
+                util::buffer_init(
+                    device,
+                    &format!("ortm.transfer.single_instances.atlas{}", b.atlas),
+                    bytemuck::cast_slice(&b.instances),
+                    wgpu::BufferUsages::VERTEX,
+                )
+            })
+            .collect();
+        Ok(PairGpu {
+            page_views,
+            page_buffers,
+            single_buffers,
         })
     }
 
@@ -439,9 +626,12 @@ impl TransferPass {
                 },
             ],
         });
-        let atlas_bgs: Vec<wgpu::BindGroup> = scene
-            .schedule
-            .batches
+        // Paired path: the unpaired pieces here, the pairs after them.
+        let (batches, instance_buffers) = match (&scene.paired, &scene.pair_gpu) {
+            (Some(p), Some(g)) => (&p.singles.batches, &g.single_buffers),
+            _ => (&scene.schedule.batches, &scene.instance_buffers),
+        };
+        let atlas_bgs: Vec<wgpu::BindGroup> = batches
             .iter()
             .map(|b| {
                 device.create_bind_group(&wgpu::BindGroupDescriptor {
@@ -477,16 +667,28 @@ impl TransferPass {
         pass.set_pipeline(&bp.copy);
         pass.draw(0..3, 0..1);
         pass.set_pipeline(&bp.piece);
-        for ((batch, bg), buf) in scene
-            .schedule
-            .batches
-            .iter()
-            .zip(&atlas_bgs)
-            .zip(&scene.instance_buffers)
-        {
+        for ((batch, bg), buf) in batches.iter().zip(&atlas_bgs).zip(instance_buffers) {
             pass.set_bind_group(1, bg, &[]);
             pass.set_vertex_buffer(0, buf.slice(..));
             pass.draw(0..6, 0..batch.instances.len() as u32);
+        }
+        if let (Some(p), Some(g), Some((page_layout, pipeline))) =
+            (&scene.paired, &scene.pair_gpu, &bp.pair)
+        {
+            pass.set_pipeline(pipeline);
+            for ((page, view), buf) in p.pages.iter().zip(&g.page_views).zip(&g.page_buffers) {
+                let bg = device.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("ortm.transfer.pair_page_bind_group"),
+                    layout: page_layout,
+                    entries: &[wgpu::BindGroupEntry {
+                        binding: 0,
+                        resource: wgpu::BindingResource::TextureView(view),
+                    }],
+                });
+                pass.set_bind_group(1, &bg, &[]);
+                pass.set_vertex_buffer(0, buf.slice(..));
+                pass.draw(0..6, 0..page.instances.len() as u32);
+            }
         }
     }
 }

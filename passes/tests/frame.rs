@@ -39,6 +39,13 @@ fn renderer_final_map_matches_mirror_and_bench_reports_every_pass() {
     let lights = demo_lights();
 
     let (fo, fin) = renderer.render_lightmaps(&gpu, &scene, &lights).unwrap();
+    // `best_for` pairs pieces (binary16 values, relative error ≤ 2⁻¹¹ per term; the blur's
+    // terms are all positive, so the 1e-3 relative tolerance below covers it).
+    let pairs = scene.transfer.paired.as_ref().map_or(0, |p| p.pairs);
+    assert!(
+        pairs > 0,
+        "the default blend path must pair the demo's pieces"
+    );
     let want = cpu::transfer::transfer(&scene.transfer.schedule, &atlases, &fo);
     let mut brighter = 0;
     for (g, w) in fin.rgba.iter().zip(&want.rgba) {

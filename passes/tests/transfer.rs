@@ -6,6 +6,7 @@ mod common;
 
 use common::{Rng, gpu};
 use passes::cpu;
+use passes::pairing::{PairedSchedule, pair_schedule};
 use passes::schedule::{build_schedule, build_tiles};
 use passes::transfer::{AccumFormat, TransferInputs, TransferOptions, TransferPass, TransferPath};
 use passes::{AtlasData, TexelImage, TransferPiece};
@@ -102,6 +103,11 @@ fn reference(c: &Case) -> (TexelImage, Vec<(f32, u32)>) {
 }
 
 fn run_gpu(c: &Case, options: TransferOptions) -> TexelImage {
+    run_gpu_paired(c, options).0
+}
+
+/// [`run_gpu`], also returning the paired schedule when the options pair pieces.
+fn run_gpu_paired(c: &Case, options: TransferOptions) -> (TexelImage, Option<PairedSchedule>) {
     let gpu = gpu();
     let pass = TransferPass::new(&gpu, &options).unwrap();
     let scene = pass.prepare(&gpu, c.size, &c.atlases, &c.pieces).unwrap();
@@ -125,8 +131,26 @@ fn run_gpu(c: &Case, options: TransferOptions) -> TexelImage {
         },
     );
     gpu.submit_and_wait("test.transfer", enc).unwrap();
-    gpu.read_texel_image("test.final", &out.final_lightmap_tex)
-        .unwrap()
+    let img = gpu
+        .read_texel_image("test.final", &out.final_lightmap_tex)
+        .unwrap();
+    // The scene keeps no pair texels once uploaded; rebuild them (deterministic) for the
+    // mirror, and check the rebuilt pairing is the one drawn.
+    let paired = scene.paired.as_ref().map(|drawn| {
+        let limit = gpu.device.limits().max_texture_dimension_2d;
+        let p = pair_schedule(&scene.schedule, &c.atlases, limit).unwrap();
+        assert_eq!(p.singles, drawn.singles);
+        let inst = |q: &PairedSchedule| {
+            q.pages
+                .iter()
+                .map(|pg| pg.instances.clone())
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(inst(&p), inst(drawn));
+        assert!(drawn.pages.iter().all(|pg| pg.texels.is_empty()));
+        p
+    });
+    (img, paired)
 }
 
 /// Max over texels/channels of |a − b| / max(|b|, floor).
@@ -215,6 +239,7 @@ fn exact_single_piece() {
             TransferOptions {
                 path,
                 accum_format: AccumFormat::Rgba32Float,
+                pair_pieces: false,
             },
         );
         assert_eq!(got, want, "{path:?}");
@@ -230,6 +255,7 @@ fn blend_rgba32f_matches_cpu() {
         TransferOptions {
             path: TransferPath::Blend,
             accum_format: AccumFormat::Rgba32Float,
+            pair_pieces: false,
         },
     );
     assert_close(&got, &want, 1e-3, 1e-3, "blend rgba32f");
@@ -244,6 +270,7 @@ fn compute_path_matches_cpu_and_blend() {
         TransferOptions {
             path: TransferPath::Compute,
             accum_format: AccumFormat::Rgba32Float,
+            pair_pieces: false,
         },
     );
     assert_close(&got, &want, 1e-3, 1e-3, "compute");
@@ -252,6 +279,7 @@ fn compute_path_matches_cpu_and_blend() {
         TransferOptions {
             path: TransferPath::Blend,
             accum_format: AccumFormat::Rgba32Float,
+            pair_pieces: false,
         },
     );
     assert_close(&got, &blend, 1e-5, 1e-3, "compute vs blend");
@@ -268,6 +296,7 @@ fn blend_rgba16f_within_half_float_bound() {
         TransferOptions {
             path: TransferPath::Blend,
             accum_format: AccumFormat::Rgba16Float,
+            pair_pieces: false,
         },
     );
     let u = 2f32.powi(-11);
@@ -283,4 +312,172 @@ fn blend_rgba16f_within_half_float_bound() {
         }
         assert_eq!(g[3], w[3], "coverage alpha must be copied exactly");
     }
+}
+
+/// The paired path's derived bound (`pairing` module docs) per texel and channel: every stored
+/// value has `|â − a| ≤ 2⁻¹¹·|a| + 2⁻²⁹·M` (M = the piece's largest |value|; the uncropped
+/// piece's maximum is ≥ the cropped one's, so using it only loosens the bound), so the sum errs
+/// by ≤ `2⁻¹¹·Σ|a·f| + 2⁻²⁹·Σ M·|f|`, plus f32 rounding in a different summation order:
+/// ≤ `2·(n + 2)·2⁻²⁴·(|f₀| + Σ|a·f|)·(1 + 2⁻¹¹)` for n pieces at the texel.
+fn paired_bound(c: &Case) -> Vec<[f32; 3]> {
+    let maxima: Vec<f32> = c
+        .pieces
+        .iter()
+        .map(|p| {
+            let at = &c.atlases[p.atlas as usize];
+            let mut m = 0f32;
+            for y in p.src_y..p.src_y + p.h {
+                for x in p.src_x..p.src_x + p.w {
+                    m = at.rgb[(y * at.width + x) as usize]
+                        .iter()
+                        .fold(m, |m, v| m.max(v.abs()));
+                }
+            }
+            m
+        })
+        .collect();
+    let mut out = Vec::new();
+    for y in 0..c.size[1] {
+        for x in 0..c.size[0] {
+            let f0 = c.first_order.get(x, y);
+            let mut s1 = [0f32; 3];
+            let mut s2 = [0f32; 3];
+            let mut n = 0u32;
+            for (p, m) in c.pieces.iter().zip(&maxima) {
+                if x < p.dst_x || y < p.dst_y || x >= p.dst_x + p.w || y >= p.dst_y + p.h {
+                    continue;
+                }
+                let at = &c.atlases[p.atlas as usize];
+                let a =
+                    at.rgb[((p.src_y + y - p.dst_y) * at.width + p.src_x + x - p.dst_x) as usize];
+                let f = c
+                    .first_order
+                    .get_or_zero(x as i32 + p.offset[0], y as i32 + p.offset[1]);
+                for ch in 0..3 {
+                    s1[ch] += (a[ch] * f[ch]).abs();
+                    s2[ch] += m * f[ch].abs();
+                }
+                n += 1;
+            }
+            let u = 2f32.powi(-11);
+            out.push(std::array::from_fn(|ch| {
+                u * s1[ch]
+                    + 2f32.powi(-29) * s2[ch]
+                    + 2.0 * (n + 2) as f32 * 2f32.powi(-24) * (f0[ch].abs() + s1[ch]) * (1.0 + u)
+            }));
+        }
+    }
+    out
+}
+
+fn paired_options() -> TransferOptions {
+    TransferOptions {
+        path: TransferPath::Blend,
+        accum_format: AccumFormat::Rgba32Float,
+        pair_pieces: true,
+    }
+}
+
+/// Checks the paired GPU result against the independent Eq. 9 reference within the derived
+/// bound, and against the paired CPU mirror (same binary16 values) within f32 rounding.
+fn check_paired(c: &Case, what: &str) -> PairedSchedule {
+    let (got, paired) = run_gpu_paired(c, paired_options());
+    let paired = paired.expect("pair_pieces builds a paired schedule");
+    let (want, _) = reference(c);
+    let bound = paired_bound(c);
+    for (i, ((g, w), b)) in got.rgba.iter().zip(&want.rgba).zip(&bound).enumerate() {
+        for ch in 0..3 {
+            assert!(
+                (g[ch] - w[ch]).abs() <= b[ch],
+                "{what}: texel {i} ch {ch}: got {} want {} bound {}",
+                g[ch],
+                w[ch],
+                b[ch]
+            );
+        }
+        assert_eq!(g[3], w[3], "{what}: coverage alpha must be copied exactly");
+    }
+    let mirror = cpu::transfer::transfer_paired(&paired, &c.atlases, &c.first_order);
+    assert_close(&got, &mirror, 1e-5, 1e-3, what);
+    paired
+}
+
+#[test]
+fn paired_blend_within_binary16_bound() {
+    for seed in [7, 11, 13] {
+        let c = random_case(seed);
+        let paired = check_paired(&c, &format!("paired, seed {seed}"));
+        eprintln!("seed {seed}: {} pairs", paired.pairs);
+        assert!(
+            paired.pairs >= 2,
+            "seed {seed}: only {} pairs",
+            paired.pairs
+        );
+    }
+}
+
+#[test]
+fn paired_partial_overlap_reads_outside_own_rect() {
+    // 16×12 map. A: dst (2, 0), 10×10, Δt = (−2, 2): its reads stay in the map (x − 2 ≥ 0,
+    // y + 2 < 12). B: dst (0, 4), 12×8, Δt = (4, −4). The pair's bounding box (0, 0)–(12, 12)
+    // holds texels of A only, of B only, of both; at x < 2 A's read x − 2 leaves the map, and
+    // at y ≥ 10 (rows of B only) A's read y + 2 ≥ 12 does too; at y < 4 B's read y − 4 < 0.
+    let (w, h) = (16u32, 12u32);
+    let mut first_order = TexelImage::new(w, h);
+    for (i, px) in first_order.rgba.iter_mut().enumerate() {
+        let i = i as f32;
+        *px = [1.0 + i, 100.0 - 0.5 * i, 0.25 * i + 3.0, 1.0];
+    }
+    let mut atlas = AtlasData {
+        width: 12,
+        height: 18,
+        rgb: (0..12 * 18)
+            .map(|i| {
+                let i = i as f32;
+                // Values spanning several binades, none exactly representable in binary16.
+                [
+                    0.013 * (i + 1.0).sqrt(),
+                    0.31 / (i + 3.0),
+                    1e-4 * i + 1.234e-5,
+                ]
+            })
+            .collect(),
+    };
+    // Values far below the piece's maximum (~0.19; scaled by 2^16): 1e-12 is stored as 0,
+    // 7e-10 (scaled ≈ 4.6e-5 ∈ [2^−15, 2^−14)) as 2^−14 — never as a binary16 subnormal.
+    atlas.rgb[2 * 12 + 3][1] = 1e-12;
+    atlas.rgb[5 * 12 + 4][0] = 7e-10;
+    let pieces = vec![
+        TransferPiece {
+            atlas: 0,
+            src_x: 0,
+            src_y: 0,
+            w: 10,
+            h: 10,
+            dst_x: 2,
+            dst_y: 0,
+            offset: [-2, 2],
+        },
+        TransferPiece {
+            atlas: 0,
+            src_x: 0,
+            src_y: 10,
+            w: 12,
+            h: 8,
+            dst_x: 0,
+            dst_y: 4,
+            offset: [4, -4],
+        },
+    ];
+    let c = Case {
+        size: [w, h],
+        atlases: vec![atlas],
+        pieces,
+        first_order,
+    };
+    let paired = check_paired(&c, "partial overlap");
+    assert_eq!(paired.pairs, 1);
+    assert!(paired.singles.batches.is_empty());
+    let inst = paired.pages[0].instances[0];
+    assert_eq!((inst.dst, inst.size), ([0, 0], [12, 12]));
 }

@@ -9,7 +9,9 @@
 //! transfer needs. Reported: milliseconds per pass (median of `--iterations` runs, GPU
 //! timestamps when the adapter has them), texel blends per frame and per second, the blend
 //! path's fraction of the roofline, and the frame rate of first order + blend transfer +
-//! dilation + display.
+//! dilation + display. `--pair off|on|both` times the blend path without and/or with
+//! paired pieces (`TransferOptions::pair_pieces`); the paired rows print both map-texel
+//! contributions and fragments per second against the roofline.
 //!
 //! # Where the maps come from
 //! `--bake DIR` (repeatable) benches real bakes (atlases from `atlases.json`, or packed in
@@ -102,6 +104,23 @@ pub struct Args {
     /// Seed of the synthetic offsets.
     #[arg(long, default_value_t = 1)]
     seed: u64,
+    /// Blend path with paired pieces (`TransferOptions::pair_pieces`, two maps per
+    /// fragment, the renderer's default): `on` (the default path), `off` (the unpaired blend
+    /// path) or `both` (each, same session, for comparison). The main table shows the
+    /// unpaired path when it is timed, else the paired one; the paired rows follow it.
+    #[arg(long, value_enum, default_value_t = Pair::On)]
+    pair: Pair,
+}
+
+/// `--pair` values.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Pair {
+    /// Unpaired blend path only.
+    Off,
+    /// Paired blend path only.
+    On,
+    /// Both blend paths.
+    Both,
 }
 
 /// `--statistic` values.
@@ -121,6 +140,7 @@ struct Row {
     bins: usize,
     pieces_per_map: f64,
     blend: Option<BenchReport>,
+    paired: Option<BenchReport>,
     compute: Option<BenchReport>,
     paper: Option<(u32, f64)>,
 }
@@ -199,7 +219,7 @@ pub fn run(a: Args) -> Result<()> {
             exposure: 1.0,
             specular: None,
         };
-        let time_path = |path: TransferPath| -> Result<BenchReport> {
+        let time_path = |path: TransferPath, pair_pieces: bool| -> Result<BenchReport> {
             let options = RendererOptions {
                 first_order: FirstOrderOptions {
                     shadow_map_size: a.shadow_size,
@@ -208,6 +228,7 @@ pub fn run(a: Args) -> Result<()> {
                 },
                 transfer: TransferOptions {
                     path,
+                    pair_pieces,
                     ..TransferOptions::best_for(&gpu)
                 },
                 display: DisplayOptions {
@@ -232,12 +253,19 @@ pub fn run(a: Args) -> Result<()> {
                 statistic,
             )?)
         };
-        let blend = match a.paths {
-            Paths::Blend | Paths::Both => Some(time_path(TransferPath::Blend)?),
-            Paths::Compute => None,
+        let blend_timed = matches!(a.paths, Paths::Blend | Paths::Both);
+        let blend = if blend_timed && a.pair != Pair::On {
+            Some(time_path(TransferPath::Blend, false)?)
+        } else {
+            None
+        };
+        let paired = if blend_timed && a.pair != Pair::Off {
+            Some(time_path(TransferPath::Blend, true)?)
+        } else {
+            None
         };
         let compute = match a.paths {
-            Paths::Compute | Paths::Both => Some(time_path(TransferPath::Compute)?),
+            Paths::Compute | Paths::Both => Some(time_path(TransferPath::Compute, false)?),
             Paths::Blend => None,
         };
         let paper = TABLE_1
@@ -251,18 +279,80 @@ pub fn run(a: Args) -> Result<()> {
             bins: stats.atlases,
             pieces_per_map: stats.mean_pieces_per_map,
             blend,
+            paired,
             compute,
             paper,
         });
     }
-    if let Some(r) = rows
-        .iter()
-        .find_map(|r| r.blend.as_ref().or(r.compute.as_ref()))
-    {
+    if let Some(r) = rows.iter().find_map(|r| {
+        r.blend
+            .as_ref()
+            .or(r.paired.as_ref())
+            .or(r.compute.as_ref())
+    }) {
         println!("timing: {}", r.timing);
     }
     print_table(&rows);
+    print_paired(&rows);
     Ok(())
+}
+
+/// The paired blend path's rows (`--pair on|both`): its transfer time, CPU time, both
+/// counts of work and both roofline ratios, and the frame rate with it as the transfer.
+fn print_paired(rows: &[Row]) {
+    if rows.iter().all(|r| r.paired.is_none()) {
+        return;
+    }
+    println!();
+    println!(
+        "paired blend path (two maps per fragment): contributions = map texels added (+ the \
+         copy), the same count as the unpaired path's blends; fragments = quads' texels \
+         actually blended (pair bounding boxes + unpaired pieces + the copy)"
+    );
+    println!(
+        "{:<24} {:>9} {:>9} {:>12} {:>12} {:>10} {:>10} {:>10} {:>9} {:>9} {:>8} {:>8}",
+        "configuration",
+        "pair ms",
+        "pair cpu",
+        "contrib.",
+        "fragments",
+        "contrib/s",
+        "frag/s",
+        "roofline/s",
+        "roof.%c",
+        "roof.%f",
+        "fps",
+        "fps st."
+    );
+    for r in rows {
+        let Some(p) = &r.paired else { continue };
+        let Some(t) = p.rows.get(1) else { continue };
+        let ms = |i: usize| p.rows.get(i).map(|x| x.ms);
+        let roof = p.rows.get(4).map(|x| x.blends_per_s);
+        let fps = |first: Option<f64>| {
+            [first, Some(t.ms), ms(2), ms(3)]
+                .iter()
+                .try_fold(0.0, |acc, v| v.map(|v| acc + v))
+                .map_or("—".to_string(), |m| format!("{:.2}", 1000.0 / m))
+        };
+        let pct = |v: f64| roof.map_or("—".to_string(), |r| format!("{:.1}", 100.0 * v / r));
+        println!(
+            "{:<24} {:>9.2} {:>9} {:>12} {:>12} {:>10.3e} {:>10.3e} {:>10} {:>9} {:>9} {:>8} {:>8}",
+            r.label,
+            t.ms,
+            t.cpu_ms.map_or("—".to_string(), |c| format!("{c:.2}")),
+            t.texel_blends,
+            t.fragments,
+            t.blends_per_s,
+            t.fragments_per_s(),
+            roof.map_or("—".to_string(), |v| format!("{v:.3e}")),
+            pct(t.blends_per_s),
+            pct(t.fragments_per_s()),
+            fps(ms(0)),
+            fps(ms(5)),
+        );
+        println!("{:<24} {}", "", t.name);
+    }
 }
 
 fn print_table(rows: &[Row]) {
@@ -293,11 +383,17 @@ fn print_table(rows: &[Row]) {
         fn get(rep: &Option<BenchReport>, i: usize) -> Option<&passes::bench::BenchRow> {
             rep.as_ref().and_then(|x| x.rows.get(i))
         }
-        let any = r.blend.as_ref().or(r.compute.as_ref());
+        // The unpaired blend path when timed, else the paired one (`--pair on`).
+        let blend_rep = if r.blend.is_some() {
+            &r.blend
+        } else {
+            &r.paired
+        };
+        let any = blend_rep.as_ref().or(r.compute.as_ref());
         let ms = |i: usize| any.and_then(|x| x.rows.get(i)).map(|x| x.ms);
-        let blend = get(&r.blend, 1);
+        let blend = get(blend_rep, 1);
         let compute = get(&r.compute, 1);
-        let roof = get(&r.blend, 4).or(get(&r.compute, 4));
+        let roof = get(blend_rep, 4).or(get(&r.compute, 4));
         let transfer_ms = blend.or(compute).map(|x| x.ms);
         let frame_ms = [ms(0), transfer_ms, ms(2), ms(3)]
             .iter()
@@ -341,7 +437,9 @@ fn print_table(rows: &[Row]) {
         "fps = 1000 / (first order + transfer (blend if timed) + dilation + display) with moving \
          lights (1st ms: shadow maps re-rendered every frame); fps st. = the same with static \
          lights (1st st.ms: shadow maps reused); roof.% = blend-path texel blends/s ÷ \
-         full-screen additive-blend roofline at the lightmap size"
+         full-screen additive-blend roofline at the lightmap size; blend = the unpaired blend \
+         path with --pair off|both, the paired one with --pair on (texel blends = map-texel \
+         contributions; fragments in the paired table below)"
     );
     println!();
     println!(
@@ -359,8 +457,13 @@ fn print_table(rows: &[Row]) {
                 .and_then(|x| x.cpu_ms)
                 .map_or("—".to_string(), |v| format!("{v:.2}"))
         };
-        let any = if r.blend.is_some() {
+        let blend_rep = if r.blend.is_some() {
             &r.blend
+        } else {
+            &r.paired
+        };
+        let any = if blend_rep.is_some() {
+            blend_rep
         } else {
             &r.compute
         };
@@ -369,7 +472,7 @@ fn print_table(rows: &[Row]) {
             r.label,
             cpu(any, 0),
             cpu(any, 5),
-            cpu(&r.blend, 1),
+            cpu(blend_rep, 1),
             cpu(&r.compute, 1),
             cpu(any, 2),
             cpu(any, 3),

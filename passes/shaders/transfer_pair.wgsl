@@ -1,0 +1,79 @@
+// Transfer pass, blend path with paired pieces (src/pairing.rs): one quad per pair of pieces
+// over the bounding box of both destination rectangles; per fragment one pair-page fetch,
+// two first-order fetches and one additive blend of both contributions.
+// Mirror: src/cpu/transfer.rs (`transfer_paired`). Host side: src/transfer.rs.
+//
+// Bindings (bind-group order = @binding order; must match `TransferPass` layouts in transfer.rs):
+//   group 0: binding 0 = Params (uniform), binding 1 = first-order lightmap (RGBA32F, textureLoad only)
+//   group 1: binding 0 = the pair page being drawn (RGBA32Uint, textureLoad only)
+// Pair texel: x = a.r | a.g << 16, y = a.b | b.r << 16, z = b.g | b.b << 16 (binary16, scaled
+// by 2^k per piece; values are 0 outside a piece's own rectangle).
+// Coordinates: texel (x, y), y down, row 0 = v = 1; framebuffer pixel (x, y) is lightmap texel (x, y).
+
+// Must match `TransferParams` in transfer.rs (16 bytes).
+struct Params {
+    lightmap_size: vec2<u32>,
+    _pad: vec2<u32>,
+}
+
+@group(0) @binding(0) var<uniform> params: Params;
+@group(0) @binding(1) var first_order: texture_2d<f32>;
+@group(1) @binding(0) var page: texture_2d<u32>;
+
+// Per-instance attributes: must match `PairInstance` in pairing.rs (48 bytes, locations 0–5).
+struct PairIn {
+    @location(0) src: vec2<u32>,
+    @location(1) dst: vec2<u32>,
+    @location(2) size: vec2<u32>,
+    @location(3) offset_a: vec2<i32>,
+    @location(4) offset_b: vec2<i32>,
+    @location(5) scale: vec2<f32>,
+}
+
+struct PairOut {
+    @builtin(position) clip: vec4<f32>,
+    // Page texel minus destination texel.
+    @location(0) @interpolate(flat) src_minus_dst: vec2<i32>,
+    @location(1) @interpolate(flat) offset_a: vec2<i32>,
+    @location(2) @interpolate(flat) offset_b: vec2<i32>,
+    @location(3) @interpolate(flat) scale: vec2<f32>,
+}
+
+fn texel_to_clip(p: vec2<f32>) -> vec4<f32> {
+    let size = vec2<f32>(params.lightmap_size);
+    return vec4<f32>(2.0 * p.x / size.x - 1.0, 1.0 - 2.0 * p.y / size.y, 0.0, 1.0);
+}
+
+@vertex
+fn vs_pair(@builtin(vertex_index) vi: u32, pair: PairIn) -> PairOut {
+    var corners = array<vec2<f32>, 6>(
+        vec2<f32>(0.0, 0.0), vec2<f32>(1.0, 0.0), vec2<f32>(0.0, 1.0),
+        vec2<f32>(0.0, 1.0), vec2<f32>(1.0, 0.0), vec2<f32>(1.0, 1.0),
+    );
+    let c = corners[vi];
+    var out: PairOut;
+    out.clip = texel_to_clip(vec2<f32>(pair.dst) + c * vec2<f32>(pair.size));
+    out.src_minus_dst = vec2<i32>(pair.src) - vec2<i32>(pair.dst);
+    out.offset_a = pair.offset_a;
+    out.offset_b = pair.offset_b;
+    out.scale = pair.scale;
+    return out;
+}
+
+// Additive blend (One, One): alpha output 0 leaves coverage untouched.
+@fragment
+fn fs_pair(in: PairOut) -> @location(0) vec4<f32> {
+    let t = vec2<i32>(floor(in.clip.xy));
+    let p = textureLoad(page, t + in.src_minus_dst, 0);
+    let x = unpack2x16float(p.x);
+    let y = unpack2x16float(p.y);
+    let z = unpack2x16float(p.z);
+    let a = vec3<f32>(x.x, x.y, y.x) * in.scale.x;
+    let b = vec3<f32>(y.y, z.x, z.y) * in.scale.y;
+    // Inside the bounding box but outside a piece's own rectangle the read t + Δt may leave
+    // the map; its value is 0 there, so a clamped (in-map, finite) read adds exactly 0.
+    let hi = vec2<i32>(params.lightmap_size) - 1;
+    let fa = textureLoad(first_order, clamp(t + in.offset_a, vec2<i32>(0), hi), 0).rgb;
+    let fb = textureLoad(first_order, clamp(t + in.offset_b, vec2<i32>(0), hi), 0).rgb;
+    return vec4<f32>(a * fa + b * fb, 0.0);
+}
