@@ -515,8 +515,7 @@ pub fn integrate(
                         if cell == NO_CELL {
                             continue;
                         }
-                        let cell =
-                            place(cell, pj, sites, origin, &neighbours, &mut st.rehomed_far);
+                        let cell = place(cell, pj, sites, origin, &neighbours, &mut st.rehomed_far);
                         let a = &mut acc[cell as usize];
                         for c in 0..3 {
                             a[c] += v[c] * share;

@@ -148,23 +148,20 @@ fn importance_sampled_offsets_converge_on_the_head_and_beat_the_jittered_grid() 
     let dense = DenseTransport::new(&texel_patches(&grid), &exact_transport.kernels);
     let setups = random_light_setups(&scene, 8, 11);
     let reference = Reference::new(&grid, &vis, &dense, &setups);
-    let error = |transport: &Transport,
-                 k: usize,
-                 selector: Selector,
-                 rule: bake::CellRule,
-                 seed: u64| {
-        let settings = BakeSettings {
-            size: (64, 64),
-            offsets: k,
-            effects,
-            selector,
-            seed,
-            ..BakeSettings::default()
+    let error =
+        |transport: &Transport, k: usize, selector: Selector, rule: bake::CellRule, seed: u64| {
+            let settings = BakeSettings {
+                size: (64, 64),
+                offsets: k,
+                effects,
+                selector,
+                seed,
+                ..BakeSettings::default()
+            };
+            let (offsets, _) = bake::select_offsets(transport, &grid, &settings, &|_| {}).unwrap();
+            let maps = bake::bake_maps(transport, &grid, &offsets, rule, &|_| {}).unwrap();
+            reference.indirect_error(&grid, &maps)
         };
-        let (offsets, _) = bake::select_offsets(transport, &grid, &settings, &|_| {}).unwrap();
-        let maps = bake::bake_maps(transport, &grid, &offsets, rule, &|_| {}).unwrap();
-        reference.indirect_error(&grid, &maps)
-    };
     // One offset set is one random draw: average three seeds so that "falls as K grows" is a
     // statement about the estimator, not about one draw.
     let seeds = [3u64, 4, 5];
