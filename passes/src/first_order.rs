@@ -595,32 +595,15 @@ impl FirstOrderPass {
                 })
             };
             let shadow_pipelines = [shadow(None), shadow(Some(wgpu::Face::Back))];
-            let lightmap_pipeline =
-                device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-                    label: Some("ortm.first_order.lightmap_pipeline"),
-                    layout: Some(&pl),
-                    vertex: wgpu::VertexState {
-                        module: &module,
-                        entry_point: Some("vs_fullscreen"),
-                        compilation_options: Default::default(),
-                        buffers: &[],
-                    },
-                    primitive: Default::default(),
-                    depth_stencil: None,
-                    multisample: Default::default(),
-                    fragment: Some(wgpu::FragmentState {
-                        module: &module,
-                        entry_point: Some("fs_lightmap"),
-                        compilation_options: Default::default(),
-                        targets: &[Some(wgpu::ColorTargetState {
-                            format: wgpu::TextureFormat::Rgba32Float,
-                            blend: None,
-                            write_mask: wgpu::ColorWrites::ALL,
-                        })],
-                    }),
-                    multiview_mask: None,
-                    cache: None,
-                });
+            let lightmap_pipeline = util::fullscreen_pipeline(
+                device,
+                "ortm.first_order.lightmap_pipeline",
+                Some(&pl),
+                &module,
+                "fs_lightmap",
+                wgpu::TextureFormat::Rgba32Float,
+                None,
+            );
             let gbuffer_pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
                 label: Some("ortm.first_order.gbuffer_pipeline_layout"),
                 bind_group_layouts: &[],

@@ -265,76 +265,36 @@ impl TransferPass {
             bind_group_layouts: &[Some(&frame_layout), Some(&atlas_layout)],
             immediate_size: 0,
         });
-        let copy = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some("ortm.transfer.copy_pipeline"),
-            layout: Some(&copy_layout),
-            vertex: wgpu::VertexState {
-                module: &module,
-                entry_point: Some("vs_fullscreen"),
-                compilation_options: Default::default(),
-                buffers: &[],
-            },
-            primitive: wgpu::PrimitiveState::default(),
-            depth_stencil: None,
-            multisample: wgpu::MultisampleState::default(),
-            fragment: Some(wgpu::FragmentState {
-                module: &module,
-                entry_point: Some("fs_copy"),
-                compilation_options: Default::default(),
-                targets: &[Some(wgpu::ColorTargetState {
-                    format,
-                    blend: None,
-                    write_mask: wgpu::ColorWrites::ALL,
-                })],
-            }),
-            multiview_mask: None,
-            cache: None,
-        });
-        let additive = wgpu::BlendComponent {
-            src_factor: wgpu::BlendFactor::One,
-            dst_factor: wgpu::BlendFactor::One,
-            operation: wgpu::BlendOperation::Add,
-        };
-        let piece = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some("ortm.transfer.piece_pipeline"),
-            layout: Some(&piece_layout),
-            vertex: wgpu::VertexState {
-                module: &module,
-                entry_point: Some("vs_piece"),
-                compilation_options: Default::default(),
+        let copy = util::fullscreen_pipeline(
+            device,
+            "ortm.transfer.copy_pipeline",
+            Some(&copy_layout),
+            &module,
+            "fs_copy",
+            format,
+            None,
+        );
+        let piece = util::colour_pipeline(
+            device,
+            "ortm.transfer.piece_pipeline",
+            Some(&piece_layout),
+            &module,
+            (
+                "vs_piece",
                 // Must match `PieceInstance` (schedule.rs) and `PieceIn` (transfer.wgsl).
-                buffers: &[Some(wgpu::VertexBufferLayout {
+                &[Some(wgpu::VertexBufferLayout {
                     array_stride: std::mem::size_of::<crate::schedule::PieceInstance>() as u64,
                     step_mode: wgpu::VertexStepMode::Instance,
                     attributes: &wgpu::vertex_attr_array![
                         0 => Uint32x2, 1 => Uint32x2, 2 => Uint32x2, 3 => Sint32x2
                     ],
                 })],
-            },
-            primitive: wgpu::PrimitiveState {
-                cull_mode: None,
-                ..Default::default()
-            },
-            depth_stencil: None,
-            multisample: wgpu::MultisampleState::default(),
-            fragment: Some(wgpu::FragmentState {
-                module: &module,
-                entry_point: Some("fs_piece"),
-                compilation_options: Default::default(),
-                targets: &[Some(wgpu::ColorTargetState {
-                    format,
-                    blend: Some(wgpu::BlendState {
-                        color: additive,
-                        alpha: additive,
-                    }),
-                    write_mask: wgpu::ColorWrites::ALL,
-                })],
-            }),
-            multiview_mask: None,
-            cache: None,
-        });
-        let pair =
-            pair_pieces.then(|| Self::pair_pipeline(device, format, &frame_layout, additive));
+            ),
+            "fs_piece",
+            format,
+            Some(util::ADDITIVE),
+        );
+        let pair = pair_pieces.then(|| Self::pair_pipeline(device, format, &frame_layout));
         BlendPipelines {
             frame_layout,
             atlas_layout,
@@ -348,7 +308,6 @@ impl TransferPass {
         device: &wgpu::Device,
         format: wgpu::TextureFormat,
         frame_layout: &wgpu::BindGroupLayout,
-        additive: wgpu::BlendComponent,
     ) -> (wgpu::BindGroupLayout, wgpu::RenderPipeline) {
         let module = util::shader(
             device,
@@ -373,15 +332,15 @@ impl TransferPass {
             bind_group_layouts: &[Some(frame_layout), Some(&page_layout)],
             immediate_size: 0,
         });
-        let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some("ortm.transfer.pair_pipeline"),
-            layout: Some(&layout),
-            vertex: wgpu::VertexState {
-                module: &module,
-                entry_point: Some("vs_pair"),
-                compilation_options: Default::default(),
+        let pipeline = util::colour_pipeline(
+            device,
+            "ortm.transfer.pair_pipeline",
+            Some(&layout),
+            &module,
+            (
+                "vs_pair",
                 // Must match `PairInstance` (pairing.rs) and `PairIn` (transfer_pair.wgsl).
-                buffers: &[Some(wgpu::VertexBufferLayout {
+                &[Some(wgpu::VertexBufferLayout {
                     array_stride: std::mem::size_of::<PairInstance>() as u64,
                     step_mode: wgpu::VertexStepMode::Instance,
                     attributes: &wgpu::vertex_attr_array![
@@ -389,29 +348,11 @@ impl TransferPass {
                         4 => Sint32x2, 5 => Float32x2
                     ],
                 })],
-            },
-            primitive: wgpu::PrimitiveState {
-                cull_mode: None,
-                ..Default::default()
-            },
-            depth_stencil: None,
-            multisample: wgpu::MultisampleState::default(),
-            fragment: Some(wgpu::FragmentState {
-                module: &module,
-                entry_point: Some("fs_pair"),
-                compilation_options: Default::default(),
-                targets: &[Some(wgpu::ColorTargetState {
-                    format,
-                    blend: Some(wgpu::BlendState {
-                        color: additive,
-                        alpha: additive,
-                    }),
-                    write_mask: wgpu::ColorWrites::ALL,
-                })],
-            }),
-            multiview_mask: None,
-            cache: None,
-        });
+            ),
+            "fs_pair",
+            format,
+            Some(util::ADDITIVE),
+        );
         (page_layout, pipeline)
     }
 

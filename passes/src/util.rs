@@ -117,3 +117,84 @@ pub fn shader(device: &wgpu::Device, label: &str, source: &str) -> wgpu::ShaderM
         source: wgpu::ShaderSource::Wgsl(source.into()),
     })
 }
+
+/// Additive blending (`One + One`) of colour and alpha: how the transfer pieces accumulate.
+pub const ADDITIVE: wgpu::BlendState = wgpu::BlendState {
+    color: wgpu::BlendComponent {
+        src_factor: wgpu::BlendFactor::One,
+        dst_factor: wgpu::BlendFactor::One,
+        operation: wgpu::BlendOperation::Add,
+    },
+    alpha: wgpu::BlendComponent {
+        src_factor: wgpu::BlendFactor::One,
+        dst_factor: wgpu::BlendFactor::One,
+        operation: wgpu::BlendOperation::Add,
+    },
+};
+
+/// A render pipeline with no depth, no culling and one colour target of `format` (blended by
+/// `blend`, or written when `None`): vertex entry `vs` with vertex `buffers`, fragment entry `fs`,
+/// both from `module`. What the lightmap-space passes (full-screen triangles, instanced quads)
+/// share; `layout` `None` lets wgpu derive it from the shader.
+#[allow(
+    clippy::too_many_arguments,
+    reason = "a pipeline descriptor's independent parts; a struct would only rename them"
+)]
+pub fn colour_pipeline(
+    device: &wgpu::Device,
+    label: &str,
+    layout: Option<&wgpu::PipelineLayout>,
+    module: &wgpu::ShaderModule,
+    (vs, buffers): (&str, &[Option<wgpu::VertexBufferLayout>]),
+    fs: &str,
+    format: wgpu::TextureFormat,
+    blend: Option<wgpu::BlendState>,
+) -> wgpu::RenderPipeline {
+    device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+        label: Some(label),
+        layout,
+        vertex: wgpu::VertexState {
+            module,
+            entry_point: Some(vs),
+            compilation_options: Default::default(),
+            buffers,
+        },
+        primitive: wgpu::PrimitiveState::default(),
+        depth_stencil: None,
+        multisample: wgpu::MultisampleState::default(),
+        fragment: Some(wgpu::FragmentState {
+            module,
+            entry_point: Some(fs),
+            compilation_options: Default::default(),
+            targets: &[Some(wgpu::ColorTargetState {
+                format,
+                blend,
+                write_mask: wgpu::ColorWrites::ALL,
+            })],
+        }),
+        multiview_mask: None,
+        cache: None,
+    })
+}
+
+/// [`colour_pipeline`] for a full-screen triangle drawn by the shader's `vs_fullscreen`.
+pub fn fullscreen_pipeline(
+    device: &wgpu::Device,
+    label: &str,
+    layout: Option<&wgpu::PipelineLayout>,
+    module: &wgpu::ShaderModule,
+    fs: &str,
+    format: wgpu::TextureFormat,
+    blend: Option<wgpu::BlendState>,
+) -> wgpu::RenderPipeline {
+    colour_pipeline(
+        device,
+        label,
+        layout,
+        module,
+        ("vs_fullscreen", &[]),
+        fs,
+        format,
+        blend,
+    )
+}
