@@ -15,12 +15,28 @@ use passes::AlbedoMap;
 use passes::cpu::first_order as mirror;
 use passes::demo::{demo_lights, floor_and_box};
 use passes::first_order::{
-    FirstOrderInputs, FirstOrderOptions, FirstOrderPass, LIGHT_DIRECTIONAL, LIGHT_POINT,
-    shadow_layers,
+    FirstOrderInputs, FirstOrderOptions, FirstOrderPass, FirstOrderScene, LIGHT_DIRECTIONAL,
+    LIGHT_POINT, shadow_layers,
 };
-use passes::{LightDesc, MeshData};
+use passes::{Gpu, LightDesc, MeshData, TexelImage};
 
 const SIZE: u32 = 64;
+
+/// The first-order lightmap of `scene` under `lights`: one encode, submit and read-back.
+fn render_first_order(
+    gpu: &Gpu,
+    pass: &FirstOrderPass,
+    scene: &FirstOrderScene,
+    lights: &[LightDesc],
+    label: &str,
+) -> TexelImage {
+    let mut enc = gpu.device.create_command_encoder(&Default::default());
+    let out = pass
+        .encode(gpu, &mut enc, &FirstOrderInputs { scene, lights })
+        .unwrap();
+    gpu.submit_and_wait(label, enc).unwrap();
+    gpu.read_texel_image(label, &out.first_order_tex).unwrap()
+}
 
 #[test]
 fn first_order_matches_ray_traced_mirror() {
@@ -68,21 +84,7 @@ fn check(lights: &[LightDesc], point_layers: u32) {
         g0.layer_count, point_layers,
         "shadow layers of the point light"
     );
-    let mut enc = gpu.device.create_command_encoder(&Default::default());
-    let out = pass
-        .encode(
-            &gpu,
-            &mut enc,
-            &FirstOrderInputs {
-                scene: &scene,
-                lights,
-            },
-        )
-        .unwrap();
-    gpu.submit_and_wait("test.first_order", enc).unwrap();
-    let got = gpu
-        .read_texel_image("test.first_order", &out.first_order_tex)
-        .unwrap();
+    let got = render_first_order(&gpu, &pass, &scene, lights, "test.first_order");
 
     let want = mirror::first_order(&mesh, &albedo, lights);
     for (i, (g, w)) in got.rgba.iter().zip(&want.rgba).enumerate() {
@@ -177,21 +179,7 @@ fn shadow_map_cache_follows_moving_lights() {
     let pass = FirstOrderPass::new(&gpu, &options).unwrap();
     let scene = pass.prepare(&gpu, &mesh, &albedo).unwrap();
     let render = |lights: &[LightDesc]| {
-        let mut enc = gpu.device.create_command_encoder(&Default::default());
-        let out = pass
-            .encode(
-                &gpu,
-                &mut enc,
-                &FirstOrderInputs {
-                    scene: &scene,
-                    lights,
-                },
-            )
-            .unwrap();
-        gpu.submit_and_wait("test.first_order_cache", enc).unwrap();
-        gpu.read_texel_image("test.first_order_cache", &out.first_order_tex)
-            .unwrap()
-            .rgba
+        render_first_order(&gpu, &pass, &scene, lights, "test.first_order_cache").rgba
     };
     let a1 = render(&a);
     let b1 = render(&b);
@@ -251,20 +239,7 @@ fn back_face_culled_shadow_maps_change_no_texel() {
     let pass = FirstOrderPass::new(&gpu, &options).unwrap();
     let render = |mesh: &MeshData, lights: &[LightDesc]| {
         let scene = pass.prepare(&gpu, mesh, &albedo).unwrap();
-        let mut enc = gpu.device.create_command_encoder(&Default::default());
-        let out = pass
-            .encode(
-                &gpu,
-                &mut enc,
-                &FirstOrderInputs {
-                    scene: &scene,
-                    lights,
-                },
-            )
-            .unwrap();
-        gpu.submit_and_wait("test.first_order_cull", enc).unwrap();
-        gpu.read_texel_image("test.first_order_cull", &out.first_order_tex)
-            .unwrap()
+        render_first_order(&gpu, &pass, &scene, lights, "test.first_order_cull")
     };
     for (i, light) in lights.iter().enumerate() {
         let (a, b) = (render(&closed, &[*light]), render(&open, &[*light]));
