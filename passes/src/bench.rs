@@ -315,22 +315,7 @@ pub fn bench_blend_roofline_stat(
     let view = util::view(&target);
     let (ms, source, cpu) =
         time_encoded_stat(gpu, "ortm.bench.roofline", iterations, statistic, |enc| {
-            let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("ortm.bench.roofline_pass"),
-                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                    view: &view,
-                    depth_slice: None,
-                    resolve_target: None,
-                    ops: wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
-                        store: wgpu::StoreOp::Store,
-                    },
-                })],
-                depth_stencil_attachment: None,
-                timestamp_writes: None,
-                occlusion_query_set: None,
-                multiview_mask: None,
-            });
+            let mut pass = util::clear_pass(enc, "ortm.bench.roofline_pass", &view);
             pass.set_pipeline(&pipeline);
             for _ in 0..draws {
                 pass.draw(0..3, 0..1);

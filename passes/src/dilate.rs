@@ -196,22 +196,7 @@ impl DilatePass {
         // Iteration 0: source → target0; iteration k: target((k−1)%2) → target(k%2).
         let mut last = 0;
         for k in 0..self.options.iterations as usize {
-            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("ortm.dilate.pass"),
-                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                    view: &t.views[k % 2],
-                    depth_slice: None,
-                    resolve_target: None,
-                    ops: wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
-                        store: wgpu::StoreOp::Store,
-                    },
-                })],
-                depth_stencil_attachment: None,
-                timestamp_writes: None,
-                occlusion_query_set: None,
-                multiview_mask: None,
-            });
+            let mut pass = util::clear_pass(encoder, "ortm.dilate.pass", &t.views[k % 2]);
             pass.set_pipeline(&self.pipeline);
             if k == 0 {
                 pass.set_bind_group(0, &first, &[]);

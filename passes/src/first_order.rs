@@ -983,22 +983,7 @@ impl FirstOrderPass {
             pass.draw_indexed(0..scene.index_count, 0, l..l + 1);
         }
         let target = util::view(&scene.output);
-        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-            label: Some("ortm.first_order.lightmap_pass"),
-            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                view: &target,
-                depth_slice: None,
-                resolve_target: None,
-                ops: wgpu::Operations {
-                    load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
-                    store: wgpu::StoreOp::Store,
-                },
-            })],
-            depth_stencil_attachment: None,
-            timestamp_writes: None,
-            occlusion_query_set: None,
-            multiview_mask: None,
-        });
+        let mut pass = util::clear_pass(encoder, "ortm.first_order.lightmap_pass", &target);
         pass.set_pipeline(&self.lightmap_pipeline);
         pass.set_bind_group(0, &scene.bind_group, &[]);
         pass.draw(0..3, 0..1);

@@ -588,22 +588,7 @@ impl TransferPass {
             })
             .collect();
         let target = util::view(&scene.final_tex);
-        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-            label: Some("ortm.transfer.blend_pass"),
-            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                view: &target,
-                depth_slice: None,
-                resolve_target: None,
-                ops: wgpu::Operations {
-                    load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
-                    store: wgpu::StoreOp::Store,
-                },
-            })],
-            depth_stencil_attachment: None,
-            timestamp_writes: None,
-            occlusion_query_set: None,
-            multiview_mask: None,
-        });
+        let mut pass = util::clear_pass(encoder, "ortm.transfer.blend_pass", &target);
         pass.set_bind_group(0, &frame_bg, &[]);
         pass.set_pipeline(&bp.copy);
         pass.draw(0..3, 0..1);
