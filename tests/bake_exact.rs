@@ -133,6 +133,30 @@ fn all_offsets_reproduce_the_exact_solve_head_with_subsurface() {
     check_all_offsets_exact(&scene, &lights);
 }
 
+/// Selects `k` offsets with `selector` and `seed` (the grid's size, the transport's effects), bakes
+/// them with `rule` and returns the relative RMSE of the indirect term against `reference`.
+fn indirect_error(
+    transport: &Transport,
+    grid: &TexelGrid,
+    reference: &Reference,
+    k: usize,
+    selector: Selector,
+    rule: bake::CellRule,
+    seed: u64,
+) -> f64 {
+    let settings = BakeSettings {
+        size: (grid.width, grid.height),
+        offsets: k,
+        effects: transport.kernels.effects,
+        selector,
+        seed,
+        ..BakeSettings::default()
+    };
+    let (offsets, _) = bake::select_offsets(transport, grid, &settings, &|_| {}).unwrap();
+    let maps = bake::bake_maps(transport, grid, &offsets, rule, &|_| {}).unwrap();
+    reference.indirect_error(grid, &maps)
+}
+
 #[test]
 fn importance_sampled_offsets_converge_on_the_head_and_beat_the_jittered_grid() {
     // Radiosity and subsurface scattering (the bake's default). Convergence in K is measured over
@@ -149,18 +173,8 @@ fn importance_sampled_offsets_converge_on_the_head_and_beat_the_jittered_grid() 
     let setups = random_light_setups(&scene, 8, 11);
     let reference = Reference::new(&grid, &vis, &dense, &setups);
     let error =
-        |transport: &Transport, k: usize, selector: Selector, rule: bake::CellRule, seed: u64| {
-            let settings = BakeSettings {
-                size: (64, 64),
-                offsets: k,
-                effects,
-                selector,
-                seed,
-                ..BakeSettings::default()
-            };
-            let (offsets, _) = bake::select_offsets(transport, &grid, &settings, &|_| {}).unwrap();
-            let maps = bake::bake_maps(transport, &grid, &offsets, rule, &|_| {}).unwrap();
-            reference.indirect_error(&grid, &maps)
+        |transport: &Transport, k: usize, selector: Selector, rule: bake::CellRule, seed| {
+            indirect_error(transport, &grid, &reference, k, selector, rule, seed)
         };
     // One offset set is one random draw: average three seeds so that "falls as K grows" is a
     // statement about the estimator, not about one draw.
@@ -241,24 +255,15 @@ fn cornell_offsets_converge() {
             let e: f64 = [3u64, 4]
                 .iter()
                 .map(|&seed| {
-                    let settings = BakeSettings {
-                        size: (48, 48),
-                        offsets: k,
-                        effects,
-                        seed,
-                        ..BakeSettings::default()
-                    };
-                    let (offsets, _) =
-                        bake::select_offsets(&transport, &grid, &settings, &|_| {}).unwrap();
-                    let maps = bake::bake_maps(
+                    indirect_error(
                         &transport,
                         &grid,
-                        &offsets,
+                        &reference,
+                        k,
+                        Selector::Importance,
                         bake::CellRule::Integrated,
-                        &|_| {},
+                        seed,
                     )
-                    .unwrap();
-                    reference.indirect_error(&grid, &maps)
                 })
                 .sum();
             e / 2.0
