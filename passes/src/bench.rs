@@ -392,17 +392,7 @@ pub fn bench_frame_stat(
         |enc| {
             // Moving lights: every run renders every shadow layer.
             scene.first_order.invalidate_shadow_maps();
-            renderer
-                .first_order
-                .encode(
-                    gpu,
-                    enc,
-                    &FirstOrderInputs {
-                        scene: &scene.first_order,
-                        lights: params.lights,
-                    },
-                )
-                .map(|_| ())
+            first_order(enc)
         },
     )?;
     rows.push(BenchRow::new("first order, moving lights (+ shadow maps)", ms, 0).with_cpu(cpu));
