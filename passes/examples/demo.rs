@@ -24,11 +24,13 @@ fn main() -> Result<(), PassError> {
             path: TransferPath::Blend,
             accum_format: AccumFormat::Rgba16Float,
             pair_pieces: false,
+            ..TransferOptions::best_for(&gpu)
         },
         "compute" => TransferOptions {
             path: TransferPath::Compute,
             accum_format: AccumFormat::Rgba32Float,
             pair_pieces: false,
+            ..TransferOptions::best_for(&gpu)
         },
         "unpaired" => TransferOptions {
             pair_pieces: false,

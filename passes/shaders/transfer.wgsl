@@ -2,8 +2,11 @@
 // Mirror: src/cpu/transfer.rs. Host side: src/transfer.rs.
 //
 // Bindings (bind-group order = @binding order; must match `TransferPass` layouts in transfer.rs):
-//   group 0: binding 0 = Params (uniform), binding 1 = first-order lightmap (RGBA32F, textureLoad only)
-//   group 1: binding 0 = the atlas being drawn (RGBA32F, textureLoad only)
+//   group 0: binding 0 = Params (uniform), binding 1 = first-order lightmap (RGBA32F)
+//   group 1: binding 0 = the atlas being drawn (RGBA32F)
+// The host prepends the declarations of `first_order` and `atlas` and their texel readers
+// `load_first_order(t)`, `load_atlas(t)` (`util::TexelReads::wgsl`: sampled or read-only
+// storage texture, chosen by `TransferOptions::texel_reads`).
 // Coordinates: texel (x, y), y down, row 0 = v = 1; framebuffer pixel (x, y) is lightmap texel (x, y).
 
 // Must match `TransferParams` in transfer.rs (16 bytes).
@@ -13,8 +16,6 @@ struct Params {
 }
 
 @group(0) @binding(0) var<uniform> params: Params;
-@group(0) @binding(1) var first_order: texture_2d<f32>;
-@group(1) @binding(0) var atlas: texture_2d<f32>;
 
 // Per-instance attributes: must match `PieceInstance` in schedule.rs (32 bytes, locations 0–3).
 struct PieceIn {
@@ -57,9 +58,9 @@ fn vs_piece(@builtin(vertex_index) vi: u32, piece: PieceIn) -> PieceOut {
 @fragment
 fn fs_piece(in: PieceOut) -> @location(0) vec4<f32> {
     let t = vec2<i32>(floor(in.clip.xy));
-    let a = textureLoad(atlas, t + in.src_minus_dst, 0).rgb;
+    let a = load_atlas(t + in.src_minus_dst).rgb;
     // Pieces are cropped so t + Δt lies in the map (schedule.rs): no bounds test here.
-    return vec4<f32>(a * textureLoad(first_order, t + in.offset, 0).rgb, 0.0);
+    return vec4<f32>(a * load_first_order(t + in.offset).rgb, 0.0);
 }
 
 // Full-screen triangle that copies the first-order map (RGB and coverage alpha) into the
@@ -73,5 +74,5 @@ fn vs_fullscreen(@builtin(vertex_index) vi: u32) -> @builtin(position) vec4<f32>
 
 @fragment
 fn fs_copy(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
-    return textureLoad(first_order, vec2<i32>(floor(pos.xy)), 0);
+    return load_first_order(vec2<i32>(floor(pos.xy)));
 }

@@ -4,8 +4,10 @@
 // Mirror: src/cpu/transfer.rs (`transfer_paired`). Host side: src/transfer.rs.
 //
 // Bindings (bind-group order = @binding order; must match `TransferPass` layouts in transfer.rs):
-//   group 0: binding 0 = Params (uniform), binding 1 = first-order lightmap (RGBA32F, textureLoad only)
-//   group 1: binding 0 = the pair page being drawn (RGBA32Uint, textureLoad only)
+//   group 0: binding 0 = Params (uniform), binding 1 = first-order lightmap (RGBA32F)
+//   group 1: binding 0 = the pair page being drawn (RGBA32Uint)
+// The host prepends the declarations of `first_order` and `page` and their texel readers
+// `load_first_order(t)`, `load_page(t)` (`util::TexelReads::wgsl`).
 // Pair texel: x = a.r | a.g << 16, y = a.b | b.r << 16, z = b.g | b.b << 16 (binary16, scaled
 // by 2^k per piece; values are 0 outside a piece's own rectangle).
 // Coordinates: texel (x, y), y down, row 0 = v = 1; framebuffer pixel (x, y) is lightmap texel (x, y).
@@ -17,8 +19,6 @@ struct Params {
 }
 
 @group(0) @binding(0) var<uniform> params: Params;
-@group(0) @binding(1) var first_order: texture_2d<f32>;
-@group(1) @binding(0) var page: texture_2d<u32>;
 
 // Per-instance attributes: must match `PairInstance` in pairing.rs (48 bytes, locations 0–5).
 struct PairIn {
@@ -64,7 +64,7 @@ fn vs_pair(@builtin(vertex_index) vi: u32, pair: PairIn) -> PairOut {
 @fragment
 fn fs_pair(in: PairOut) -> @location(0) vec4<f32> {
     let t = vec2<i32>(floor(in.clip.xy));
-    let p = textureLoad(page, t + in.src_minus_dst, 0);
+    let p = load_page(t + in.src_minus_dst);
     let x = unpack2x16float(p.x);
     let y = unpack2x16float(p.y);
     let z = unpack2x16float(p.z);
@@ -73,7 +73,7 @@ fn fs_pair(in: PairOut) -> @location(0) vec4<f32> {
     // Inside the bounding box but outside a piece's own rectangle the read t + Δt may leave
     // the map; its value is 0 there, so a clamped (in-map, finite) read adds exactly 0.
     let hi = vec2<i32>(params.lightmap_size) - 1;
-    let fa = textureLoad(first_order, clamp(t + in.offset_a, vec2<i32>(0), hi), 0).rgb;
-    let fb = textureLoad(first_order, clamp(t + in.offset_b, vec2<i32>(0), hi), 0).rgb;
+    let fa = load_first_order(clamp(t + in.offset_a, vec2<i32>(0), hi)).rgb;
+    let fb = load_first_order(clamp(t + in.offset_b, vec2<i32>(0), hi)).rgb;
     return vec4<f32>(a * fa + b * fb, 0.0);
 }

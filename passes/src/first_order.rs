@@ -872,7 +872,9 @@ impl FirstOrderPass {
             wgpu::TextureFormat::Rgba32Float,
             wgpu::TextureUsages::RENDER_ATTACHMENT
                 | wgpu::TextureUsages::TEXTURE_BINDING
-                | wgpu::TextureUsages::COPY_SRC,
+                | wgpu::TextureUsages::COPY_SRC
+                // The transfer pass may read it as a storage texture (`util::TexelReads`).
+                | gpu.best_texel_reads().usage(),
         );
         gpu.check("ortm.first_order.prepare")?;
         Ok(FirstOrderScene {

@@ -38,6 +38,8 @@ pub struct Gpu {
     pub adapter_info: wgpu::AdapterInfo,
     /// How long [`Gpu::submit_and_wait`] waits before giving up.
     pub timeout: Duration,
+    /// See [`Gpu::supports_storage_reads`].
+    storage_reads: bool,
     recorded: Arc<Mutex<Recorded>>,
 }
 
@@ -100,7 +102,7 @@ impl Gpu {
             .request_device(&wgpu::DeviceDescriptor {
                 label: Some("ortm.gpu.device"),
                 required_features: features,
-                required_limits: limits,
+                required_limits: limits.clone(),
                 experimental_features: wgpu::ExperimentalFeatures::disabled(),
                 memory_hints: wgpu::MemoryHints::Performance,
                 trace: wgpu::Trace::Off,
@@ -110,6 +112,13 @@ impl Gpu {
                 adapter: adapter_info.name.clone(),
                 details: e.to_string(),
             })?;
+        // RGBA32F and RGBA32Uint guarantee read-only storage use; fragment shaders need the
+        // downlevel flag, and the passes bind up to 4 such textures per stage.
+        let storage_reads = adapter
+            .get_downlevel_capabilities()
+            .flags
+            .contains(wgpu::DownlevelFlags::FRAGMENT_STORAGE)
+            && limits.max_storage_textures_per_shader_stage >= 4;
         let recorded = Arc::new(Mutex::new(Recorded::default()));
         let rec = Arc::clone(&recorded);
         device.on_uncaptured_error(Arc::new(move |e: wgpu::Error| {
@@ -128,6 +137,7 @@ impl Gpu {
             queue,
             adapter_info,
             timeout: Duration::from_secs(120),
+            storage_reads,
             recorded,
         })
     }
@@ -137,6 +147,22 @@ impl Gpu {
         self.device
             .features()
             .contains(wgpu::Features::FLOAT32_BLENDABLE)
+    }
+
+    /// Whether fragment and compute shaders can read RGBA32F and RGBA32Uint textures as
+    /// read-only storage textures ([`crate::util::TexelReads::Storage`]).
+    pub fn supports_storage_reads(&self) -> bool {
+        self.storage_reads
+    }
+
+    /// The cheaper way of reading textures texel by texel that this device supports:
+    /// [`TexelReads::Storage`](crate::util::TexelReads) where it can, else `Sampled`.
+    pub fn best_texel_reads(&self) -> crate::util::TexelReads {
+        if self.storage_reads {
+            crate::util::TexelReads::Storage
+        } else {
+            crate::util::TexelReads::Sampled
+        }
     }
 
     /// Whether timestamps can be written between commands of an encoder.

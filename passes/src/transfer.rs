@@ -91,6 +91,11 @@ pub struct TransferOptions {
     /// the module docs of `pairing`). On in [`TransferOptions::best_for`], off in `default()`
     /// (exact f32 atlases); see `docs/render.md` for its speed.
     pub pair_pieces: bool,
+    /// Blend path only: how the fragment shaders read the first-order map, the atlases and
+    /// the pair pages. [`util::TexelReads::Storage`] needs
+    /// [`Gpu::supports_storage_reads`]; same values, and on lavapipe much cheaper
+    /// (`docs/render.md`). `best_for` takes [`Gpu::best_texel_reads`].
+    pub texel_reads: util::TexelReads,
 }
 
 impl TransferOptions {
@@ -105,6 +110,7 @@ impl TransferOptions {
                 AccumFormat::Rgba16Float
             },
             pair_pieces: true,
+            texel_reads: gpu.best_texel_reads(),
         }
     }
 }
@@ -204,6 +210,17 @@ impl TransferPass {
                 fallback: "AccumFormat::Rgba16Float or TransferPath::Compute".into(),
             });
         }
+        if options.path == TransferPath::Blend
+            && options.texel_reads == util::TexelReads::Storage
+            && !gpu.supports_storage_reads()
+        {
+            return Err(PassError::MissingFeature {
+                option: "TransferOptions.texel_reads = Storage".into(),
+                feature: "read-only storage textures in fragment shaders".into(),
+                adapter: gpu.adapter_info.name.clone(),
+                fallback: "TexelReads::Sampled".into(),
+            });
+        }
         match options.path {
             TransferPath::Blend => {
                 let blend = gpu.scoped("ortm.transfer.new", || {
@@ -211,6 +228,7 @@ impl TransferPass {
                         &gpu.device,
                         options.accum_format.texture_format(),
                         options.pair_pieces,
+                        options.texel_reads,
                     )
                 })?;
                 Ok(Self {
@@ -236,11 +254,18 @@ impl TransferPass {
         device: &wgpu::Device,
         format: wgpu::TextureFormat,
         pair_pieces: bool,
+        reads: util::TexelReads,
     ) -> BlendPipelines {
+        let f32x4 = wgpu::TextureFormat::Rgba32Float;
         let module = util::shader(
             device,
             "ortm.transfer.shader",
-            include_str!("../shaders/transfer.wgsl"),
+            &format!(
+                "{}{}{}",
+                reads.wgsl(0, 1, "first_order", f32x4),
+                reads.wgsl(1, 0, "atlas", f32x4),
+                include_str!("../shaders/transfer.wgsl")
+            ),
         );
         let fs = wgpu::ShaderStages::FRAGMENT;
         // Order = @binding order in transfer.wgsl.
@@ -248,12 +273,12 @@ impl TransferPass {
             label: Some("ortm.transfer.frame_layout"),
             entries: &[
                 util::uniform_entry(0, wgpu::ShaderStages::VERTEX_FRAGMENT),
-                util::texture_entry(1, fs),
+                reads.entry(1, fs, f32x4),
             ],
         });
         let atlas_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("ortm.transfer.atlas_layout"),
-            entries: &[util::texture_entry(0, fs)],
+            entries: &[reads.entry(0, fs, f32x4)],
         });
         let copy_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some("ortm.transfer.copy_pipeline_layout"),
@@ -294,7 +319,7 @@ impl TransferPass {
             format,
             Some(util::ADDITIVE),
         );
-        let pair = pair_pieces.then(|| Self::pair_pipeline(device, format, &frame_layout));
+        let pair = pair_pieces.then(|| Self::pair_pipeline(device, format, &frame_layout, reads));
         BlendPipelines {
             frame_layout,
             atlas_layout,
@@ -308,24 +333,22 @@ impl TransferPass {
         device: &wgpu::Device,
         format: wgpu::TextureFormat,
         frame_layout: &wgpu::BindGroupLayout,
+        reads: util::TexelReads,
     ) -> (wgpu::BindGroupLayout, wgpu::RenderPipeline) {
+        let page_format = wgpu::TextureFormat::Rgba32Uint;
         let module = util::shader(
             device,
             "ortm.transfer.pair_shader",
-            include_str!("../shaders/transfer_pair.wgsl"),
+            &format!(
+                "{}{}{}",
+                reads.wgsl(0, 1, "first_order", wgpu::TextureFormat::Rgba32Float),
+                reads.wgsl(1, 0, "page", page_format),
+                include_str!("../shaders/transfer_pair.wgsl")
+            ),
         );
         let page_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("ortm.transfer.page_layout"),
-            entries: &[wgpu::BindGroupLayoutEntry {
-                binding: 0,
-                visibility: wgpu::ShaderStages::FRAGMENT,
-                ty: wgpu::BindingType::Texture {
-                    sample_type: wgpu::TextureSampleType::Uint,
-                    view_dimension: wgpu::TextureViewDimension::D2,
-                    multisampled: false,
-                },
-                count: None,
-            }],
+            entries: &[reads.entry(0, wgpu::ShaderStages::FRAGMENT, page_format)],
         });
         let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some("ortm.transfer.pair_pipeline_layout"),
@@ -388,7 +411,8 @@ impl TransferPass {
                 a.width,
                 a.height,
                 &rgba,
-                wgpu::TextureUsages::TEXTURE_BINDING,
+                // The compute path reads atlases as sampled textures.
+                wgpu::TextureUsages::TEXTURE_BINDING | self.options.texel_reads.usage(),
             )?;
             atlas_views.push(util::view(&tex));
         }
@@ -442,7 +466,7 @@ impl TransferPass {
             if self.options.path == TransferPath::Blend && self.options.pair_pieces {
                 let limit = device.limits().max_texture_dimension_2d;
                 let mut paired = pair_schedule(&schedule, atlases, limit)?;
-                let g = Self::upload_pairs(gpu, &paired)?;
+                let g = Self::upload_pairs(gpu, &paired, self.options.texel_reads)?;
                 for page in &mut paired.pages {
                     page.texels = Vec::new();
                 }
@@ -463,7 +487,11 @@ impl TransferPass {
         })
     }
 
-    fn upload_pairs(gpu: &Gpu, paired: &PairedSchedule) -> Result<PairGpu, PassError> {
+    fn upload_pairs(
+        gpu: &Gpu,
+        paired: &PairedSchedule,
+        reads: util::TexelReads,
+    ) -> Result<PairGpu, PassError> {
         let device = &gpu.device;
         let mut page_views = Vec::with_capacity(paired.pages.len());
         let mut page_buffers = Vec::with_capacity(paired.pages.len());
@@ -475,7 +503,7 @@ impl TransferPass {
                 &label,
                 [p.width, p.height],
                 wgpu::TextureFormat::Rgba32Uint,
-                wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+                reads.usage() | wgpu::TextureUsages::COPY_DST,
             );
             gpu.queue.write_texture(
                 wgpu::TexelCopyTextureInfo {

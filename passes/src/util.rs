@@ -18,6 +18,82 @@ pub fn texture_entry(binding: u32, visibility: wgpu::ShaderStages) -> wgpu::Bind
     }
 }
 
+/// How a shader reads a texture texel by texel (`textureLoad`, no sampler).
+///
+/// [`TexelReads::Sampled`] binds a `texture_2d` and works on every adapter;
+/// [`TexelReads::Storage`] binds a read-only `texture_storage_2d` of the texture's exact
+/// format (adapters with [`crate::gpu::Gpu::supports_storage_reads`]; the texture needs
+/// [`TexelReads::usage`]). Both read the same values bit for bit. On lavapipe the storage read
+/// is much the cheaper (llvmpipe's image load skips the sampler's level-of-detail and
+/// format-conversion code; measured in `docs/render.md`). The shader does not declare the
+/// texture itself: the host prepends [`TexelReads::wgsl`], which declares it and defines
+/// `load_NAME(t: vec2<i32>) -> vec4<f32 | u32>`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum TexelReads {
+    /// `texture_2d<f32 | u32>`, `textureLoad(tex, t, 0)`.
+    #[default]
+    Sampled,
+    /// `texture_storage_2d<FORMAT, read>`, `textureLoad(tex, t)`.
+    Storage,
+}
+
+impl TexelReads {
+    /// The bind-group-layout entry of a texture of `format` (RGBA32F or RGBA32Uint) read this way.
+    pub fn entry(
+        self,
+        binding: u32,
+        visibility: wgpu::ShaderStages,
+        format: wgpu::TextureFormat,
+    ) -> wgpu::BindGroupLayoutEntry {
+        let ty = match self {
+            Self::Sampled => wgpu::BindingType::Texture {
+                sample_type: match format {
+                    wgpu::TextureFormat::Rgba32Uint => wgpu::TextureSampleType::Uint,
+                    _ => wgpu::TextureSampleType::Float { filterable: false },
+                },
+                view_dimension: wgpu::TextureViewDimension::D2,
+                multisampled: false,
+            },
+            Self::Storage => wgpu::BindingType::StorageTexture {
+                access: wgpu::StorageTextureAccess::ReadOnly,
+                format,
+                view_dimension: wgpu::TextureViewDimension::D2,
+            },
+        };
+        wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility,
+            ty,
+            count: None,
+        }
+    }
+
+    /// The usage a texture read this way needs.
+    pub fn usage(self) -> wgpu::TextureUsages {
+        match self {
+            Self::Sampled => wgpu::TextureUsages::TEXTURE_BINDING,
+            Self::Storage => wgpu::TextureUsages::STORAGE_BINDING,
+        }
+    }
+
+    /// WGSL declaring `name` at `@group(group) @binding(binding)` (a texture of `format`:
+    /// RGBA32F or RGBA32Uint) and defining `fn load_NAME(t: vec2<i32>)` returning its texel `t`.
+    pub fn wgsl(self, group: u32, binding: u32, name: &str, format: wgpu::TextureFormat) -> String {
+        let (scalar, storage_format) = match format {
+            wgpu::TextureFormat::Rgba32Uint => ("u32", "rgba32uint"),
+            _ => ("f32", "rgba32float"),
+        };
+        let (ty, level) = match self {
+            Self::Sampled => (format!("texture_2d<{scalar}>"), ", 0"),
+            Self::Storage => (format!("texture_storage_2d<{storage_format}, read>"), ""),
+        };
+        format!(
+            "@group({group}) @binding({binding}) var {name}: {ty};\n\
+             fn load_{name}(t: vec2<i32>) -> vec4<{scalar}> {{ return textureLoad({name}, t{level}); }}\n"
+        )
+    }
+}
+
 /// A uniform buffer.
 pub fn uniform_entry(binding: u32, visibility: wgpu::ShaderStages) -> wgpu::BindGroupLayoutEntry {
     wgpu::BindGroupLayoutEntry {

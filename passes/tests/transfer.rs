@@ -9,6 +9,7 @@ use passes::cpu;
 use passes::pairing::{PairedSchedule, pair_schedule};
 use passes::schedule::{build_schedule, build_tiles};
 use passes::transfer::{AccumFormat, TransferInputs, TransferOptions, TransferPass, TransferPath};
+use passes::util::TexelReads;
 use passes::{AtlasData, TexelImage, TransferPiece};
 
 struct Case {
@@ -102,6 +103,20 @@ fn reference(c: &Case) -> (TexelImage, Vec<(f32, u32)>) {
     (out, mag)
 }
 
+/// `options` with [`TexelReads::Storage`], when the adapter supports it (lavapipe does; the
+/// tests print a note where it does not).
+fn storage_reads(options: TransferOptions) -> Option<TransferOptions> {
+    if gpu().supports_storage_reads() {
+        Some(TransferOptions {
+            texel_reads: TexelReads::Storage,
+            ..options
+        })
+    } else {
+        eprintln!("adapter has no read-only storage textures in fragment shaders: storage reads not tested");
+        None
+    }
+}
+
 fn run_gpu(c: &Case, options: TransferOptions) -> TexelImage {
     run_gpu_paired(c, options).0
 }
@@ -117,7 +132,7 @@ fn run_gpu_paired(c: &Case, options: TransferOptions) -> (TexelImage, Option<Pai
             c.size[0],
             c.size[1],
             &c.first_order.rgba,
-            wgpu::TextureUsages::TEXTURE_BINDING,
+            wgpu::TextureUsages::TEXTURE_BINDING | options.texel_reads.usage(),
         )
         .unwrap();
     let fo_view = fo_tex.create_view(&Default::default());
@@ -234,15 +249,16 @@ fn exact_single_piece() {
     want.at_mut(2, 0)[0] += 10.0;
     want.at_mut(2, 0)[1] += 8.0;
     for path in [TransferPath::Blend, TransferPath::Compute] {
-        let got = run_gpu(
-            &c,
-            TransferOptions {
-                path,
-                accum_format: AccumFormat::Rgba32Float,
-                pair_pieces: false,
-            },
-        );
-        assert_eq!(got, want, "{path:?}");
+        let options = TransferOptions {
+            path,
+            accum_format: AccumFormat::Rgba32Float,
+            pair_pieces: false,
+            texel_reads: TexelReads::Sampled,
+        };
+        assert_eq!(run_gpu(&c, options), want, "{path:?}");
+        if let Some(options) = storage_reads(options) {
+            assert_eq!(run_gpu(&c, options), want, "{path:?}, storage reads");
+        }
     }
 }
 
@@ -250,15 +266,17 @@ fn exact_single_piece() {
 fn blend_rgba32f_matches_cpu() {
     let c = random_case(7);
     let (want, _) = reference(&c);
-    let got = run_gpu(
-        &c,
-        TransferOptions {
-            path: TransferPath::Blend,
-            accum_format: AccumFormat::Rgba32Float,
-            pair_pieces: false,
-        },
-    );
+    let options = TransferOptions {
+        path: TransferPath::Blend,
+        accum_format: AccumFormat::Rgba32Float,
+        pair_pieces: false,
+        texel_reads: TexelReads::Sampled,
+    };
+    let got = run_gpu(&c, options);
     assert_close(&got, &want, 1e-3, 1e-3, "blend rgba32f");
+    if let Some(options) = storage_reads(options) {
+        assert_eq!(run_gpu(&c, options), got, "storage and sampled reads must agree bit for bit");
+    }
 }
 
 #[test]
@@ -271,6 +289,7 @@ fn compute_path_matches_cpu_and_blend() {
             path: TransferPath::Compute,
             accum_format: AccumFormat::Rgba32Float,
             pair_pieces: false,
+            texel_reads: TexelReads::Sampled,
         },
     );
     assert_close(&got, &want, 1e-3, 1e-3, "compute");
@@ -280,6 +299,7 @@ fn compute_path_matches_cpu_and_blend() {
             path: TransferPath::Blend,
             accum_format: AccumFormat::Rgba32Float,
             pair_pieces: false,
+            texel_reads: TexelReads::Sampled,
         },
     );
     assert_close(&got, &blend, 1e-5, 1e-3, "compute vs blend");
@@ -297,6 +317,7 @@ fn blend_rgba16f_within_half_float_bound() {
             path: TransferPath::Blend,
             accum_format: AccumFormat::Rgba16Float,
             pair_pieces: false,
+            texel_reads: TexelReads::Sampled,
         },
     );
     let u = 2f32.powi(-11);
@@ -375,6 +396,7 @@ fn paired_options() -> TransferOptions {
         path: TransferPath::Blend,
         accum_format: AccumFormat::Rgba32Float,
         pair_pieces: true,
+        texel_reads: TexelReads::Sampled,
     }
 }
 
@@ -383,6 +405,10 @@ fn paired_options() -> TransferOptions {
 fn check_paired(c: &Case, what: &str) -> PairedSchedule {
     let (got, paired) = run_gpu_paired(c, paired_options());
     let paired = paired.expect("pair_pieces builds a paired schedule");
+    if let Some(options) = storage_reads(paired_options()) {
+        let (storage, _) = run_gpu_paired(c, options);
+        assert_eq!(storage, got, "{what}: storage and sampled reads must agree bit for bit");
+    }
     let (want, _) = reference(c);
     let bound = paired_bound(c);
     for (i, ((g, w), b)) in got.rgba.iter().zip(&want.rgba).zip(&bound).enumerate() {

@@ -40,6 +40,7 @@ use passes::display::DisplayOptions;
 use passes::first_order::FirstOrderOptions;
 use passes::frame::{FrameParams, Renderer, RendererOptions};
 use passes::transfer::{TransferOptions, TransferPath};
+use passes::util::TexelReads;
 
 /// The paper's Table 1: (lightmap side, offsets, bins, FPS on a GeForce 6800).
 pub const TABLE_1: [(u32, usize, u32, f64); 8] = [
@@ -110,6 +111,22 @@ pub struct Args {
     /// unpaired path when it is timed, else the paired one; the paired rows follow it.
     #[arg(long, value_enum, default_value_t = Pair::On)]
     pair: Pair,
+    /// How the transfer shaders read textures (`TransferOptions::texel_reads`): `auto` (the
+    /// renderer's default: read-only storage textures where the adapter has them), `sampled`
+    /// or `storage`.
+    #[arg(long, value_enum, default_value_t = Reads::Auto)]
+    texel_reads: Reads,
+}
+
+/// `--texel-reads` values.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Reads {
+    /// `Gpu::best_texel_reads`.
+    Auto,
+    /// Sampled textures (`texture_2d`).
+    Sampled,
+    /// Read-only storage textures.
+    Storage,
 }
 
 /// `--pair` values.
@@ -229,6 +246,11 @@ pub fn run(a: Args) -> Result<()> {
                 transfer: TransferOptions {
                     path,
                     pair_pieces,
+                    texel_reads: match a.texel_reads {
+                        Reads::Auto => gpu.best_texel_reads(),
+                        Reads::Sampled => TexelReads::Sampled,
+                        Reads::Storage => TexelReads::Storage,
+                    },
                     ..TransferOptions::best_for(&gpu)
                 },
                 display: DisplayOptions {
