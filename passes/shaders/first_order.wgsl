@@ -13,7 +13,7 @@
 //
 // Bindings (bind-group order = @binding order; must match `FirstOrderPass` in first_order.rs):
 //   group 0: 0 = Params (uniform), 1 = lights (uniform array), 2 = layer matrices (uniform
-//            array), 3 = albedo (RGBA32F texture, textureLoad), 4 = shadow maps (depth 2D array),
+//            array), 3 = albedo (RGBA32F), 4 = shadow maps (depth 2D array),
 //            5 = comparison sampler, 6 = G-buffer position (RGBA32F, w = coverage),
 //            7 = G-buffer normal (RGBA32F)
 //   vs_gbuffer/fs_gbuffer use no bindings.
@@ -35,11 +35,11 @@ struct Params {
 // (uniform, not storage, arrays: llvmpipe reads storage buffers lane by lane).
 @group(0) @binding(1) var<uniform> lights: array<GpuLight, MAX_LAYERS>;
 @group(0) @binding(2) var<uniform> layer_view_proj: array<mat4x4<f32>, MAX_LAYERS>;
-@group(0) @binding(3) var albedo: texture_2d<f32>;
 @group(0) @binding(4) var shadow_maps: texture_depth_2d_array;
 @group(0) @binding(5) var shadow_sampler: sampler_comparison;
-@group(0) @binding(6) var gbuffer_position: texture_2d<f32>;
-@group(0) @binding(7) var gbuffer_normal: texture_2d<f32>;
+// Bindings 3 (albedo), 6 (gbuffer_position), 7 (gbuffer_normal) and their readers
+// load_albedo(t), load_gbuffer_position(t), load_gbuffer_normal(t) are prepended by the host
+// (`util::TexelReads::wgsl`: sampled or read-only storage textures).
 
 // Vertex layout: must match `Vertex` in first_order.rs (32 bytes).
 struct VertexIn {
@@ -130,13 +130,13 @@ fn shadow_visibility(light: GpuLight, p: vec3<f32>, n: vec3<f32>) -> f32 {
 @fragment
 fn fs_lightmap(@builtin(position) clip: vec4<f32>) -> @location(0) vec4<f32> {
     let t = vec2<i32>(floor(clip.xy));
-    let g = textureLoad(gbuffer_position, t, 0);
+    let g = load_gbuffer_position(t);
     if (g.w == 0.0) {
         return vec4<f32>(0.0);
     }
     let world = g.xyz;
-    let rho = textureLoad(albedo, t, 0).rgb;
-    let n = normalize(textureLoad(gbuffer_normal, t, 0).xyz);
+    let rho = load_albedo(t).rgb;
+    let n = normalize(load_gbuffer_normal(t).xyz);
     var e = vec3<f32>(0.0);
     for (var i = 0u; i < params.light_count; i++) {
         let light = lights[i];

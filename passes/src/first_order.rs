@@ -85,6 +85,9 @@ pub struct FirstOrderOptions {
     pub normal_offset_texels: f32,
     /// Slope-scaled depth bias of the shadow pass.
     pub slope_bias: f32,
+    /// How the lighting pass reads the albedo and G-buffer textures; `None` =
+    /// [`Gpu::best_texel_reads`] (same values either way, see [`util::TexelReads`]).
+    pub texel_reads: Option<util::TexelReads>,
 }
 
 impl Default for FirstOrderOptions {
@@ -94,6 +97,7 @@ impl Default for FirstOrderOptions {
             max_shadow_layers: 16,
             normal_offset_texels: 1.5,
             slope_bias: 2.0,
+            texel_reads: None,
         }
     }
 }
@@ -402,6 +406,8 @@ pub fn pack_lights(
 #[derive(Debug)]
 pub struct FirstOrderPass {
     options: FirstOrderOptions,
+    /// `options.texel_reads` resolved for the device.
+    reads: util::TexelReads,
     layout: wgpu::BindGroupLayout,
     shadow_layout: wgpu::BindGroupLayout,
     /// Shadow pipelines: `[both sides, back faces culled]`.
@@ -502,6 +508,15 @@ impl FirstOrderPass {
                 limit: layer_limit as u64,
             });
         }
+        let reads = options.texel_reads.unwrap_or(gpu.best_texel_reads());
+        if reads == util::TexelReads::Storage && !gpu.supports_storage_reads() {
+            return Err(PassError::MissingFeature {
+                option: "FirstOrderOptions.texel_reads = Some(Storage)".into(),
+                feature: "read-only storage textures in fragment shaders".into(),
+                adapter: gpu.adapter_info.name.clone(),
+                fallback: "None (the device's best) or Some(TexelReads::Sampled)".into(),
+            });
+        }
         gpu.scoped("ortm.first_order.new", || {
             let device = &gpu.device;
             let source = concat!(
@@ -512,6 +527,13 @@ impl FirstOrderPass {
             // plain vector loads but storage buffers lane by lane, which made the lighting
             // pass ~2.5× slower (docs/render.md).
             let source = source.replace("MAX_LAYERS", &options.max_shadow_layers.to_string());
+            let f32x4 = wgpu::TextureFormat::Rgba32Float;
+            let source = format!(
+                "{}{}{}{source}",
+                reads.wgsl(0, 3, "albedo", f32x4),
+                reads.wgsl(0, 6, "gbuffer_position", f32x4),
+                reads.wgsl(0, 7, "gbuffer_normal", f32x4),
+            );
             let module = util::shader(device, "ortm.first_order.shader", &source);
             let vf = wgpu::ShaderStages::VERTEX_FRAGMENT;
             let fs = wgpu::ShaderStages::FRAGMENT;
@@ -522,7 +544,7 @@ impl FirstOrderPass {
                     util::uniform_entry(0, vf),
                     util::uniform_entry(1, fs),
                     util::uniform_entry(2, vf),
-                    util::texture_entry(3, fs),
+                    reads.entry(3, fs, f32x4),
                     wgpu::BindGroupLayoutEntry {
                         binding: 4,
                         visibility: fs,
@@ -539,8 +561,8 @@ impl FirstOrderPass {
                         ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Comparison),
                         count: None,
                     },
-                    util::texture_entry(6, fs),
-                    util::texture_entry(7, fs),
+                    reads.entry(6, fs, f32x4),
+                    reads.entry(7, fs, f32x4),
                 ],
             });
             let pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -649,6 +671,7 @@ impl FirstOrderPass {
             });
             Self {
                 options: *options,
+                reads,
                 layout,
                 shadow_layout,
                 shadow_pipelines,
@@ -715,7 +738,7 @@ impl FirstOrderPass {
             size[0],
             size[1],
             &rgba,
-            wgpu::TextureUsages::TEXTURE_BINDING,
+            wgpu::TextureUsages::TEXTURE_BINDING | self.reads.usage(),
         )?;
         let layers = self.options.max_shadow_layers;
         let params = device.create_buffer(&wgpu::BufferDescriptor {
@@ -770,8 +793,9 @@ impl FirstOrderPass {
         let albedo_view = util::view(&albedo_tex);
         // The texel G-buffer: the mesh rasterised once by its UVs (the lights change per
         // frame, the surface point of a texel does not).
-        let gbuffer_usage =
-            wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING;
+        let gbuffer_usage = wgpu::TextureUsages::RENDER_ATTACHMENT
+            | wgpu::TextureUsages::TEXTURE_BINDING
+            | self.reads.usage();
         let gbuffer = [
             util::texture_2d(
                 device,

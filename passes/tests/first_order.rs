@@ -18,6 +18,7 @@ use passes::first_order::{
     FirstOrderInputs, FirstOrderOptions, FirstOrderPass, FirstOrderScene, LIGHT_DIRECTIONAL,
     LIGHT_POINT, shadow_layers,
 };
+use passes::util::TexelReads;
 use passes::{Gpu, LightDesc, MeshData, TexelImage};
 
 const SIZE: u32 = 64;
@@ -85,6 +86,21 @@ fn check(lights: &[LightDesc], point_layers: u32) {
         "shadow layers of the point light"
     );
     let got = render_first_order(&gpu, &pass, &scene, lights, "test.first_order");
+    // Both ways of reading the albedo and G-buffer textures give the same lightmap.
+    for reads in [TexelReads::Sampled, TexelReads::Storage] {
+        if reads == TexelReads::Storage && !gpu.supports_storage_reads() {
+            eprintln!("adapter has no read-only storage textures: storage reads not tested");
+            continue;
+        }
+        let options = FirstOrderOptions {
+            texel_reads: Some(reads),
+            ..options
+        };
+        let pass = FirstOrderPass::new(&gpu, &options).unwrap();
+        let scene = pass.prepare(&gpu, &mesh, &albedo).unwrap();
+        let other = render_first_order(&gpu, &pass, &scene, lights, "test.first_order_reads");
+        assert_eq!(other, got, "{reads:?} texel reads");
+    }
 
     let want = mirror::first_order(&mesh, &albedo, lights);
     for (i, (g, w)) in got.rgba.iter().zip(&want.rgba).enumerate() {

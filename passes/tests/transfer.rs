@@ -112,7 +112,9 @@ fn storage_reads(options: TransferOptions) -> Option<TransferOptions> {
             ..options
         })
     } else {
-        eprintln!("adapter has no read-only storage textures in fragment shaders: storage reads not tested");
+        eprintln!(
+            "adapter has no read-only storage textures in fragment shaders: storage reads not tested"
+        );
         None
     }
 }
@@ -275,7 +277,11 @@ fn blend_rgba32f_matches_cpu() {
     let got = run_gpu(&c, options);
     assert_close(&got, &want, 1e-3, 1e-3, "blend rgba32f");
     if let Some(options) = storage_reads(options) {
-        assert_eq!(run_gpu(&c, options), got, "storage and sampled reads must agree bit for bit");
+        assert_eq!(
+            run_gpu(&c, options),
+            got,
+            "storage and sampled reads must agree bit for bit"
+        );
     }
 }
 
@@ -407,7 +413,10 @@ fn check_paired(c: &Case, what: &str) -> PairedSchedule {
     let paired = paired.expect("pair_pieces builds a paired schedule");
     if let Some(options) = storage_reads(paired_options()) {
         let (storage, _) = run_gpu_paired(c, options);
-        assert_eq!(storage, got, "{what}: storage and sampled reads must agree bit for bit");
+        assert_eq!(
+            storage, got,
+            "{what}: storage and sampled reads must agree bit for bit"
+        );
     }
     let (want, _) = reference(c);
     let bound = paired_bound(c);

@@ -111,9 +111,9 @@ pub struct Args {
     /// unpaired path when it is timed, else the paired one; the paired rows follow it.
     #[arg(long, value_enum, default_value_t = Pair::On)]
     pair: Pair,
-    /// How the transfer shaders read textures (`TransferOptions::texel_reads`): `auto` (the
-    /// renderer's default: read-only storage textures where the adapter has them), `sampled`
-    /// or `storage`.
+    /// How the transfer and first-order shaders read textures (`TransferOptions::texel_reads`,
+    /// `FirstOrderOptions::texel_reads`): `auto` (the renderer's default: read-only storage
+    /// textures where the adapter has them), `sampled` or `storage`.
     #[arg(long, value_enum, default_value_t = Reads::Auto)]
     texel_reads: Reads,
 }
@@ -236,21 +236,23 @@ pub fn run(a: Args) -> Result<()> {
             exposure: 1.0,
             specular: None,
         };
+        let texel_reads = match a.texel_reads {
+            Reads::Auto => None,
+            Reads::Sampled => Some(TexelReads::Sampled),
+            Reads::Storage => Some(TexelReads::Storage),
+        };
         let time_path = |path: TransferPath, pair_pieces: bool| -> Result<BenchReport> {
             let options = RendererOptions {
                 first_order: FirstOrderOptions {
                     shadow_map_size: a.shadow_size,
                     max_shadow_layers: render::shadow_layers_for(&scene.lights),
+                    texel_reads,
                     ..Default::default()
                 },
                 transfer: TransferOptions {
                     path,
                     pair_pieces,
-                    texel_reads: match a.texel_reads {
-                        Reads::Auto => gpu.best_texel_reads(),
-                        Reads::Sampled => TexelReads::Sampled,
-                        Reads::Storage => TexelReads::Storage,
-                    },
+                    texel_reads: texel_reads.unwrap_or(gpu.best_texel_reads()),
                     ..TransferOptions::best_for(&gpu)
                 },
                 display: DisplayOptions {
