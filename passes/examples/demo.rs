@@ -1,7 +1,7 @@
 //! Renders the built-in floor-and-box scene (side by side: first order | final with a
 //! synthetic blur transfer) to a PNG and prints a benchmark table.
 //!
-//! `cargo run -p passes --release --example demo -- [out.png] [lightmap size] [blur radius] [f16|f32|unpaired|compute]` (f32 = `TransferOptions::best_for`, paired pieces; unpaired = the same without pairing)
+//! `cargo run -p passes --release --example demo -- [out.png] [lightmap size] [blur radius] [f16|f32|unpaired|compute]` (f32 = `TransferOptions::best_for`: on lavapipe the paired blend path, on a hardware GPU the compute path; unpaired = the blend path without pairing)
 
 use passes::bench::bench_frame;
 use passes::demo::{blur_transfer, demo_lights, floor_and_box};
@@ -33,6 +33,7 @@ fn main() -> Result<(), PassError> {
             ..TransferOptions::best_for(&gpu)
         },
         "unpaired" => TransferOptions {
+            path: TransferPath::Blend,
             pair_pieces: false,
             ..TransferOptions::best_for(&gpu)
         },

@@ -99,11 +99,20 @@ pub struct TransferOptions {
 }
 
 impl TransferOptions {
-    /// Blend path in RGBA32F when the device can blend it, else RGBA16F, with paired pieces
-    /// (~28 % less transfer CPU on lavapipe at 256²/100, `docs/render.md`).
+    /// The fastest measured settings for `gpu` (`docs/render.md`, `ortm bench render`):
+    /// - path: [`TransferPath::Blend`] on a CPU adapter (lavapipe: 23 ms vs 247 ms for the
+    ///   compute path at 256²/100), [`TransferPath::Compute`] on hardware GPUs (H100:
+    ///   0.12 ms vs 1.27 ms for the paired blend path; its few raster back-ends blend slowly);
+    /// - blend accumulation in RGBA32F when the device can blend it, else RGBA16F;
+    /// - paired pieces (~28 % less transfer CPU on lavapipe at 256²/100);
+    /// - read-only storage textures where the device has them ([`Gpu::best_texel_reads`]).
     pub fn best_for(gpu: &Gpu) -> Self {
         Self {
-            path: TransferPath::Blend,
+            path: if gpu.adapter_info.device_type == wgpu::DeviceType::Cpu {
+                TransferPath::Blend
+            } else {
+                TransferPath::Compute
+            },
             accum_format: if gpu.supports_float32_blend() {
                 AccumFormat::Rgba32Float
             } else {

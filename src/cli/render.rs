@@ -32,6 +32,9 @@ use passes::{Gpu, TexelImage};
 /// Transfer implementation.
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum PathArg {
+    /// `TransferOptions::best_for` the adapter: blend on a CPU adapter (lavapipe), compute on
+    /// a hardware GPU (both measured by `ortm bench render`).
+    Auto,
     /// Instanced quads with additive blending (the paper's method; RGBA32F when blendable).
     Blend,
     /// Compute shader gathering per 8×8 tile (reference / fallback).
@@ -64,7 +67,7 @@ pub struct Args {
     #[arg(long)]
     side_by_side: bool,
     /// Transfer implementation.
-    #[arg(long, value_enum, default_value_t = PathArg::Blend)]
+    #[arg(long, value_enum, default_value_t = PathArg::Auto)]
     path: PathArg,
     /// Exposure: `auto`, or a number multiplying the radiance B/π before tonemapping.
     #[arg(long, default_value = "auto")]
@@ -177,7 +180,11 @@ pub fn run(a: Args) -> Result<()> {
 
     let gpu = Gpu::new_headless()?;
     let transfer = match a.path {
-        PathArg::Blend => TransferOptions::best_for(&gpu),
+        PathArg::Auto => TransferOptions::best_for(&gpu),
+        PathArg::Blend => TransferOptions {
+            path: TransferPath::Blend,
+            ..TransferOptions::best_for(&gpu)
+        },
         PathArg::Compute => TransferOptions {
             path: TransferPath::Compute,
             ..TransferOptions::best_for(&gpu)
