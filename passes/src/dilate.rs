@@ -13,19 +13,27 @@
 //!   ties broken by scan order (smallest `y·W + x`);
 //! - any other texel: none (it stays 0).
 //!
-//! The output is the source texel's RGB with alpha [`FILLED_ALPHA`] for a filled texel.
-//! This is the usual practice of lightmap tools. (Before, ortm ran `rings` passes each
-//! filling a ring with the *mean* of its already-filled 8-neighbours; a single plan-driven
-//! pass costs one full-screen pass instead of `rings` passes with a neighbour search each.)
+//! A filled texel gets its source's RGB with alpha [`FILLED_ALPHA`]. This is the usual
+//! practice of lightmap tools. (Before, ortm ran `rings` full-screen passes, each filling one
+//! ring with the *mean* of the non-empty 8-neighbours; that cost ~9.5 ms of CPU per map on
+//! lavapipe at 256², this pass ~0.4 ms — figures in `docs/render.md`.)
 //!
 //! # Data flow
-//! [`DilatePass::prepare`] uploads a plan's sources once (an `R32Uint` texture, `x | y << 16`
-//! of the source texel, [`NO_SOURCE`] for none) and allocates the RGBA32F output;
-//! [`DilatePass::encode`] records one full-screen fragment pass. The shader trusts the input's
-//! own alpha first: a texel with alpha > 0 is copied unchanged whatever the plan says, and a
-//! source that is empty in the input gives 0 — so a covered texel is never overwritten, even
-//! for a map whose coverage differs from the plan's (the viewer's CPU-made lightmaps).
+//! [`DilatePass::prepare`] uploads a plan once: its sources as an `R32Uint` texture
+//! (`x | y << 16` of the source texel, [`NO_SOURCE`] for none) and the rectangles of
+//! [`DilatePlan::gutter_rects`] (every texel the plan does not mark covered, in
+//! [`GUTTER_BLOCK`]² cells); it allocates the RGBA32F output. [`DilatePass::encode`] then
+//! either ([`DilatePath::CopyAndGutter`], an RGBA32F input with `COPY_SRC`) copies the input
+//! into the output and runs `fs_dilate` over the rectangles only, or
+//! ([`DilatePath::FullScreen`], any other float input) runs `fs_dilate` over one full-screen
+//! triangle. Both give the same map, since `fs_dilate` returns the input at texels the plan
+//! marks covered.
 //!
+//! `fs_dilate` also trusts the input's own alpha: a texel with alpha > 0 is copied unchanged
+//! whatever the plan says, and a source that is empty in the input gives 0 — so a covered
+//! texel is never overwritten, even in a map whose coverage differs from the plan's (the
+//! viewer's CPU-made lightmaps). A texel the plan marks covered is always copied unchanged.
+
 //! # Conventions
 //! Input: any float RGBA texture with alpha = coverage (first-order or final lightmap,
 //! RGBA32F or RGBA16F). Output alpha: 1 (or the input's alpha) covered, [`FILLED_ALPHA`]
@@ -172,6 +180,62 @@ impl DilatePlan {
             .count()
     }
 
+    /// Rectangles `[x0, y0, x1, y1]` (texels, `x1`/`y1` exclusive) that together contain
+    /// every texel the plan does not mark covered (source ≠ itself): the `block × block`
+    /// cells holding such a texel, merged into runs along each row of cells, and runs with
+    /// the same columns in consecutive rows of cells merged into one rectangle. Clipped to
+    /// the map; disjoint.
+    pub fn gutter_rects(&self, block: u32) -> Vec<[u32; 4]> {
+        let (w, h) = (self.width, self.height);
+        let b = block.max(1);
+        let (bw, bh) = (w.div_ceil(b), h.div_ceil(b));
+        let mut marked = vec![false; bw as usize * bh as usize];
+        for (i, &s) in self.sources.iter().enumerate() {
+            if s as usize != i {
+                let (x, y) = (i as u32 % w, i as u32 / w);
+                marked[((y / b) * bw + x / b) as usize] = true;
+            }
+        }
+        // Runs per row of cells: (first column, end column).
+        let mut open: Vec<([u32; 2], u32)> = Vec::new(); // run, first cell row
+        let mut rects = Vec::new();
+        let emit = |run: [u32; 2], r0: u32, r1: u32, rects: &mut Vec<[u32; 4]>| {
+            rects.push([run[0] * b, r0 * b, (run[1] * b).min(w), (r1 * b).min(h)]);
+        };
+        for by in 0..=bh {
+            let mut runs = Vec::new();
+            if by < bh {
+                let mut bx = 0;
+                while bx < bw {
+                    if marked[(by * bw + bx) as usize] {
+                        let x0 = bx;
+                        while bx < bw && marked[(by * bw + bx) as usize] {
+                            bx += 1;
+                        }
+                        runs.push([x0, bx]);
+                    } else {
+                        bx += 1;
+                    }
+                }
+            }
+            let mut next = Vec::with_capacity(runs.len());
+            for (run, r0) in open.drain(..) {
+                if runs.contains(&run) {
+                    next.push((run, r0));
+                } else {
+                    emit(run, r0, by, &mut rects);
+                }
+            }
+            for run in runs {
+                if !next.iter().any(|(r, _)| *r == run) {
+                    next.push((run, by));
+                }
+            }
+            open = next;
+        }
+        rects
+    }
+
     /// The sources as the shader reads them: `x | y << 16` of the source texel, or
     /// [`NO_SOURCE`].
     fn packed(&self) -> Vec<u32> {
@@ -194,7 +258,35 @@ impl DilatePlan {
 pub struct DilatePass {
     options: DilateOptions,
     layout: wgpu::BindGroupLayout,
-    pipeline: wgpu::RenderPipeline,
+    /// `vs_fullscreen` / `fs_dilate`.
+    fullscreen: wgpu::RenderPipeline,
+    /// `vs_rect` / `fs_dilate`, instanced rectangles.
+    gutter: wgpu::RenderPipeline,
+}
+
+/// How [`DilatePass::encode`] ran (it picks by the input texture).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum DilatePath {
+    /// The input (RGBA32F, `COPY_SRC`) was copied into the output, then only the rectangles
+    /// of [`DilatePlan::gutter_rects`] were drawn (`fs_dilate` on them).
+    CopyAndGutter,
+    /// One full-screen pass (any other float input, e.g. RGBA16F).
+    FullScreen,
+}
+
+/// Cell size (texels) of [`DilatePlan::gutter_rects`] for the gutter draw: llvmpipe shades
+/// 4×4 pixel blocks.
+pub const GUTTER_BLOCK: u32 = 4;
+
+/// Instance of the gutter draw: one rectangle in clip space (`x` right, `y` up).
+/// 16 bytes; must match `vs_rect` in `dilate.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct GutterRect {
+    /// Clip-space `(x, y)` of the rectangle's left, top corner.
+    pub clip_min: [f32; 2],
+    /// Clip-space `(x, y)` of its right, bottom corner.
+    pub clip_max: [f32; 2],
 }
 
 /// Per-scene data: the uploaded plan and the output texture.
@@ -202,6 +294,8 @@ pub struct DilatePass {
 pub struct DilateTargets {
     size: [u32; 2],
     sources: wgpu::TextureView,
+    gutter: wgpu::Buffer,
+    gutter_count: u32,
     output: wgpu::Texture,
     output_view: wgpu::TextureView,
 }
@@ -231,6 +325,8 @@ pub struct DilateInputs<'a> {
 pub struct DilateOutput {
     /// RGBA32F dilated map, owned by the targets.
     pub dilated_tex: wgpu::Texture,
+    /// Which way it ran.
+    pub path: DilatePath,
 }
 
 impl DilatePass {
@@ -275,11 +371,28 @@ impl DilatePass {
                 bind_group_layouts: &[Some(&layout)],
                 immediate_size: 0,
             });
-            let pipeline = util::fullscreen_pipeline(
+            let fullscreen = util::fullscreen_pipeline(
                 device,
-                "ortm.dilate.pipeline",
+                "ortm.dilate.fullscreen_pipeline",
                 Some(&pl),
                 &module,
+                "fs_dilate",
+                wgpu::TextureFormat::Rgba32Float,
+                None,
+            );
+            let gutter = util::colour_pipeline(
+                device,
+                "ortm.dilate.gutter_pipeline",
+                Some(&pl),
+                &module,
+                (
+                    "vs_rect",
+                    &[Some(wgpu::VertexBufferLayout {
+                        array_stride: std::mem::size_of::<GutterRect>() as u64,
+                        step_mode: wgpu::VertexStepMode::Instance,
+                        attributes: &wgpu::vertex_attr_array![0 => Float32x2, 1 => Float32x2],
+                    })],
+                ),
                 "fs_dilate",
                 wgpu::TextureFormat::Rgba32Float,
                 None,
@@ -287,7 +400,8 @@ impl DilatePass {
             Self {
                 options: *options,
                 layout,
-                pipeline,
+                fullscreen,
+                gutter,
             }
         })
     }
@@ -315,7 +429,11 @@ impl DilatePass {
                 hint: "build the plan with DilatePlan::new".into(),
             });
         }
-        if plan.sources.iter().any(|&s| s != NO_SOURCE && s as usize >= n) {
+        if plan
+            .sources
+            .iter()
+            .any(|&s| s != NO_SOURCE && s as usize >= n)
+        {
             return Err(PassError::InvalidInput {
                 what: "DilatePlan.sources".into(),
                 problem: "a source index lies outside the map; build the plan with \
@@ -353,11 +471,33 @@ impl DilatePass {
                 wgpu::TextureFormat::Rgba32Float,
                 wgpu::TextureUsages::RENDER_ATTACHMENT
                     | wgpu::TextureUsages::TEXTURE_BINDING
-                    | wgpu::TextureUsages::COPY_SRC,
+                    | wgpu::TextureUsages::COPY_SRC
+                    | wgpu::TextureUsages::COPY_DST,
+            );
+            let (w, h) = (size[0] as f32, size[1] as f32);
+            let mut rects: Vec<GutterRect> = plan
+                .gutter_rects(GUTTER_BLOCK)
+                .iter()
+                .map(|r| GutterRect {
+                    clip_min: [r[0] as f32 / w * 2.0 - 1.0, 1.0 - r[1] as f32 / h * 2.0],
+                    clip_max: [r[2] as f32 / w * 2.0 - 1.0, 1.0 - r[3] as f32 / h * 2.0],
+                })
+                .collect();
+            let gutter_count = rects.len() as u32;
+            if rects.is_empty() {
+                rects.push(GutterRect::default()); // a buffer may not be empty; not drawn
+            }
+            let gutter = util::buffer_init(
+                device,
+                "ortm.dilate.gutter_rects",
+                bytemuck::cast_slice(&rects),
+                wgpu::BufferUsages::VERTEX,
             );
             DilateTargets {
                 size,
                 sources: util::view(&sources),
+                gutter,
+                gutter_count,
                 output_view: util::view(&output),
                 output,
             }
@@ -387,12 +527,55 @@ impl DilatePass {
                 },
             ],
         });
-        let mut pass = util::clear_pass(encoder, "ortm.dilate.pass", &t.output_view);
-        pass.set_pipeline(&self.pipeline);
-        pass.set_bind_group(0, &group, &[]);
-        pass.draw(0..3, 0..1);
+        let input = inputs.source.texture();
+        let copyable = input.format() == wgpu::TextureFormat::Rgba32Float
+            && input.usage().contains(wgpu::TextureUsages::COPY_SRC)
+            && [input.width(), input.height()] == t.size
+            && input.mip_level_count() == 1
+            && input.depth_or_array_layers() == 1;
+        let path = if copyable {
+            encoder.copy_texture_to_texture(
+                input.as_image_copy(),
+                t.output.as_image_copy(),
+                wgpu::Extent3d {
+                    width: t.size[0],
+                    height: t.size[1],
+                    depth_or_array_layers: 1,
+                },
+            );
+            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("ortm.dilate.gutter_pass"),
+                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                    view: &t.output_view,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: wgpu::Operations {
+                        load: wgpu::LoadOp::Load,
+                        store: wgpu::StoreOp::Store,
+                    },
+                })],
+                depth_stencil_attachment: None,
+                timestamp_writes: None,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            if t.gutter_count > 0 {
+                pass.set_pipeline(&self.gutter);
+                pass.set_bind_group(0, &group, &[]);
+                pass.set_vertex_buffer(0, t.gutter.slice(..));
+                pass.draw(0..6, 0..t.gutter_count);
+            }
+            DilatePath::CopyAndGutter
+        } else {
+            let mut pass = util::clear_pass(encoder, "ortm.dilate.pass", &t.output_view);
+            pass.set_pipeline(&self.fullscreen);
+            pass.set_bind_group(0, &group, &[]);
+            pass.draw(0..3, 0..1);
+            DilatePath::FullScreen
+        };
         DilateOutput {
             dilated_tex: t.output.clone(),
+            path,
         }
     }
 }
@@ -408,7 +591,13 @@ mod tests {
         cov[7] = true;
         let s = dilation_sources(5, 3, &cov, 1).unwrap();
         let want: Vec<u32> = (0..15u32)
-            .map(|i| if (i % 5).abs_diff(2) <= 1 { 7 } else { NO_SOURCE })
+            .map(|i| {
+                if (i % 5).abs_diff(2) <= 1 {
+                    7
+                } else {
+                    NO_SOURCE
+                }
+            })
             .collect();
         assert_eq!(s, want);
         // Two covered texels at equal distance from (1, 0): (0, 0) and (2, 0) → scan order
@@ -416,6 +605,11 @@ mod tests {
         let cov = [true, false, true, false, false, false];
         let s = dilation_sources(3, 2, &cov, 1).unwrap();
         assert_eq!(s, vec![0, 0, 2, 0, 0, 2]);
+    }
+
+    #[test]
+    fn gutter_rect_matches_wgsl_size() {
+        assert_eq!(std::mem::size_of::<GutterRect>(), 16);
     }
 
     #[test]
@@ -434,7 +628,14 @@ mod tests {
         };
         assert_eq!(
             plan.packed(),
-            vec![0, 2 | 1 << 16, NO_SOURCE, 1 | 1 << 16, 1 | 1 << 16, 2 | 1 << 16]
+            vec![
+                0,
+                2 | 1 << 16,
+                NO_SOURCE,
+                1 | 1 << 16,
+                1 | 1 << 16,
+                2 | 1 << 16
+            ]
         );
         assert_eq!(plan.source(1, 0), Some((2, 1)));
         assert_eq!(plan.source(2, 0), None);

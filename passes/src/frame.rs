@@ -142,11 +142,9 @@ impl Renderer {
             .create_command_encoder(&wgpu::CommandEncoderDescriptor {
                 label: Some("ortm.frame.coverage_encoder"),
             });
-        let fo = self.first_order.encode(
-            gpu,
-            &mut enc,
-            &FirstOrderInputs { scene, lights: &[] },
-        )?;
+        let fo =
+            self.first_order
+                .encode(gpu, &mut enc, &FirstOrderInputs { scene, lights: &[] })?;
         gpu.submit_and_wait("ortm.frame.coverage", enc)?;
         gpu.read_texel_image("ortm.frame.coverage", &fo.first_order_tex)
     }

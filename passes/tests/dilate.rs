@@ -9,7 +9,7 @@ mod common;
 
 use common::{Rng, gpu};
 use passes::dilate::{
-    DilateInputs, DilateOptions, DilatePass, DilatePlan, FILLED_ALPHA, NO_SOURCE,
+    DilateInputs, DilateOptions, DilatePass, DilatePath, DilatePlan, FILLED_ALPHA, NO_SOURCE,
     dilation_sources,
 };
 use passes::{Gpu, TexelImage, cpu};
@@ -57,17 +57,24 @@ fn random_charts(r: &mut Rng, w: u32, h: u32, charts: u32) -> TexelImage {
     img
 }
 
-/// Uploads `src`, dilates it on the GPU with `plan`, reads the result back.
-fn dilate_on_gpu(gpu: &Gpu, pass: &DilatePass, plan: &DilatePlan, src: &TexelImage) -> TexelImage {
+/// Uploads `src`, dilates it on the GPU with `plan` by `path`, reads the result back.
+fn dilate_on_gpu(
+    gpu: &Gpu,
+    pass: &DilatePass,
+    plan: &DilatePlan,
+    src: &TexelImage,
+    path: DilatePath,
+) -> TexelImage {
     let targets = pass.prepare(gpu, plan).unwrap();
+    // The pass copies the input when it can (RGBA32F with COPY_SRC).
+    let usage = match path {
+        DilatePath::CopyAndGutter => {
+            wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_SRC
+        }
+        DilatePath::FullScreen => wgpu::TextureUsages::TEXTURE_BINDING,
+    };
     let tex = gpu
-        .create_rgba32f_texture(
-            "test.src",
-            src.width,
-            src.height,
-            &src.rgba,
-            wgpu::TextureUsages::TEXTURE_BINDING,
-        )
+        .create_rgba32f_texture("test.src", src.width, src.height, &src.rgba, usage)
         .unwrap();
     let view = tex.create_view(&Default::default());
     let mut enc = gpu.device.create_command_encoder(&Default::default());
@@ -79,6 +86,7 @@ fn dilate_on_gpu(gpu: &Gpu, pass: &DilatePass, plan: &DilatePlan, src: &TexelIma
             source: &view,
         },
     );
+    assert_eq!(out.path, path);
     gpu.submit_and_wait("test.dilate", enc).unwrap();
     gpu.read_texel_image("test.dilated", &out.dilated_tex)
         .unwrap()
@@ -107,6 +115,41 @@ fn sources_match_brute_force_on_random_masks() {
 }
 
 #[test]
+fn gutter_rects_hold_every_uncovered_texel_once() {
+    let mut r = Rng::new(21);
+    for case in 0..200 {
+        let (w, h) = (r.range(1, 40) as u32, r.range(1, 40) as u32);
+        let density = [0.0, 0.05, 0.3, 0.7, 0.95, 1.0][case % 6];
+        let covered: Vec<bool> = (0..w * h).map(|_| r.f32() < density).collect();
+        let plan = DilatePlan::new(w, h, &covered, r.range(1, 4) as u32).unwrap();
+        let block = r.range(1, 9) as u32;
+        let mut count = vec![0u32; (w * h) as usize];
+        for &[x0, y0, x1, y1] in &plan.gutter_rects(block) {
+            assert!(
+                x0 < x1 && y0 < y1 && x1 <= w && y1 <= h,
+                "{w}×{h}: bad rect"
+            );
+            for y in y0..y1 {
+                for x in x0..x1 {
+                    count[(y * w + x) as usize] += 1;
+                }
+            }
+        }
+        for (i, &c) in count.iter().enumerate() {
+            assert!(c <= 1, "case {case}: texel {i} in {c} rectangles");
+            if !covered[i] {
+                assert_eq!(c, 1, "case {case}: uncovered texel {i} in no rectangle");
+            }
+        }
+        if block == 1 {
+            // Cells of one texel: exactly the uncovered texels.
+            let n = count.iter().filter(|&&c| c == 1).count();
+            assert_eq!(n, covered.iter().filter(|&&c| !c).count());
+        }
+    }
+}
+
+#[test]
 fn gpu_matches_mirror_exactly_and_never_overwrites_coverage() {
     let gpu = gpu();
     let mut r = Rng::new(5);
@@ -114,9 +157,17 @@ fn gpu_matches_mirror_exactly_and_never_overwrites_coverage() {
         let src = random_charts(&mut r, w, h, 6);
         let pass = DilatePass::new(&gpu, &DilateOptions { rings }).unwrap();
         let plan = pass.plan(&src).unwrap();
-        let got = dilate_on_gpu(&gpu, &pass, &plan, &src);
         let want = cpu::dilate::dilate(&src, &plan).unwrap();
-        assert_eq!(got, want, "{w}×{h}: GPU differs from the CPU mirror");
+        let got = dilate_on_gpu(&gpu, &pass, &plan, &src, DilatePath::FullScreen);
+        assert_eq!(
+            got, want,
+            "{w}×{h}: full-screen path differs from the CPU mirror"
+        );
+        let got = dilate_on_gpu(&gpu, &pass, &plan, &src, DilatePath::CopyAndGutter);
+        assert_eq!(
+            got, want,
+            "{w}×{h}: copy + gutter path differs from the CPU mirror"
+        );
 
         // Properties, from the input alone.
         let covered: Vec<(i64, i64)> = (0..h as i64)
@@ -139,7 +190,10 @@ fn gpu_matches_mirror_exactly_and_never_overwrites_coverage() {
                     .copied()
                     .collect();
                 if near.is_empty() {
-                    assert_eq!(g, [0.0; 4], "({x}, {y}) is farther than {rings} from coverage");
+                    assert_eq!(
+                        g, [0.0; 4],
+                        "({x}, {y}) is farther than {rings} from coverage"
+                    );
                     continue;
                 }
                 assert_eq!(g[3], FILLED_ALPHA, "({x}, {y}) must be filled");
@@ -181,13 +235,14 @@ fn map_with_other_coverage_than_the_plan_keeps_its_covered_texels() {
     let planned = random_charts(&mut r, w, h, 8);
     let pass = DilatePass::new(&gpu, &DilateOptions::default()).unwrap();
     let plan = pass.plan(&planned).unwrap();
-    // The map shown: the same charts with ~10 % of the texels' coverage flipped.
+    // The map shown: the same charts with ~10 % of the texels' coverage flipped (and some
+    // garbage RGB under alpha 0, which a texel covered in the plan keeps).
     let mut src = planned.clone();
     let mut flipped = 0;
     for t in &mut src.rgba {
         if r.f32() < 0.1 {
             *t = if t[3] > 0.0 {
-                [0.0; 4]
+                [r.f32(), 0.0, 0.0, 0.0]
             } else {
                 [r.f32(), r.f32(), r.f32(), 1.0]
             };
@@ -195,13 +250,15 @@ fn map_with_other_coverage_than_the_plan_keeps_its_covered_texels() {
         }
     }
     assert!(flipped > 50);
-    let got = dilate_on_gpu(&gpu, &pass, &plan, &src);
+    let got = dilate_on_gpu(&gpu, &pass, &plan, &src, DilatePath::CopyAndGutter);
     assert_eq!(got, cpu::dilate::dilate(&src, &plan).unwrap());
+    let full = dilate_on_gpu(&gpu, &pass, &plan, &src, DilatePath::FullScreen);
+    assert_eq!(full, got, "the two GPU paths differ");
     for y in 0..h {
         for x in 0..w {
             let (s, g) = (src.get(x, y), got.get(x, y));
-            if s[3] > 0.0 {
-                assert_eq!(g, s, "covered ({x}, {y}) was overwritten");
+            if s[3] > 0.0 || plan.source(x, y) == Some((x, y)) {
+                assert_eq!(g, s, "covered ({x}, {y}) was changed");
                 continue;
             }
             match plan.source(x, y) {

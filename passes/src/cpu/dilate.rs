@@ -1,7 +1,9 @@
 //! CPU mirror of the gutter-dilation pass (`shaders/dilate.wgsl`): every texel with
-//! alpha > 0 is copied unchanged; an empty texel whose [`DilatePlan`] source is covered in
+//! alpha > 0, and every texel the [`DilatePlan`] marks covered, is copied unchanged; another
+//! empty texel whose [`DilatePlan`] source is covered in
 //! the input becomes that texel's RGB with alpha [`FILLED_ALPHA`] (nearest-texel copy, see
-//! [`crate::dilate`]); every other texel is 0.
+//! [`crate::dilate`]); every other texel is 0. Both GPU paths
+//! ([`crate::dilate::DilatePath`]) give exactly this.
 
 use crate::dilate::{DilatePlan, FILLED_ALPHA, NO_SOURCE};
 use crate::error::PassError;
@@ -13,8 +15,7 @@ use crate::types::TexelImage;
 /// [`PassError::InvalidInput`] when the plan was built for another map size or holds a
 /// source index outside the map.
 pub fn dilate(src: &TexelImage, plan: &DilatePlan) -> Result<TexelImage, PassError> {
-    if (plan.width, plan.height) != (src.width, src.height)
-        || plan.sources.len() != src.rgba.len()
+    if (plan.width, plan.height) != (src.width, src.height) || plan.sources.len() != src.rgba.len()
     {
         return Err(PassError::InvalidInput {
             what: "DilatePlan".into(),
@@ -26,7 +27,11 @@ pub fn dilate(src: &TexelImage, plan: &DilatePlan) -> Result<TexelImage, PassErr
         });
     }
     let n = src.rgba.len();
-    if plan.sources.iter().any(|&s| s != NO_SOURCE && s as usize >= n) {
+    if plan
+        .sources
+        .iter()
+        .any(|&s| s != NO_SOURCE && s as usize >= n)
+    {
         return Err(PassError::InvalidInput {
             what: "DilatePlan.sources".into(),
             problem: "a source index lies outside the map; build the plan with DilatePlan::new"
@@ -37,7 +42,8 @@ pub fn dilate(src: &TexelImage, plan: &DilatePlan) -> Result<TexelImage, PassErr
     for y in 0..src.height {
         for x in 0..src.width {
             let c = src.get(x, y);
-            *out.at_mut(x, y) = if c[3] > 0.0 {
+            let own = y as usize * src.width as usize + x as usize;
+            *out.at_mut(x, y) = if c[3] > 0.0 || plan.sources[own] as usize == own {
                 c
             } else {
                 match plan.source(x, y) {
