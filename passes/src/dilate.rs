@@ -15,8 +15,8 @@
 //!
 //! A filled texel gets its source's RGB with alpha [`FILLED_ALPHA`]. This is the usual
 //! practice of lightmap tools. (Before, ortm ran `rings` full-screen passes, each filling one
-//! ring with the *mean* of the non-empty 8-neighbours; that cost ~9.5 ms of CPU per map on
-//! lavapipe at 256², this pass ~0.4 ms — figures in `docs/render.md`.)
+//! ring with the *mean* of the non-empty 8-neighbours; on lavapipe at 256² that took ~9.3 ms
+//! of CPU per map, this ~0.5 ms — figures in `docs/render.md`, section *Dilation*.)
 //!
 //! # Data flow
 //! [`DilatePass::prepare`] uploads a plan once: its sources as an `R32Uint` texture
@@ -218,18 +218,24 @@ impl DilatePlan {
                     }
                 }
             }
+            // Both lists are sorted by first column and disjoint: merge them. A run equal to
+            // an open one extends it; an open run with no equal run ends.
             let mut next = Vec::with_capacity(runs.len());
-            for (run, r0) in open.drain(..) {
-                if runs.contains(&run) {
-                    next.push((run, r0));
-                } else {
-                    emit(run, r0, by, &mut rects);
-                }
-            }
+            let mut k = 0;
             for run in runs {
-                if !next.iter().any(|(r, _)| *r == run) {
+                while k < open.len() && open[k].0[0] < run[0] {
+                    emit(open[k].0, open[k].1, by, &mut rects);
+                    k += 1;
+                }
+                if k < open.len() && open[k].0 == run {
+                    next.push(open[k]);
+                    k += 1;
+                } else {
                     next.push((run, by));
                 }
+            }
+            for &(run, r0) in &open[k..] {
+                emit(run, r0, by, &mut rects);
             }
             open = next;
         }
