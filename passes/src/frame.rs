@@ -10,9 +10,11 @@
 //!                              └──────────▶ DilatePass (left half in side-by-side) ─┘
 //! ```
 //! The transfer pass reads the *undilated* first-order map (first order is 0 outside
-//! coverage, as in the bake); only the display sees dilated maps.
+//! coverage, as in the bake); only the display sees dilated maps. Both dilations use one
+//! [`DilatePlan`], built at [`Renderer::prepare`] from the coverage the first-order pass
+//! rasterises (the maps share it).
 
-use crate::dilate::{DilateInputs, DilateOptions, DilatePass, DilateTargets};
+use crate::dilate::{DilateInputs, DilateOptions, DilatePass, DilatePlan, DilateTargets};
 use crate::display::{Camera, DisplayInputs, DisplayOptions, DisplayPass, DisplayScene, Specular};
 use crate::error::PassError;
 use crate::first_order::{FirstOrderInputs, FirstOrderOptions, FirstOrderPass, FirstOrderScene};
@@ -57,6 +59,9 @@ pub struct RenderScene {
     pub first_order: FirstOrderScene,
     /// Transfer data (atlases, schedule).
     pub transfer: TransferScene,
+    /// The dilation plan, built from the first-order pass's coverage (shared by both maps;
+    /// apply it with [`crate::cpu::dilate::dilate`] for a CPU reference).
+    pub dilate_plan: DilatePlan,
     /// Dilation targets of the final map.
     pub dilate_final: DilateTargets,
     /// Dilation targets of the first-order map.
@@ -103,7 +108,8 @@ impl Renderer {
         })
     }
 
-    /// Uploads the scene for every pass. The lightmap size is the albedo map's.
+    /// Uploads the scene for every pass. The lightmap size is the albedo map's. Also renders
+    /// one first-order map without lights and reads its coverage back, for the dilation plan.
     pub fn prepare(
         &self,
         gpu: &Gpu,
@@ -113,14 +119,34 @@ impl Renderer {
         pieces: &[TransferPiece],
     ) -> Result<RenderScene, PassError> {
         let size = [albedo.width, albedo.height];
+        let first_order = self.first_order.prepare(gpu, mesh, albedo)?;
+        let coverage = self.coverage(gpu, &first_order)?;
+        let dilate_plan = self.dilate.plan(&coverage)?;
         Ok(RenderScene {
             lightmap_size: size,
-            first_order: self.first_order.prepare(gpu, mesh, albedo)?,
             transfer: self.transfer.prepare(gpu, size, atlases, pieces)?,
-            dilate_final: self.dilate.prepare(gpu, size)?,
-            dilate_first_order: self.dilate.prepare(gpu, size)?,
+            dilate_final: self.dilate.prepare(gpu, &dilate_plan)?,
+            dilate_first_order: self.dilate.prepare(gpu, &dilate_plan)?,
+            dilate_plan,
+            first_order,
             display: self.display.prepare(gpu, mesh)?,
         })
+    }
+
+    /// The scene's lightmap coverage exactly as the GPU rasterised it: the first-order map
+    /// of a frame without lights (RGB 0, alpha = coverage of the texel G-buffer), read back.
+    /// The next frame re-renders the shadow maps (its lights differ from "none").
+    fn coverage(&self, gpu: &Gpu, scene: &FirstOrderScene) -> Result<TexelImage, PassError> {
+        let mut enc = gpu
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("ortm.frame.coverage_encoder"),
+            });
+        let fo =
+            self.first_order
+                .encode(gpu, &mut enc, &FirstOrderInputs { scene, lights: &[] })?;
+        gpu.submit_and_wait("ortm.frame.coverage", enc)?;
+        gpu.read_texel_image("ortm.frame.coverage", &fo.first_order_tex)
     }
 
     /// Records the lightmap passes only (first order, transfer); returns

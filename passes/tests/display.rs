@@ -201,7 +201,23 @@ fn end_to_end_frame_lit_side_is_brighter() {
     .unwrap();
     let fo_scene = fo_pass.prepare(&gpu, &mesh, &albedo).unwrap();
     let dil = DilatePass::new(&gpu, &DilateOptions::default()).unwrap();
-    let targets = dil.prepare(&gpu, [64, 64]).unwrap();
+    // The dilation plan needs the coverage: one first-order map, read back.
+    let mut enc = gpu.device.create_command_encoder(&Default::default());
+    let fo = fo_pass
+        .encode(
+            &gpu,
+            &mut enc,
+            &FirstOrderInputs {
+                scene: &fo_scene,
+                lights: &lights,
+            },
+        )
+        .unwrap();
+    gpu.submit_and_wait("test.coverage", enc).unwrap();
+    let coverage = gpu
+        .read_texel_image("test.coverage", &fo.first_order_tex)
+        .unwrap();
+    let targets = dil.prepare(&gpu, &dil.plan(&coverage).unwrap()).unwrap();
     let disp = DisplayPass::new(
         &gpu,
         &DisplayOptions {

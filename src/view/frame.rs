@@ -8,6 +8,9 @@
 //! lights ─▶ FirstOrderPass ─fo─▶ TransferPass (first K maps) ─final─▶ [indirect: final − fo]
 //!        ─▶ DilatePass ─▶ DisplayPass (viewport size, side-by-side) ─▶ copy ─▶ view image
 //! ```
+//! Dilation uses the scene's plan (built from the GPU's first-order coverage at prepare) for
+//! every shown map; a CPU lightmap whose coverage differs keeps its own covered texels (see
+//! `passes::dilate`).
 //! The transfer pass is re-prepared with the pieces of the first K maps when K changes
 //! (atlases are uploaded again); the display pass and its targets are rebuilt when the
 //! viewport size or the side-by-side layout changes.
@@ -119,7 +122,8 @@ impl ViewRenderer {
             img.width,
             img.height,
             &img.rgba,
-            wgpu::TextureUsages::TEXTURE_BINDING,
+            // COPY_SRC: the dilation pass copies it and redraws only the gutter.
+            wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_SRC,
         )?);
         Ok(())
     }
@@ -375,7 +379,10 @@ impl IndirectOp {
             "ortm.view.indirect.out",
             size,
             wgpu::TextureFormat::Rgba32Float,
-            wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::TEXTURE_BINDING,
+            // COPY_SRC: the dilation pass copies it and redraws only the gutter.
+            wgpu::TextureUsages::STORAGE_BINDING
+                | wgpu::TextureUsages::TEXTURE_BINDING
+                | wgpu::TextureUsages::COPY_SRC,
         );
         Self {
             pipeline,

@@ -1,51 +1,64 @@
-//! CPU mirror of the gutter-dilation pass (`shaders/dilate.wgsl`): per iteration, every
-//! empty texel (alpha 0) with non-empty 8-neighbours becomes their mean with alpha
-//! [`FILLED_ALPHA`]; non-empty texels are copied unchanged.
+//! CPU mirror of the gutter-dilation pass (`shaders/dilate.wgsl`): every texel with
+//! alpha > 0, and every texel the [`DilatePlan`] marks covered, is copied unchanged; another
+//! empty texel whose [`DilatePlan`] source is covered in
+//! the input becomes that texel's RGB with alpha [`FILLED_ALPHA`] (nearest-texel copy, see
+//! [`crate::dilate`]); every other texel is 0. Both GPU paths
+//! ([`crate::dilate::DilatePath`]) give exactly this.
 
-use crate::dilate::FILLED_ALPHA;
+use crate::dilate::{DilatePlan, FILLED_ALPHA, NO_SOURCE};
+use crate::error::PassError;
 use crate::types::TexelImage;
 
-/// `iterations` rounds of dilation.
-pub fn dilate(src: &TexelImage, iterations: u32) -> TexelImage {
-    let mut cur = src.clone();
-    for _ in 0..iterations {
-        let mut next = cur.clone();
-        for y in 0..cur.height as i32 {
-            for x in 0..cur.width as i32 {
-                let c = cur.get(x as u32, y as u32);
-                if c[3] > 0.0 {
-                    continue; // copied unchanged
-                }
-                let mut sum = [0.0f32; 3];
-                let mut n = 0.0f32;
-                for dy in -1..=1 {
-                    for dx in -1..=1 {
-                        let (qx, qy) = (x + dx, y + dy);
-                        if (dx == 0 && dy == 0)
-                            || qx < 0
-                            || qy < 0
-                            || qx >= cur.width as i32
-                            || qy >= cur.height as i32
-                        {
-                            continue;
-                        }
-                        let v = cur.get(qx as u32, qy as u32);
+/// Dilates `src` with `plan`.
+///
+/// # Errors
+/// [`PassError::InvalidInput`] when the plan was built for another map size or holds a
+/// source index outside the map.
+pub fn dilate(src: &TexelImage, plan: &DilatePlan) -> Result<TexelImage, PassError> {
+    if (plan.width, plan.height) != (src.width, src.height) || plan.sources.len() != src.rgba.len()
+    {
+        return Err(PassError::InvalidInput {
+            what: "DilatePlan".into(),
+            problem: format!(
+                "built for a {}×{} map, the map is {}×{}; build the plan from this map's \
+                 coverage",
+                plan.width, plan.height, src.width, src.height
+            ),
+        });
+    }
+    let n = src.rgba.len();
+    if plan
+        .sources
+        .iter()
+        .any(|&s| s != NO_SOURCE && s as usize >= n)
+    {
+        return Err(PassError::InvalidInput {
+            what: "DilatePlan.sources".into(),
+            problem: "a source index lies outside the map; build the plan with DilatePlan::new"
+                .into(),
+        });
+    }
+    let mut out = TexelImage::new(src.width, src.height);
+    for y in 0..src.height {
+        for x in 0..src.width {
+            let c = src.get(x, y);
+            let own = y as usize * src.width as usize + x as usize;
+            *out.at_mut(x, y) = if c[3] > 0.0 || plan.sources[own] as usize == own {
+                c
+            } else {
+                match plan.source(x, y) {
+                    Some((sx, sy)) => {
+                        let v = src.get(sx, sy);
                         if v[3] > 0.0 {
-                            for k in 0..3 {
-                                sum[k] += v[k];
-                            }
-                            n += 1.0;
+                            [v[0], v[1], v[2], FILLED_ALPHA]
+                        } else {
+                            [0.0; 4]
                         }
                     }
+                    None => [0.0; 4],
                 }
-                *next.at_mut(x as u32, y as u32) = if n > 0.0 {
-                    [sum[0] / n, sum[1] / n, sum[2] / n, FILLED_ALPHA]
-                } else {
-                    [0.0; 4]
-                };
-            }
+            };
         }
-        cur = next;
     }
-    cur
+    Ok(out)
 }
