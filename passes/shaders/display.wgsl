@@ -3,14 +3,21 @@
 //
 // Radiance L = B/π (B: lightmap radiosity, W/m², bilinear between texel centres) plus an
 // optional unshadowed Blinn-Phong specular term; then exposure, Reinhard L/(1+L) per
-// channel, sRGB encoding, written to an Rgba8Unorm target.
+// channel, written linear to an Rgba8UnormSrgb target view (the hardware encodes sRGB).
+//
+// Entry points: fs_filtered (the sampler's bilinear filter; needs FLOAT32_FILTERABLE for
+// RGBA32F lightmaps) and fs_manual (four textureLoads). Override SPECULAR selects the
+// specular term per pipeline, so without it there is no light loop in the shader.
 //
 // Bindings (bind-group order = @binding order; must match `DisplayPass` in display.rs):
 //   group 0: 0 = View (uniform), 1 = lights (storage, read)
-//   group 1: 0 = lightmap (float texture, textureLoad; manual bilinear so RGBA32F needs no
-//            FLOAT32_FILTERABLE)
+//   group 1: 0 = lightmap (float texture), 1 = bilinear clamp-to-edge sampler (fs_filtered
+//            only)
 
 const PI: f32 = 3.14159265358979;
+
+// Whether the specular term is drawn (set per pipeline by display.rs).
+override SPECULAR: bool = false;
 
 // Must match `DisplayView` in display.rs (112 bytes).
 struct View {
@@ -19,6 +26,7 @@ struct View {
     eye_exposure: vec4<f32>,
     lightmap_size: vec2<u32>,
     light_count: u32,
+    // 1 = specular on (informative: the SPECULAR override decides).
     specular_on: u32,
     // x: specular reflectance k_s; y: Blinn-Phong exponent; zw unused.
     specular: vec4<f32>,
@@ -27,6 +35,7 @@ struct View {
 @group(0) @binding(0) var<uniform> view: View;
 @group(0) @binding(1) var<storage, read> lights: array<GpuLight>;
 @group(1) @binding(0) var lightmap: texture_2d<f32>;
+@group(1) @binding(1) var lightmap_sampler: sampler;
 
 // Vertex layout: must match `Vertex` in first_order.rs (32 bytes).
 struct VertexIn {
@@ -69,17 +78,17 @@ fn bilinear(uv: vec2<f32>) -> vec3<f32> {
     return mix(mix(c00, c10, f.x), mix(c01, c11, f.x), f.y);
 }
 
-// Linear → sRGB transfer function (IEC 61966-2-1).
-fn srgb_encode(c: vec3<f32>) -> vec3<f32> {
-    let lo = c * 12.92;
-    let hi = 1.055 * pow(c, vec3<f32>(1.0 / 2.4)) - 0.055;
-    return select(hi, lo, c <= vec3<f32>(0.0031308));
+// Bilinear lookup by the sampler: texture coordinates (u, 1 − v) put texel (x, y)'s centre
+// where `bilinear` has it; clamp-to-edge clamps like `bilinear`'s index clamping.
+fn filtered(uv: vec2<f32>) -> vec3<f32> {
+    return textureSampleLevel(lightmap, lightmap_sampler, vec2<f32>(uv.x, 1.0 - uv.y), 0.0).rgb;
 }
 
-@fragment
-fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
-    var radiance = bilinear(in.uv) / PI;
-    if (view.specular_on != 0u) {
+// Tonemapped linear colour of radiosity `b` (W/m²) at the fragment: L = b/π (+ specular),
+// exposure, Reinhard. The sRGB target view encodes it.
+fn shade(in: VertexOut, b: vec3<f32>) -> vec4<f32> {
+    var radiance = b / PI;
+    if (SPECULAR) {
         let n = normalize(in.normal);
         let to_eye = normalize(view.eye_exposure.xyz - in.world);
         let s = view.specular.y;
@@ -95,6 +104,15 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
         }
     }
     let l = max(radiance * view.eye_exposure.w, vec3<f32>(0.0));
-    let mapped = l / (1.0 + l);
-    return vec4<f32>(srgb_encode(mapped), 1.0);
+    return vec4<f32>(l / (1.0 + l), 1.0);
+}
+
+@fragment
+fn fs_filtered(in: VertexOut) -> @location(0) vec4<f32> {
+    return shade(in, filtered(in.uv));
+}
+
+@fragment
+fn fs_manual(in: VertexOut) -> @location(0) vec4<f32> {
+    return shade(in, bilinear(in.uv));
 }
