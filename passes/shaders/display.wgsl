@@ -3,11 +3,12 @@
 //
 // Radiance L = B/π (B: lightmap radiosity, W/m², bilinear between texel centres) plus an
 // optional unshadowed Blinn-Phong specular term; then exposure, Reinhard L/(1+L) per
-// channel, written linear to an Rgba8UnormSrgb target view (the hardware encodes sRGB).
+// channel, sRGB encoding, written to an Rgba8Unorm target.
 //
-// Entry points: fs_filtered (the sampler's bilinear filter; needs FLOAT32_FILTERABLE for
-// RGBA32F lightmaps) and fs_manual (four textureLoads). Override SPECULAR selects the
-// specular term per pipeline, so without it there is no light loop in the shader.
+// Entry points: lookup fs_filtered* (the sampler's bilinear filter; needs FLOAT32_FILTERABLE
+// for RGBA32F lightmaps) or fs_manual* (four textureLoads); without specular vs_uv +
+// fs_filtered / fs_manual (only the UV is interpolated and there is no light loop), with it
+// vs_main + fs_filtered_specular / fs_manual_specular.
 //
 // Bindings (bind-group order = @binding order; must match `DisplayPass` in display.rs):
 //   group 0: 0 = View (uniform), 1 = lights (storage, read)
@@ -16,9 +17,6 @@
 
 const PI: f32 = 3.14159265358979;
 
-// Whether the specular term is drawn (set per pipeline by display.rs).
-override SPECULAR: bool = false;
-
 // Must match `DisplayView` in display.rs (112 bytes).
 struct View {
     view_proj: mat4x4<f32>,
@@ -26,7 +24,7 @@ struct View {
     eye_exposure: vec4<f32>,
     lightmap_size: vec2<u32>,
     light_count: u32,
-    // 1 = specular on (informative: the SPECULAR override decides).
+    // 1 = specular on (informative: the pipeline's entry points decide).
     specular_on: u32,
     // x: specular reflectance k_s; y: Blinn-Phong exponent; zw unused.
     specular: vec4<f32>,
@@ -61,6 +59,17 @@ fn vs_main(v: VertexIn) -> VertexOut {
     return out;
 }
 
+// Without specular the fragment shader reads only the UV.
+struct UvOut {
+    @builtin(position) clip: vec4<f32>,
+    @location(0) uv: vec2<f32>,
+}
+
+@vertex
+fn vs_uv(v: VertexIn) -> UvOut {
+    return UvOut(view.view_proj * vec4<f32>(v.position, 1.0), v.uv);
+}
+
 // Bilinear lookup between texel centres: texel (x, y) has centre u = (x+0.5)/W,
 // v = 1 − (y+0.5)/H; coordinates clamp at the map border.
 fn bilinear(uv: vec2<f32>) -> vec3<f32> {
@@ -84,35 +93,54 @@ fn filtered(uv: vec2<f32>) -> vec3<f32> {
     return textureSampleLevel(lightmap, lightmap_sampler, vec2<f32>(uv.x, 1.0 - uv.y), 0.0).rgb;
 }
 
-// Tonemapped linear colour of radiosity `b` (W/m²) at the fragment: L = b/π (+ specular),
-// exposure, Reinhard. The sRGB target view encodes it.
-fn shade(in: VertexOut, b: vec3<f32>) -> vec4<f32> {
-    var radiance = b / PI;
-    if (SPECULAR) {
-        let n = normalize(in.normal);
-        let to_eye = normalize(view.eye_exposure.xyz - in.world);
-        let s = view.specular.y;
-        // Normalised Blinn-Phong: k_s·(s+8)/(8π)·(n·h)^s·E (E unshadowed).
-        for (var i = 0u; i < view.light_count; i++) {
-            let inc = light_incident(lights[i], in.world);
-            let cos_i = dot(n, inc.to_light);
-            if (cos_i > 0.0) {
-                let h = normalize(inc.to_light + to_eye);
-                let lobe = view.specular.x * (s + 8.0) / (8.0 * PI) * pow(max(dot(n, h), 0.0), s);
-                radiance += inc.e_normal * cos_i * lobe;
-            }
+// Linear → sRGB transfer function (IEC 61966-2-1).
+fn srgb_encode(c: vec3<f32>) -> vec3<f32> {
+    let lo = c * 12.92;
+    let hi = 1.055 * pow(c, vec3<f32>(1.0 / 2.4)) - 0.055;
+    return select(hi, lo, c <= vec3<f32>(0.0031308));
+}
+
+// Unshadowed normalised Blinn-Phong radiance k_s·(s+8)/(8π)·(n·h)^s·E·cos summed over the
+// lights, W/(m²·sr).
+fn specular(world: vec3<f32>, normal: vec3<f32>) -> vec3<f32> {
+    let n = normalize(normal);
+    let to_eye = normalize(view.eye_exposure.xyz - world);
+    let s = view.specular.y;
+    var out = vec3<f32>(0.0);
+    for (var i = 0u; i < view.light_count; i++) {
+        let inc = light_incident(lights[i], world);
+        let cos_i = dot(n, inc.to_light);
+        if (cos_i > 0.0) {
+            let h = normalize(inc.to_light + to_eye);
+            let lobe = view.specular.x * (s + 8.0) / (8.0 * PI) * pow(max(dot(n, h), 0.0), s);
+            out += inc.e_normal * cos_i * lobe;
         }
     }
+    return out;
+}
+
+// Display colour of a radiance (W/(m²·sr)): exposure, Reinhard, sRGB encoding.
+fn display(radiance: vec3<f32>) -> vec4<f32> {
     let l = max(radiance * view.eye_exposure.w, vec3<f32>(0.0));
-    return vec4<f32>(l / (1.0 + l), 1.0);
+    return vec4<f32>(srgb_encode(l / (1.0 + l)), 1.0);
 }
 
 @fragment
-fn fs_filtered(in: VertexOut) -> @location(0) vec4<f32> {
-    return shade(in, filtered(in.uv));
+fn fs_filtered(in: UvOut) -> @location(0) vec4<f32> {
+    return display(filtered(in.uv) / PI);
 }
 
 @fragment
-fn fs_manual(in: VertexOut) -> @location(0) vec4<f32> {
-    return shade(in, bilinear(in.uv));
+fn fs_manual(in: UvOut) -> @location(0) vec4<f32> {
+    return display(bilinear(in.uv) / PI);
+}
+
+@fragment
+fn fs_filtered_specular(in: VertexOut) -> @location(0) vec4<f32> {
+    return display(filtered(in.uv) / PI + specular(in.world, in.normal));
+}
+
+@fragment
+fn fs_manual_specular(in: VertexOut) -> @location(0) vec4<f32> {
+    return display(bilinear(in.uv) / PI + specular(in.world, in.normal));
 }

@@ -19,12 +19,12 @@
 //! - The bilinear lookup is the sampler's ([`LightmapFilter::Hardware`]) when the device
 //!   has `FLOAT32_FILTERABLE` (RGBA32F lightmaps), else four `textureLoad`s
 //!   ([`LightmapFilter::Manual`]); both give the texel-centre convention's bilinear value.
-//! - The sRGB encoding is the colour target's: the pipeline renders into an
-//!   `Rgba8UnormSrgb` view of the `Rgba8Unorm` image (the stored bytes are the same
-//!   sRGB-encoded values the shader used to write), so the shader has no `pow`.
-//! - Specular on and off are two pipelines (WGSL override `SPECULAR`): with it off the
+//! - Specular on and off are two pipelines (different entry points): with it off the
 //!   fragment shader has no light loop at all (on SIMD software rasterisers such as
-//!   lavapipe a uniform branch around the loop still costs its masked body).
+//!   lavapipe a uniform branch around the loop still costs its masked body), and the
+//!   vertex shader (`vs_uv`) passes on only the lightmap UV.
+//! - The shader encodes sRGB itself: an `Rgba8UnormSrgb` target view measured no faster
+//!   on lavapipe, and the shader's encoding is exactly the CPU mirror's.
 //!
 //! # Conventions
 //! Right-handed world, camera from [`Camera`] (look-at, vertical field of view, depth
@@ -48,12 +48,6 @@ use crate::util;
 /// Background colour of the image (sRGB-encoded RGBA8).
 pub const BACKGROUND: [u8; 4] = [16, 16, 20, 255];
 
-/// Format of the displayed image's storage (sRGB-encoded values, read back as they are).
-pub const IMAGE_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
-
-/// Format of the view the pipeline renders into: the hardware encodes linear → sRGB.
-const TARGET_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
-
 /// How the fragment shader looks up the lightmap bilinearly between texel centres.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum LightmapFilter {
@@ -73,17 +67,6 @@ impl LightmapFilter {
         } else {
             LightmapFilter::Manual
         }
-    }
-}
-
-/// sRGB decoding of an 8-bit value (IEC 61966-2-1), in f64 so that the target's encoding
-/// of the clear colour gives the same byte back.
-fn srgb_decode_u8(v: u8) -> f64 {
-    let c = v as f64 / 255.0;
-    if c <= 0.04045 {
-        c / 12.92
-    } else {
-        ((c + 0.055) / 1.055).powf(2.4)
     }
 }
 
@@ -209,7 +192,6 @@ pub struct DisplayScene {
     lights: wgpu::Buffer,
     view_group: wgpu::BindGroup,
     color: wgpu::Texture,
-    /// `Rgba8UnormSrgb` view of `color`, the render target.
     color_view: wgpu::TextureView,
     depth_view: wgpu::TextureView,
 }
@@ -328,15 +310,20 @@ impl DisplayPass {
                 immediate_size: 0,
             });
             // `[both sides, back faces culled]`; the second for closed outward meshes seen
-            // from outside (see `DisplayPass::encode`). `specular` sets the WGSL override.
+            // from outside (see `DisplayPass::encode`). Without specular the shaders
+            // interpolate only the UV and have no light loop.
             let pipeline = |specular: bool, cull_mode: Option<wgpu::Face>| {
-                let constants = [("SPECULAR", f64::from(u8::from(specular)))];
+                let (vs, fs) = if specular {
+                    ("vs_main", format!("{entry_point}_specular"))
+                } else {
+                    ("vs_uv", entry_point.to_string())
+                };
                 device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
                     label: Some("ortm.display.pipeline"),
                     layout: Some(&pl),
                     vertex: wgpu::VertexState {
                         module: &module,
-                        entry_point: Some("vs_main"),
+                        entry_point: Some(vs),
                         compilation_options: Default::default(),
                         buffers: &[Some(vertex_layout())],
                     },
@@ -354,13 +341,10 @@ impl DisplayPass {
                     multisample: Default::default(),
                     fragment: Some(wgpu::FragmentState {
                         module: &module,
-                        entry_point: Some(entry_point),
-                        compilation_options: wgpu::PipelineCompilationOptions {
-                            constants: &constants,
-                            ..Default::default()
-                        },
+                        entry_point: Some(&fs),
+                        compilation_options: Default::default(),
                         targets: &[Some(wgpu::ColorTargetState {
-                            format: TARGET_FORMAT,
+                            format: wgpu::TextureFormat::Rgba8Unorm,
                             blend: None,
                             write_mask: wgpu::ColorWrites::ALL,
                         })],
@@ -442,29 +426,15 @@ impl DisplayPass {
             ],
         });
         let size = [self.options.width, self.options.height];
-        // Stored as Rgba8Unorm (what read-back and the viewer's copy expect), rendered
-        // through an Rgba8UnormSrgb view.
-        let color = device.create_texture(&wgpu::TextureDescriptor {
-            label: Some("ortm.display.color"),
-            size: wgpu::Extent3d {
-                width: size[0],
-                height: size[1],
-                depth_or_array_layers: 1,
-            },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: IMAGE_FORMAT,
-            usage: wgpu::TextureUsages::RENDER_ATTACHMENT
+        let color = util::texture_2d(
+            device,
+            "ortm.display.color",
+            size,
+            wgpu::TextureFormat::Rgba8Unorm,
+            wgpu::TextureUsages::RENDER_ATTACHMENT
                 | wgpu::TextureUsages::COPY_SRC
                 | wgpu::TextureUsages::TEXTURE_BINDING,
-            view_formats: &[TARGET_FORMAT],
-        });
-        let color_view = color.create_view(&wgpu::TextureViewDescriptor {
-            label: Some("ortm.display.color_srgb_view"),
-            format: Some(TARGET_FORMAT),
-            ..Default::default()
-        });
+        );
         let depth = util::texture_2d(
             device,
             "ortm.display.depth",
@@ -482,8 +452,8 @@ impl DisplayPass {
             view,
             lights,
             view_group,
+            color_view: util::view(&color),
             color,
-            color_view,
             depth_view: util::view(&depth),
         })
     }
@@ -568,8 +538,7 @@ impl DisplayPass {
                 map_group(inputs.final_lightmap, "ortm.display.final_bind_group"),
             ));
         }
-        // The clear colour is linear: the sRGB target encodes it back to BACKGROUND.
-        let bg = |i: usize| srgb_decode_u8(BACKGROUND[i]);
+        let bg = |i: usize| BACKGROUND[i] as f64 / 255.0;
         let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some("ortm.display.pass"),
             color_attachments: &[Some(wgpu::RenderPassColorAttachment {
