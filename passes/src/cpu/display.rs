@@ -8,7 +8,9 @@ use crate::cpu::first_order::light_incident;
 use crate::first_order::GpuLight;
 use crate::types::TexelImage;
 
-/// Bilinear lookup between texel centres with clamping (`bilinear` in display.wgsl).
+/// Bilinear lookup between texel centres with clamping (`bilinear` in display.wgsl; the
+/// hardware path `filtered` samples `(u, 1 − v)` with a clamp-to-edge linear sampler, the
+/// same function up to the sampler's weight precision).
 pub fn bilinear(map: &TexelImage, uv: [f32; 2]) -> [f32; 3] {
     let (w, h) = (map.width as f32, map.height as f32);
     let s = uv[0] * w - 0.5;
