@@ -23,8 +23,9 @@
 //!   fragment shader has no light loop at all (on SIMD software rasterisers such as
 //!   lavapipe a uniform branch around the loop still costs its masked body), and the
 //!   vertex shader (`vs_uv`) passes on only the lightmap UV.
-//! - The shader encodes sRGB itself: an `Rgba8UnormSrgb` target view measured no faster
-//!   on lavapipe, and the shader's encoding is exactly the CPU mirror's.
+//! - The shader encodes sRGB itself with a fit of three square roots instead of `pow`
+//!   (within 0.012/255 of IEC 61966-2-1, [`crate::cpu::display::srgb_encode`]); an
+//!   `Rgba8UnormSrgb` target view measured no faster on lavapipe than `pow`.
 //!
 //! # Conventions
 //! Right-handed world, camera from [`Camera`] (look-at, vertical field of view, depth
