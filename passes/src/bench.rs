@@ -3,7 +3,8 @@
 //!
 //! # What is timed
 //! [`bench_frame`] times each pass of a [`Renderer`] frame separately (first order incl.
-//! shadow maps, transfer, dilation, display) and reports texel blends per second for the
+//! shadow maps, transfer, dilation, display — its row names the display's lightmap filter)
+//! and reports texel blends per second for the
 //! transfer pass (`FrameSchedule::texel_blends` per frame: one blend per piece texel, plus
 //! the initial copy). [`bench_blend_roofline`] times pure full-screen additive blends
 //! (`shaders/bench.wgsl`) into a target of the accumulation format: the roofline for the
@@ -469,7 +470,11 @@ pub fn bench_frame_stat(
                 )
                 .map(|_| ())
         })?;
-    rows.push(BenchRow::new("display", ms, 0).with_cpu(cpu));
+    let filter = match renderer.display.filter() {
+        crate::display::LightmapFilter::Hardware => "sampler",
+        crate::display::LightmapFilter::Manual => "manual",
+    };
+    rows.push(BenchRow::new(format!("display ({filter} bilinear)"), ms, 0).with_cpu(cpu));
 
     let draws = blends.div_ceil(w as u64 * h as u64).clamp(1, 4096) as u32;
     let format = match path {

@@ -10,11 +10,22 @@
 //! halves, for side-by-side). [`crate::gpu::Gpu::read_rgba8`] reads the image back.
 //!
 //! # Shading and units
-//! `B` (W/m², radiosity) is looked up bilinearly between texel centres (manual, so RGBA32F
-//! lightmaps need no filtering feature), turned into radiance `L = B/π` (W/(m²·sr)); the
-//! optional specular adds normalised Blinn-Phong `k_s·(s+8)/(8π)·(n·h)^s·E` per light,
-//! *unshadowed* (the shadow maps belong to the first-order pass). Then
-//! `L·exposure`, Reinhard `x/(1+x)` per channel, sRGB encoding.
+//! `B` (W/m², radiosity) is looked up bilinearly between texel centres, turned into
+//! radiance `L = B/π` (W/(m²·sr)); the optional specular adds normalised Blinn-Phong
+//! `k_s·(s+8)/(8π)·(n·h)^s·E` per light, *unshadowed* (the shadow maps belong to the
+//! first-order pass). Then `L·exposure`, Reinhard `x/(1+x)` per channel, sRGB encoding.
+//!
+//! # Cost (see `docs/render.md`, display section, for the measurements)
+//! - The bilinear lookup is the sampler's ([`LightmapFilter::Hardware`]) when the device
+//!   has `FLOAT32_FILTERABLE` (RGBA32F lightmaps), else four `textureLoad`s
+//!   ([`LightmapFilter::Manual`]); both give the texel-centre convention's bilinear value.
+//! - Specular on and off are two pipelines (different entry points): with it off the
+//!   fragment shader has no light loop at all (on SIMD software rasterisers such as
+//!   lavapipe a uniform branch around the loop still costs its masked body), and the
+//!   vertex shader (`vs_uv`) passes on only the lightmap UV.
+//! - The shader encodes sRGB itself with a fit of three square roots instead of `pow`
+//!   (within 0.012/255 of IEC 61966-2-1, [`crate::cpu::display::srgb_encode`]); an
+//!   `Rgba8UnormSrgb` target view measured no faster on lavapipe than `pow`.
 //!
 //! # Conventions
 //! Right-handed world, camera from [`Camera`] (look-at, vertical field of view, depth
@@ -37,6 +48,28 @@ use crate::util;
 
 /// Background colour of the image (sRGB-encoded RGBA8).
 pub const BACKGROUND: [u8; 4] = [16, 16, 20, 255];
+
+/// How the fragment shader looks up the lightmap bilinearly between texel centres.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum LightmapFilter {
+    /// The sampler's linear filter (`textureSampleLevel`, clamp to edge); needs
+    /// `FLOAT32_FILTERABLE` for RGBA32F lightmaps ([`Gpu::supports_float32_filter`]).
+    Hardware,
+    /// Four `textureLoad`s and two lerps in the shader; works on every device.
+    Manual,
+}
+
+impl LightmapFilter {
+    /// The cheaper filter this device supports: [`LightmapFilter::Hardware`] with
+    /// `FLOAT32_FILTERABLE`, else [`LightmapFilter::Manual`].
+    pub fn best_for(gpu: &Gpu) -> Self {
+        if gpu.supports_float32_filter() {
+            LightmapFilter::Hardware
+        } else {
+            LightmapFilter::Manual
+        }
+    }
+}
 
 /// Settings fixed at creation.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -138,10 +171,13 @@ pub const MAX_SPECULAR_LIGHTS: usize = 16;
 #[derive(Debug)]
 pub struct DisplayPass {
     options: DisplayOptions,
+    filter: LightmapFilter,
     view_layout: wgpu::BindGroupLayout,
     map_layout: wgpu::BindGroupLayout,
-    /// `[both sides, back faces culled]`.
-    pipelines: [wgpu::RenderPipeline; 2],
+    /// Bilinear, clamp-to-edge sampler ([`LightmapFilter::Hardware`] only).
+    sampler: Option<wgpu::Sampler>,
+    /// `[specular off, on][both sides, back faces culled]`.
+    pipelines: [[wgpu::RenderPipeline; 2]; 2],
 }
 
 /// Per-scene GPU data.
@@ -157,7 +193,8 @@ pub struct DisplayScene {
     lights: wgpu::Buffer,
     view_group: wgpu::BindGroup,
     color: wgpu::Texture,
-    depth: wgpu::Texture,
+    color_view: wgpu::TextureView,
+    depth_view: wgpu::TextureView,
 }
 
 /// Per-frame inputs.
@@ -189,8 +226,31 @@ pub struct DisplayOutput {
 }
 
 impl DisplayPass {
-    /// Builds the pipeline.
+    /// Builds the pipelines with the device's cheaper lightmap filter
+    /// ([`LightmapFilter::best_for`]).
     pub fn new(gpu: &Gpu, options: &DisplayOptions) -> Result<Self, PassError> {
+        Self::with_filter(gpu, options, LightmapFilter::best_for(gpu))
+    }
+
+    /// Builds the pipelines with the given lightmap filter.
+    ///
+    /// Errors: [`PassError::InvalidInput`] for [`LightmapFilter::Hardware`] on a device
+    /// without `FLOAT32_FILTERABLE`, or a bad size.
+    pub fn with_filter(
+        gpu: &Gpu,
+        options: &DisplayOptions,
+        filter: LightmapFilter,
+    ) -> Result<Self, PassError> {
+        if filter == LightmapFilter::Hardware && !gpu.supports_float32_filter() {
+            return Err(PassError::InvalidInput {
+                what: "LightmapFilter::Hardware".into(),
+                problem: format!(
+                    "adapter '{}' lacks FLOAT32_FILTERABLE (RGBA32F lightmaps cannot be \
+                     filtered); use LightmapFilter::Manual or LightmapFilter::best_for",
+                    gpu.adapter_info.name
+                ),
+            });
+        }
         gpu.check_texture_size("display image", options.width, options.height)?;
         if options.side_by_side && options.width < 2 {
             return Err(PassError::InvalidInput {
@@ -214,9 +274,36 @@ impl DisplayPass {
                     util::storage_entry(1, wgpu::ShaderStages::FRAGMENT, true),
                 ],
             });
+            let fs = wgpu::ShaderStages::FRAGMENT;
+            let (map_entries, entry_point, sampler) = match filter {
+                LightmapFilter::Manual => (vec![util::texture_entry(0, fs)], "fs_manual", None),
+                LightmapFilter::Hardware => {
+                    let mut texture = util::texture_entry(0, fs);
+                    texture.ty = wgpu::BindingType::Texture {
+                        sample_type: wgpu::TextureSampleType::Float { filterable: true },
+                        view_dimension: wgpu::TextureViewDimension::D2,
+                        multisampled: false,
+                    };
+                    let sampler_entry = wgpu::BindGroupLayoutEntry {
+                        binding: 1,
+                        visibility: fs,
+                        ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
+                        count: None,
+                    };
+                    let sampler = device.create_sampler(&wgpu::SamplerDescriptor {
+                        label: Some("ortm.display.lightmap_sampler"),
+                        address_mode_u: wgpu::AddressMode::ClampToEdge,
+                        address_mode_v: wgpu::AddressMode::ClampToEdge,
+                        mag_filter: wgpu::FilterMode::Linear,
+                        min_filter: wgpu::FilterMode::Linear,
+                        ..Default::default()
+                    });
+                    (vec![texture, sampler_entry], "fs_filtered", Some(sampler))
+                }
+            };
             let map_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
                 label: Some("ortm.display.lightmap_layout"),
-                entries: &[util::texture_entry(0, wgpu::ShaderStages::FRAGMENT)],
+                entries: &map_entries,
             });
             let pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
                 label: Some("ortm.display.pipeline_layout"),
@@ -224,14 +311,20 @@ impl DisplayPass {
                 immediate_size: 0,
             });
             // `[both sides, back faces culled]`; the second for closed outward meshes seen
-            // from outside (see `DisplayPass::encode`).
-            let pipeline = |cull_mode: Option<wgpu::Face>| {
+            // from outside (see `DisplayPass::encode`). Without specular the shaders
+            // interpolate only the UV and have no light loop.
+            let pipeline = |specular: bool, cull_mode: Option<wgpu::Face>| {
+                let (vs, fs) = if specular {
+                    ("vs_main", format!("{entry_point}_specular"))
+                } else {
+                    ("vs_uv", entry_point.to_string())
+                };
                 device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
                     label: Some("ortm.display.pipeline"),
                     layout: Some(&pl),
                     vertex: wgpu::VertexState {
                         module: &module,
-                        entry_point: Some("vs_main"),
+                        entry_point: Some(vs),
                         compilation_options: Default::default(),
                         buffers: &[Some(vertex_layout())],
                     },
@@ -249,7 +342,7 @@ impl DisplayPass {
                     multisample: Default::default(),
                     fragment: Some(wgpu::FragmentState {
                         module: &module,
-                        entry_point: Some("fs_main"),
+                        entry_point: Some(&fs),
                         compilation_options: Default::default(),
                         targets: &[Some(wgpu::ColorTargetState {
                             format: wgpu::TextureFormat::Rgba8Unorm,
@@ -261,14 +354,26 @@ impl DisplayPass {
                     cache: None,
                 })
             };
-            let pipelines = [pipeline(None), pipeline(Some(wgpu::Face::Back))];
+            let pipelines = [false, true].map(|specular| {
+                [
+                    pipeline(specular, None),
+                    pipeline(specular, Some(wgpu::Face::Back)),
+                ]
+            });
             Self {
                 options: *options,
+                filter,
                 view_layout,
                 map_layout,
+                sampler,
                 pipelines,
             }
         })
+    }
+
+    /// The lightmap filter the pipelines use.
+    pub fn filter(&self) -> LightmapFilter {
+        self.filter
     }
 
     /// Uploads the mesh and allocates the colour and depth targets.
@@ -348,8 +453,9 @@ impl DisplayPass {
             view,
             lights,
             view_group,
+            color_view: util::view(&color),
             color,
-            depth,
+            depth_view: util::view(&depth),
         })
     }
 
@@ -399,13 +505,20 @@ impl DisplayPass {
         gpu.queue
             .write_buffer(&scene.view, 0, bytemuck::bytes_of(&view));
         let map_group = |v: &wgpu::TextureView, label: &str| {
+            let mut entries = vec![wgpu::BindGroupEntry {
+                binding: 0,
+                resource: wgpu::BindingResource::TextureView(v),
+            }];
+            if let Some(s) = &self.sampler {
+                entries.push(wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: wgpu::BindingResource::Sampler(s),
+                });
+            }
             gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
                 label: Some(label),
                 layout: &self.map_layout,
-                entries: &[wgpu::BindGroupEntry {
-                    binding: 0,
-                    resource: wgpu::BindingResource::TextureView(v),
-                }],
+                entries: &entries,
             })
         };
         // (viewport x, lightmap) per draw.
@@ -426,26 +539,25 @@ impl DisplayPass {
                 map_group(inputs.final_lightmap, "ortm.display.final_bind_group"),
             ));
         }
-        let color_view = util::view(&scene.color);
-        let depth_view = util::view(&scene.depth);
+        let bg = |i: usize| BACKGROUND[i] as f64 / 255.0;
         let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some("ortm.display.pass"),
             color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                view: &color_view,
+                view: &scene.color_view,
                 depth_slice: None,
                 resolve_target: None,
                 ops: wgpu::Operations {
                     load: wgpu::LoadOp::Clear(wgpu::Color {
-                        r: BACKGROUND[0] as f64 / 255.0,
-                        g: BACKGROUND[1] as f64 / 255.0,
-                        b: BACKGROUND[2] as f64 / 255.0,
+                        r: bg(0),
+                        g: bg(1),
+                        b: bg(2),
                         a: 1.0,
                     }),
                     store: wgpu::StoreOp::Store,
                 },
             })],
             depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                view: &depth_view,
+                view: &scene.depth_view,
                 depth_ops: Some(wgpu::Operations {
                     load: wgpu::LoadOp::Clear(1.0),
                     store: wgpu::StoreOp::Discard,
@@ -469,7 +581,8 @@ impl DisplayPass {
             max: scene.bounds.max + Vec3::splat(near_reach),
         };
         let cull = scene.closed_outward && !grown.contains(Vec3::from(cam.eye));
-        pass.set_pipeline(&self.pipelines[usize::from(cull)]);
+        let specular_on = usize::from(inputs.specular.is_some());
+        pass.set_pipeline(&self.pipelines[specular_on][usize::from(cull)]);
         pass.set_bind_group(0, &scene.view_group, &[]);
         pass.set_vertex_buffer(0, scene.vertices.slice(..));
         pass.set_index_buffer(scene.indices.slice(..), wgpu::IndexFormat::Uint32);

@@ -4,7 +4,8 @@
 //! # Data flow
 //! [`Gpu::new_headless`] picks an adapter (a real GPU, or Mesa's lavapipe software Vulkan
 //! driver), requests a device with the optional features the passes can use
-//! (`FLOAT32_BLENDABLE` for RGBA32F blending, `TIMESTAMP_QUERY*` for the bench), and installs
+//! (`FLOAT32_BLENDABLE` for RGBA32F blending, `FLOAT32_FILTERABLE` for the display pass's
+//! hardware bilinear lookup, `TIMESTAMP_QUERY*` for the bench), and installs
 //! handlers that *record* uncaptured wgpu errors and device loss instead of panicking.
 //! [`Gpu::submit_and_wait`] submits, waits with a timeout, and turns any recorded error,
 //! device loss or timeout into a [`PassError`].
@@ -55,6 +56,7 @@ impl std::fmt::Debug for Gpu {
 /// Optional features the passes use when the adapter has them.
 fn wanted_features() -> wgpu::Features {
     wgpu::Features::FLOAT32_BLENDABLE
+        | wgpu::Features::FLOAT32_FILTERABLE
         | wgpu::Features::TIMESTAMP_QUERY
         | wgpu::Features::TIMESTAMP_QUERY_INSIDE_ENCODERS
 }
@@ -163,6 +165,13 @@ impl Gpu {
         } else {
             crate::util::TexelReads::Sampled
         }
+    }
+
+    /// Whether RGBA32F textures can be sampled with a linear filter (`FLOAT32_FILTERABLE`).
+    pub fn supports_float32_filter(&self) -> bool {
+        self.device
+            .features()
+            .contains(wgpu::Features::FLOAT32_FILTERABLE)
     }
 
     /// Whether timestamps can be written between commands of an encoder.

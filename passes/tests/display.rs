@@ -1,19 +1,23 @@
 //! Display pass: exact shading of uniform lightmaps against the CPU mirror, the
-//! side-by-side layout, the specular term at a known pixel, and an end-to-end frame
-//! (first order → dilate → display) whose lit side is brighter.
+//! side-by-side layout, the specular term at a known pixel, every pixel of a magnified
+//! lightmap against the CPU mirror's bilinear lookup (both lightmap filters), the diffuse and
+//! specular pipelines agreeing, and an end-to-end frame (first order → dilate → display)
+//! whose lit side is brighter.
 
 mod common;
 
 use common::gpu;
 use glam::Vec3;
-use passes::cpu::display::{shade, specular, tonemap};
+use passes::cpu::display::{bilinear, shade, specular, tonemap};
 use passes::demo::floor_and_box;
 use passes::dilate::{DilateInputs, DilateOptions, DilatePass};
-use passes::display::{BACKGROUND, Camera, DisplayInputs, DisplayOptions, DisplayPass, Specular};
+use passes::display::{
+    BACKGROUND, Camera, DisplayInputs, DisplayOptions, DisplayPass, LightmapFilter, Specular,
+};
 use passes::first_order::{
     Bounds, FirstOrderInputs, FirstOrderOptions, FirstOrderPass, pack_lights,
 };
-use passes::{Gpu, LightDesc, MeshData};
+use passes::{Gpu, LightDesc, MeshData, TexelImage};
 
 fn uniform_map(gpu: &Gpu, b: [f32; 3]) -> wgpu::TextureView {
     let tex = gpu
@@ -39,13 +43,38 @@ fn oblique_camera() -> Camera {
     }
 }
 
+/// The lightmap filters this device can run: always the manual one, the hardware one with
+/// `FLOAT32_FILTERABLE` (lavapipe has it).
+fn filters(gpu: &Gpu) -> Vec<LightmapFilter> {
+    if gpu.supports_float32_filter() {
+        vec![LightmapFilter::Manual, LightmapFilter::Hardware]
+    } else {
+        eprintln!(
+            "note: {} lacks FLOAT32_FILTERABLE; only LightmapFilter::Manual is tested",
+            gpu.adapter_info.name
+        );
+        vec![LightmapFilter::Manual]
+    }
+}
+
 fn render(
     gpu: &Gpu,
     mesh: &MeshData,
     options: DisplayOptions,
     inputs: impl FnOnce(&passes::display::DisplayScene, &mut dyn FnMut(&DisplayInputs<'_>)),
 ) -> image::RgbaImage {
-    let pass = DisplayPass::new(gpu, &options).unwrap();
+    render_with(gpu, LightmapFilter::best_for(gpu), mesh, options, inputs)
+}
+
+fn render_with(
+    gpu: &Gpu,
+    filter: LightmapFilter,
+    mesh: &MeshData,
+    options: DisplayOptions,
+    inputs: impl FnOnce(&passes::display::DisplayScene, &mut dyn FnMut(&DisplayInputs<'_>)),
+) -> image::RgbaImage {
+    let pass = DisplayPass::with_filter(gpu, &options, filter).unwrap();
+    assert_eq!(pass.filter(), filter);
     let scene = pass.prepare(gpu, mesh).unwrap();
     let mut enc = gpu.device.create_command_encoder(&Default::default());
     let mut out = None;
@@ -70,9 +99,22 @@ fn uniform_lightmap_and_side_by_side_shade_exactly() {
     let (b1, b2) = ([2.0, 1.0, 0.5], [0.3, 3.0, 9.0]);
     let (v1, v2) = (uniform_map(&gpu, b1), uniform_map(&gpu, b2));
     let (s1, s2) = (shade(b1, 1.5), shade(b2, 1.5));
-    let img = render(
-        &gpu,
-        &mesh,
+    for filter in filters(&gpu) {
+        uniform_side_by_side(&gpu, filter, &mesh, (&v1, s1), (&v2, s2));
+    }
+}
+
+fn uniform_side_by_side(
+    gpu: &Gpu,
+    filter: LightmapFilter,
+    mesh: &MeshData,
+    (v1, s1): (&wgpu::TextureView, [u8; 4]),
+    (v2, s2): (&wgpu::TextureView, [u8; 4]),
+) {
+    let img = render_with(
+        gpu,
+        filter,
+        mesh,
         DisplayOptions {
             width: 128,
             height: 64,
@@ -81,9 +123,9 @@ fn uniform_lightmap_and_side_by_side_shade_exactly() {
         |scene, draw| {
             draw(&DisplayInputs {
                 scene,
-                final_lightmap: &v2,
+                final_lightmap: v2,
                 lightmap_size: [64, 64],
-                first_order: Some(&v1),
+                first_order: Some(v1),
                 camera: oblique_camera(),
                 exposure: 1.5,
                 lights: &[],
@@ -103,15 +145,21 @@ fn uniform_lightmap_and_side_by_side_shade_exactly() {
                 "coverage differs at ({x}, {y})"
             );
             if l != BACKGROUND {
-                assert!(close(l, s1, 1), "left ({x}, {y}) {l:?} vs {s1:?}");
-                assert!(close(r, s2, 1), "right ({x}, {y}) {r:?} vs {s2:?}");
+                assert!(
+                    close(l, s1, 1),
+                    "{filter:?}: left ({x}, {y}) {l:?} vs {s1:?}"
+                );
+                assert!(
+                    close(r, s2, 1),
+                    "{filter:?}: right ({x}, {y}) {r:?} vs {s2:?}"
+                );
                 mesh_px[0] += 1;
             }
         }
     }
     assert!(
         mesh_px[0] > 64 * 64 / 8,
-        "mesh covers too little: {mesh_px:?}"
+        "{filter:?}: mesh covers too little: {mesh_px:?}"
     );
 }
 
@@ -135,49 +183,55 @@ fn specular_highlight_matches_mirror_at_centre() {
         strength: 0.04,
         shininess: 32.0,
     };
-    let img = render(
-        &gpu,
-        &mesh,
-        DisplayOptions {
-            width: 33,
-            height: 33,
-            side_by_side: false,
-        },
-        |scene, draw| {
-            draw(&DisplayInputs {
-                scene,
-                final_lightmap: &map,
-                lightmap_size: [64, 64],
-                first_order: None,
-                camera: Camera {
-                    eye,
-                    target,
-                    up: [0.0, 0.0, -1.0],
-                    fov_y_deg: 30.0,
-                    near: 0.05,
-                    far: 10.0,
-                },
-                exposure: 1.0,
-                lights: &lights,
-                specular: Some(spec),
-            })
-        },
-    );
-    let (gl, _) = pack_lights(&lights, &Bounds::of(&mesh.positions_m), 1, 99).unwrap();
-    let s = specular(
-        &gl,
-        Vec3::from(target),
-        Vec3::Y,
-        Vec3::from(eye),
-        spec.strength,
-        spec.shininess,
-    );
-    let pi = std::f32::consts::PI;
-    let want = tonemap([b[0] / pi + s.x, b[1] / pi + s.y, b[2] / pi + s.z], 1.0);
-    let got = img.get_pixel(16, 16).0;
-    assert!(close(got, want, 2), "centre {got:?} vs {want:?}");
-    // And the highlight is visible: brighter than the diffuse-only value.
-    assert!(got[0] > shade(b, 1.0)[0] + 5);
+    for filter in filters(&gpu) {
+        let img = render_with(
+            &gpu,
+            filter,
+            &mesh,
+            DisplayOptions {
+                width: 33,
+                height: 33,
+                side_by_side: false,
+            },
+            |scene, draw| {
+                draw(&DisplayInputs {
+                    scene,
+                    final_lightmap: &map,
+                    lightmap_size: [64, 64],
+                    first_order: None,
+                    camera: Camera {
+                        eye,
+                        target,
+                        up: [0.0, 0.0, -1.0],
+                        fov_y_deg: 30.0,
+                        near: 0.05,
+                        far: 10.0,
+                    },
+                    exposure: 1.0,
+                    lights: &lights,
+                    specular: Some(spec),
+                })
+            },
+        );
+        let (gl, _) = pack_lights(&lights, &Bounds::of(&mesh.positions_m), 1, 99).unwrap();
+        let s = specular(
+            &gl,
+            Vec3::from(target),
+            Vec3::Y,
+            Vec3::from(eye),
+            spec.strength,
+            spec.shininess,
+        );
+        let pi = std::f32::consts::PI;
+        let want = tonemap([b[0] / pi + s.x, b[1] / pi + s.y, b[2] / pi + s.z], 1.0);
+        let got = img.get_pixel(16, 16).0;
+        assert!(
+            close(got, want, 2),
+            "{filter:?}: centre {got:?} vs {want:?}"
+        );
+        // And the highlight is visible: brighter than the diffuse-only value.
+        assert!(got[0] > shade(b, 1.0)[0] + 5, "{filter:?}");
+    }
 }
 
 #[test]
@@ -360,4 +414,227 @@ fn back_face_culling_of_closed_mesh_changes_no_pixel() {
         .filter(|(p, q)| !close(p.0, q.0, 0))
         .count();
     assert_eq!(differ, 0, "{differ} of {covered} mesh pixels changed");
+}
+
+/// A square in the z = 0 plane, normal +z, larger than the view of [`facing_camera`]: UV is
+/// `0.5 + K·(x, y)`, so the image shows UVs from −0.1 to 1.1 (border clamping included).
+const QUAD_HALF_M: f32 = 1.0;
+const FACING_DIST_M: f32 = 2.0;
+const FACING_FOV_DEG: f32 = 40.0;
+
+fn uv_per_metre() -> f32 {
+    // Half the view at z = 0 spans UV 0.6 from the centre.
+    0.6 / (FACING_DIST_M * (0.5 * FACING_FOV_DEG.to_radians()).tan())
+}
+
+fn facing_quad() -> MeshData {
+    let (q, k) = (QUAD_HALF_M, uv_per_metre());
+    let corners = [[-q, -q], [q, -q], [q, q], [-q, q]];
+    MeshData {
+        positions_m: corners.iter().map(|c| [c[0], c[1], 0.0]).collect(),
+        normals: vec![[0.0, 0.0, 1.0]; 4],
+        lightmap_uvs: corners
+            .iter()
+            .map(|c| [0.5 + k * c[0], 0.5 + k * c[1]])
+            .collect(),
+        indices: vec![0, 1, 2, 0, 2, 3],
+    }
+}
+
+fn facing_camera() -> Camera {
+    Camera {
+        eye: [0.0, 0.0, FACING_DIST_M],
+        target: [0.0; 3],
+        up: [0.0, 1.0, 0.0],
+        fov_y_deg: FACING_FOV_DEG,
+        near: 0.1,
+        far: 10.0,
+    }
+}
+
+/// UV seen at the centre of pixel `(px, py)` of a `size`² image of [`facing_quad`] (the
+/// plane is parallel to the image, so perspective-correct interpolation is affine there).
+fn facing_uv(px: u32, py: u32, size: u32) -> [f32; 2] {
+    let half = FACING_DIST_M * (0.5 * FACING_FOV_DEG.to_radians()).tan();
+    let x = ((px as f32 + 0.5) / size as f32 * 2.0 - 1.0) * half;
+    let y = (1.0 - (py as f32 + 0.5) / size as f32 * 2.0) * half;
+    let k = uv_per_metre();
+    [0.5 + k * x, 0.5 + k * y]
+}
+
+/// An 8×8 lightmap of smooth, strongly varying radiosity (W/m², about 0.1 to 35), so the
+/// magnified image has many distinct values and a nearest lookup would be far off.
+fn smooth_map() -> TexelImage {
+    let n = 8u32;
+    let rgba = (0..n * n)
+        .map(|i| {
+            let (x, y) = ((i % n) as f32, (i / n) as f32);
+            [
+                (2.5 * (0.9 * x + 0.4 * y).sin()).exp(),
+                (2.0 * (0.7 * y - 0.3 * x).cos()).exp(),
+                0.3 + 0.4 * x,
+                1.0,
+            ]
+        })
+        .collect();
+    TexelImage {
+        width: n,
+        height: n,
+        rgba,
+    }
+}
+
+/// Every pixel of a magnified lightmap equals the CPU mirror (bilinear between texel centres
+/// with edge clamping, `B/π`, exposure, Reinhard, sRGB) within 1/255, with the hardware
+/// sampler and with the manual lookup.
+#[test]
+fn magnified_lightmap_matches_cpu_bilinear_for_each_filter() {
+    let gpu = gpu();
+    let map = smooth_map();
+    let tex = gpu
+        .create_rgba32f_texture(
+            "test.smooth_map",
+            map.width,
+            map.height,
+            &map.rgba,
+            wgpu::TextureUsages::TEXTURE_BINDING,
+        )
+        .unwrap();
+    let view = tex.create_view(&Default::default());
+    let size = 96u32;
+    let exposure = 0.8;
+    let mesh = facing_quad();
+    for filter in filters(&gpu) {
+        let img = render_with(
+            &gpu,
+            filter,
+            &mesh,
+            DisplayOptions {
+                width: size,
+                height: size,
+                side_by_side: false,
+            },
+            |scene, draw| {
+                draw(&DisplayInputs {
+                    scene,
+                    final_lightmap: &view,
+                    lightmap_size: [map.width, map.height],
+                    first_order: None,
+                    camera: facing_camera(),
+                    exposure,
+                    lights: &[],
+                    specular: None,
+                })
+            },
+        );
+        let (mut worst, mut off_by_one) = (0i32, 0usize);
+        let mut distinct = std::collections::HashSet::new();
+        for py in 0..size {
+            for px in 0..size {
+                let got = img.get_pixel(px, py).0;
+                let want = shade(bilinear(&map, facing_uv(px, py, size)), exposure);
+                for c in 0..3 {
+                    let d = (got[c] as i32 - want[c] as i32).abs();
+                    worst = worst.max(d);
+                    off_by_one += usize::from(d == 1);
+                }
+                assert!(
+                    close(got, want, 1),
+                    "{filter:?}: pixel ({px}, {py}) {got:?} vs CPU {want:?}"
+                );
+                distinct.insert(got);
+            }
+        }
+        eprintln!(
+            "{filter:?}: worst |Δ| {worst}/255, {off_by_one} of {} channels off by one, {} \
+             distinct colours",
+            3 * size * size,
+            distinct.len()
+        );
+        assert!(
+            distinct.len() > 2000,
+            "{filter:?}: only {} distinct colours: the lightmap is not resolved",
+            distinct.len()
+        );
+    }
+}
+
+/// The specular pipeline (`vs_main` + `fs_*_specular`) with `k_s = 0` draws the same image
+/// as the diffuse pipeline (`vs_uv`, no light loop): same coverage, same colours.
+#[test]
+fn specular_pipeline_with_zero_strength_matches_diffuse_pipeline() {
+    let gpu = gpu();
+    let (mesh, _) = floor_and_box(64);
+    let n = 64usize;
+    let texels: Vec<[f32; 4]> = (0..n * n)
+        .map(|i| [(i % n) as f32 * 0.1, (i / n) as f32 * 0.1, 2.0, 1.0])
+        .collect();
+    let tex = gpu
+        .create_rgba32f_texture(
+            "test.gradient",
+            n as u32,
+            n as u32,
+            &texels,
+            wgpu::TextureUsages::TEXTURE_BINDING,
+        )
+        .unwrap();
+    let view = tex.create_view(&Default::default());
+    let lights = [LightDesc::Point {
+        position_m: [0.3, 1.0, 0.2],
+        color: [1.0; 3],
+        intensity_w_sr: 3.0,
+    }];
+    for filter in filters(&gpu) {
+        let draw_with = |spec: Option<Specular>| {
+            render_with(
+                &gpu,
+                filter,
+                &mesh,
+                DisplayOptions {
+                    width: 160,
+                    height: 120,
+                    side_by_side: false,
+                },
+                |scene, draw| {
+                    draw(&DisplayInputs {
+                        scene,
+                        final_lightmap: &view,
+                        lightmap_size: [n as u32, n as u32],
+                        first_order: None,
+                        camera: oblique_camera(),
+                        exposure: 0.7,
+                        lights: &lights,
+                        specular: spec,
+                    })
+                },
+            )
+        };
+        let diffuse = draw_with(None);
+        let zero = draw_with(Some(Specular {
+            strength: 0.0,
+            shininess: 16.0,
+        }));
+        let lit = draw_with(Some(Specular {
+            strength: 0.5,
+            shininess: 16.0,
+        }));
+        let covered = diffuse.pixels().filter(|p| p.0 != BACKGROUND).count();
+        assert!(
+            covered > 160 * 120 / 8,
+            "{filter:?}: covers {covered} pixels"
+        );
+        let differ = diffuse
+            .pixels()
+            .zip(zero.pixels())
+            .filter(|(a, b)| a.0 != b.0)
+            .count();
+        assert_eq!(differ, 0, "{filter:?}: {differ} of {covered} pixels differ");
+        // The specular pipeline does add light when k_s > 0.
+        let brighter = diffuse
+            .pixels()
+            .zip(lit.pixels())
+            .filter(|(a, b)| b.0[0] > a.0[0] + 2)
+            .count();
+        assert!(brighter > 100, "{filter:?}: highlight on {brighter} pixels");
+    }
 }

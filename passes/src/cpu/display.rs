@@ -1,5 +1,6 @@
 //! CPU mirror of the display pass's shading (`shaders/display.wgsl`): bilinear lightmap
-//! lookup, `L = B/π` (+ optional Blinn-Phong specular), exposure, Reinhard, sRGB, 8-bit.
+//! lookup, `L = B/π` (+ optional Blinn-Phong specular), exposure, Reinhard, sRGB (the
+//! shader's fitted encoding, [`srgb_encode`]), 8-bit.
 //! The rasterisation of the mesh itself is not mirrored.
 
 use glam::Vec3;
@@ -8,7 +9,9 @@ use crate::cpu::first_order::light_incident;
 use crate::first_order::GpuLight;
 use crate::types::TexelImage;
 
-/// Bilinear lookup between texel centres with clamping (`bilinear` in display.wgsl).
+/// Bilinear lookup between texel centres with clamping (`bilinear` in display.wgsl; the
+/// hardware path `filtered` samples `(u, 1 − v)` with a clamp-to-edge linear sampler, the
+/// same function up to the sampler's weight precision).
 pub fn bilinear(map: &TexelImage, uv: [f32; 2]) -> [f32; 3] {
     let (w, h) = (map.width as f32, map.height as f32);
     let s = uv[0] * w - 0.5;
@@ -46,13 +49,29 @@ pub fn specular(lights: &[GpuLight], p: Vec3, n: Vec3, eye: Vec3, ks: f32, shini
     out
 }
 
-/// Linear → sRGB transfer function.
+/// Linear → sRGB transfer function as the display shader computes it: the linear segment
+/// exactly, above it a minimax fit of `1.055·c^(1/2.4) − 0.055` in `c^(1/2)`, `c^(1/4)`,
+/// `c^(1/8)` and `c` (three square roots instead of `pow`; fitted in f64 on
+/// `[0.0031308, 1]`), within 0.012/255 of [`srgb_encode_exact`] on `[0, 1]`.
 pub fn srgb_encode(c: f32) -> f32 {
     if c <= 0.003_130_8 {
         c * 12.92
     } else {
-        1.055 * c.powf(1.0 / 2.4) - 0.055
+        let s1 = c.sqrt();
+        let s2 = s1.sqrt();
+        let s3 = s2.sqrt();
+        0.642_383_3 * s1 + 0.712_090_1 * s2 - 0.336_861_5 * s3 - 0.017_568_972 * c
     }
+}
+
+/// Linear → sRGB transfer function (IEC 61966-2-1), evaluated with `powf` in f64.
+pub fn srgb_encode_exact(c: f32) -> f32 {
+    let c = c as f64;
+    (if c <= 0.003_130_8 {
+        c * 12.92
+    } else {
+        1.055 * c.powf(1.0 / 2.4) - 0.055
+    }) as f32
 }
 
 /// Display value of a radiance (W/(m²·sr)): exposure, Reinhard, sRGB, 8 bits.
@@ -69,4 +88,38 @@ pub fn tonemap(radiance: [f32; 3], exposure: f32) -> [u8; 4] {
 pub fn shade(b: [f32; 3], exposure: f32) -> [u8; 4] {
     let pi = std::f32::consts::PI;
     tonemap([b[0] / pi, b[1] / pi, b[2] / pi], exposure)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{srgb_encode, srgb_encode_exact};
+
+    /// The fitted encoding stays within 0.012/255 of the IEC formula everywhere on [0, 1]
+    /// (4,000,001 evenly spaced values), so the 8-bit value differs by at most one and only
+    /// where the exact value lies within 0.012 of a rounding boundary.
+    #[test]
+    fn fitted_srgb_encode_matches_iec_formula() {
+        let n = 4_000_000u32;
+        let (mut worst, mut flips) = (0f64, 0u32);
+        for i in 0..=n {
+            let c = i as f32 / n as f32;
+            let (fit, exact) = (srgb_encode(c) as f64, srgb_encode_exact(c) as f64);
+            worst = worst.max((fit - exact).abs() * 255.0);
+            let byte = |v: f64| (v.clamp(0.0, 1.0) * 255.0).round();
+            let diff = (byte(fit) - byte(exact)).abs();
+            assert!(diff <= 1.0, "c = {c}: {fit} vs {exact}");
+            flips += u32::from(diff > 0.0);
+        }
+        assert!(worst < 0.012, "worst |Δ| {worst}/255");
+        // A rounding flip needs the exact value within `worst` of a boundary (k + 0.5)/255.
+        assert!(
+            (flips as f64) < 2.0 * 0.012 * n as f64,
+            "{flips} of {n} bytes differ"
+        );
+        eprintln!("fitted sRGB: worst |Δ| {worst:.4}/255, {flips} of {n} bytes off by one");
+        // Endpoints and the junction with the linear segment.
+        assert_eq!(srgb_encode(0.0), 0.0);
+        assert!((srgb_encode(1.0) - 1.0).abs() < 0.012 / 255.0);
+        assert!((srgb_encode(0.003_130_9) - 0.003_130_8 * 12.92).abs() < 0.012 / 255.0);
+    }
 }
