@@ -429,20 +429,25 @@ pub fn to_lightmap(img: &TexelImage) -> Lightmap {
 
 /// An exposure that maps the 95th percentile of the radiance `L = B/π` over covered texels
 /// (alpha > 0) of `lightmap` to 1 (Reinhard 0.5), or 1 when nothing is lit.
+///
+/// Every covered texel counts, unlit ones (`L ≤ 0`, e.g. a shadowed texel whose subsurface
+/// terms cancel to ±1e-9 W/m²) as 0: counting only `L > 0` let rounding noise in the dark
+/// texels move the percentile (the blend and compute paths differed by 4 % on the head).
 pub fn auto_exposure(lightmap: &TexelImage) -> f32 {
     let mut l: Vec<f32> = lightmap
         .rgba
         .iter()
         .filter(|p| p[3] > 0.0)
         .map(|p| p[0].max(p[1]).max(p[2]) / std::f32::consts::PI)
-        .filter(|v| v.is_finite() && *v > 0.0)
+        .filter(|v| v.is_finite())
+        .map(|v| v.max(0.0))
         .collect();
     if l.is_empty() {
         return 1.0;
     }
     let k = ((l.len() - 1) as f64 * 0.95).round() as usize;
     let (_, p95, _) = l.select_nth_unstable_by(k, f32::total_cmp);
-    1.0 / *p95
+    if *p95 > 0.0 { 1.0 / *p95 } else { 1.0 }
 }
 
 /// A camera looking along −z at the bounding sphere of `mesh`, from far enough that the
@@ -734,6 +739,37 @@ mod tests {
     use super::*;
     use crate::scene::MeshTriangle;
     use glam::Vec2;
+
+    #[test]
+    fn auto_exposure_is_the_95th_percentile_over_covered_texels_and_ignores_dark_noise() {
+        // 100 covered texels: 50 dark, 50 lit with L = B/π = 1, …, 50 (max over RGB); 20
+        // uncovered ones at 1000. Sorted covered values: 50 zeros, then 1…50; the 95th
+        // percentile is element round(99·0.95) = 94, i.e. L = 45.
+        let mut img = TexelImage::new(12, 10);
+        for (i, p) in img.rgba.iter_mut().enumerate() {
+            *p = match i {
+                0..50 => [0.0, 0.0, 0.0, 1.0],
+                50..100 => {
+                    let b = (i - 49) as f32 * std::f32::consts::PI;
+                    [0.5 * b, b, 0.25 * b, 1.0]
+                }
+                _ => [1000.0, 1000.0, 1000.0, 0.0],
+            };
+        }
+        let e = auto_exposure(&img);
+        assert!((e - 1.0 / 45.0).abs() < 1e-6, "{e}");
+        // Rounding noise of either sign in the dark texels changes nothing (counting only
+        // L > 0 gave 1/48 without the noise and 1/45 with positive noise).
+        for noise in [1e-9f32, -1e-9] {
+            for p in &mut img.rgba[..50] {
+                *p = [noise, noise, noise, 1.0];
+            }
+            assert_eq!(auto_exposure(&img), e, "noise {noise}");
+        }
+        // Nothing lit → 1.
+        let dark = TexelImage::new(4, 4);
+        assert_eq!(auto_exposure(&dark), 1.0);
+    }
 
     #[test]
     fn mesh_corners_are_shared_only_when_all_three_indices_agree() {

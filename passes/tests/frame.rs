@@ -9,7 +9,7 @@ use passes::demo::{blur_transfer, demo_lights, floor_and_box};
 use passes::display::{Camera, DisplayOptions};
 use passes::first_order::FirstOrderOptions;
 use passes::frame::{FrameParams, Renderer, RendererOptions};
-use passes::transfer::TransferOptions;
+use passes::transfer::{TransferOptions, TransferPath};
 use passes::{PassError, cpu};
 
 #[test]
@@ -22,7 +22,12 @@ fn renderer_final_map_matches_mirror_and_bench_reports_every_pass() {
             max_shadow_layers: 8,
             ..Default::default()
         },
-        transfer: TransferOptions::best_for(&gpu),
+        // The blend path with `best_for`'s other settings (on a CPU adapter such as lavapipe
+        // that is `best_for` itself; hardware GPUs default to the compute path).
+        transfer: TransferOptions {
+            path: TransferPath::Blend,
+            ..TransferOptions::best_for(&gpu)
+        },
         display: DisplayOptions {
             width: 64,
             height: 32,
@@ -39,7 +44,7 @@ fn renderer_final_map_matches_mirror_and_bench_reports_every_pass() {
     let lights = demo_lights();
 
     let (fo, fin) = renderer.render_lightmaps(&gpu, &scene, &lights).unwrap();
-    // `best_for` pairs pieces (binary16 values, relative error ≤ 2⁻¹¹ per term; the blur's
+    // `best_for` pairs pieces in the blend path (binary16 values, relative error ≤ 2⁻¹¹ per term; the blur's
     // terms are all positive, so the 1e-3 relative tolerance below covers it).
     let pairs = scene.transfer.paired.as_ref().map_or(0, |p| p.pairs);
     assert!(
