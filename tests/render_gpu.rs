@@ -25,11 +25,14 @@ use ortm::transport::{Effects, Transport};
 use passes::display::{Camera, DisplayOptions};
 use passes::first_order::FirstOrderOptions;
 use passes::frame::{FrameParams, Renderer, RendererOptions};
+use passes::gpu::ExclusiveGpu;
 use passes::transfer::TransferOptions;
 use passes::{Gpu, TexelImage};
 
-fn gpu() -> Gpu {
-    Gpu::new_headless().unwrap_or_else(|e| panic!("{e}"))
+/// One test's device at a time (`new_headless_exclusive`: NVIDIA's driver crashes when test
+/// threads use devices at once).
+fn gpu() -> ExclusiveGpu {
+    Gpu::new_headless_exclusive().unwrap_or_else(|e| panic!("{e}"))
 }
 
 fn data(rel: &str) -> PathBuf {

@@ -10,13 +10,20 @@
 //! [`Gpu::submit_and_wait`] submits, waits with a timeout, and turns any recorded error,
 //! device loss or timeout into a [`PassError`].
 //!
+//! [`Gpu::new_headless_exclusive`] is the same device, but only one such device is alive in
+//! the process at a time: what tests and tools that make many devices on parallel threads
+//! need on NVIDIA's Linux driver, which crashes (SIGSEGV) or deadlocks when devices are
+//! created, used and destroyed on several threads at once (wgpu issues #5930 and #8365; seen
+//! in about half of the parallel runs of `passes`' transfer tests on an H100).
+//!
 //! # Limits
 //! - Waiting uses `Device::poll` with a timeout ([`Gpu::timeout`], 120 s by default); a hung
 //!   device gives [`PassError::Timeout`], never a hang.
 //! - Read-back helpers handle the 256-byte row alignment of texture→buffer copies and
 //!   support `Rgba32Float`, `Rgba16Float` and `Rgba8Unorm` textures.
 
-use std::sync::{Arc, Mutex};
+use std::cell::Cell;
+use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::Duration;
 
 use crate::error::PassError;
@@ -61,7 +68,61 @@ fn wanted_features() -> wgpu::Features {
         | wgpu::Features::TIMESTAMP_QUERY_INSIDE_ENCODERS
 }
 
+/// A [`Gpu`] that is the only one from [`Gpu::new_headless_exclusive`] alive in the process
+/// (dereferences to the [`Gpu`]). Its device is dropped before the next one can be created.
+pub struct ExclusiveGpu {
+    gpu: Gpu,
+    _turn: MutexGuard<'static, ()>,
+}
+
+/// The turn of [`Gpu::new_headless_exclusive`].
+static EXCLUSIVE_TURN: Mutex<()> = Mutex::new(());
+
+thread_local! {
+    /// Whether this thread holds an [`ExclusiveGpu`] (a second one would wait for itself).
+    static HOLDS_EXCLUSIVE: Cell<bool> = const { Cell::new(false) };
+}
+
+impl std::ops::Deref for ExclusiveGpu {
+    type Target = Gpu;
+    fn deref(&self) -> &Gpu {
+        &self.gpu
+    }
+}
+
+impl Drop for ExclusiveGpu {
+    fn drop(&mut self) {
+        // The fields (device first, then the turn) are dropped after this.
+        HOLDS_EXCLUSIVE.with(|h| h.set(false));
+    }
+}
+
+impl std::fmt::Debug for ExclusiveGpu {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_tuple("ExclusiveGpu").field(&self.gpu).finish()
+    }
+}
+
 impl Gpu {
+    /// [`Gpu::new_headless`], waiting until no other [`ExclusiveGpu`] is alive in the process
+    /// (see the module docs: NVIDIA's driver races on devices used on several threads at
+    /// once). For test suites and tools; an application with one device needs no turn.
+    ///
+    /// Panics if this thread already holds one (it would wait for itself forever).
+    pub fn new_headless_exclusive() -> Result<ExclusiveGpu, PassError> {
+        assert!(
+            !HOLDS_EXCLUSIVE.with(Cell::get),
+            "Gpu::new_headless_exclusive called on a thread that already holds an ExclusiveGpu; \
+             drop it first"
+        );
+        let turn = EXCLUSIVE_TURN
+            .lock()
+            .unwrap_or_else(|poisoned| poisoned.into_inner());
+        let gpu = Self::new_headless()?;
+        HOLDS_EXCLUSIVE.with(|h| h.set(true));
+        Ok(ExclusiveGpu { gpu, _turn: turn })
+    }
+
     /// Opens the best available adapter without a window.
     ///
     /// Errors: [`PassError::NoAdapter`] (with installation advice) when there is none,

@@ -4,6 +4,7 @@
 #![allow(dead_code, reason = "each test binary uses a different subset")]
 
 use passes::Gpu;
+use passes::gpu::ExclusiveGpu;
 
 /// SplitMix64: tiny, seeded, good enough for test data.
 pub struct Rng(u64);
@@ -31,10 +32,11 @@ impl Rng {
     }
 }
 
-/// The headless GPU (lavapipe on CI). Panics with wgpu's advice when there is none: GPU
-/// tests are never skipped.
-pub fn gpu() -> Gpu {
-    Gpu::new_headless().unwrap_or_else(|e| panic!("{e}"))
+/// The headless GPU (lavapipe on CI), one test's device at a time (`new_headless_exclusive`:
+/// NVIDIA's driver crashes when test threads use devices at once). Panics with wgpu's advice
+/// when there is none: GPU tests are never skipped.
+pub fn gpu() -> ExclusiveGpu {
+    Gpu::new_headless_exclusive().unwrap_or_else(|e| panic!("{e}"))
 }
 
 /// Axis-aligned boxes `(centre, half extents)` in metres as one closed mesh with outward CCW
