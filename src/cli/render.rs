@@ -265,7 +265,7 @@ pub fn run(a: Args) -> Result<()> {
          final {:.4e} W/m² summed over texels",
         gpu.adapter_info.name,
         gpu.adapter_info.backend,
-        a.path,
+        options.transfer.path,
         sum_rgb(&fo),
         sum_rgb(&fin)
     );
