@@ -145,6 +145,28 @@ pub struct DilatePlan {
 }
 
 impl DilatePlan {
+    /// Checks that every source index lies inside the plan's `width × height` map, which
+    /// holds `sources.len()` texels (the GPU pass and the CPU mirror check it before use).
+    ///
+    /// # Errors
+    /// [`PassError::InvalidInput`] naming `DilatePlan.sources`.
+    pub fn check_sources(&self) -> Result<(), PassError> {
+        let n = self.sources.len();
+        if self
+            .sources
+            .iter()
+            .any(|&s| s != NO_SOURCE && s as usize >= n)
+        {
+            return Err(PassError::InvalidInput {
+                what: "DilatePlan.sources".into(),
+                problem: "a source index lies outside the map; build the plan with \
+                          DilatePlan::new"
+                    .into(),
+            });
+        }
+        Ok(())
+    }
+
     /// The plan of a coverage mask (see [`dilation_sources`]).
     ///
     /// # Errors
@@ -435,18 +457,7 @@ impl DilatePass {
                 hint: "build the plan with DilatePlan::new".into(),
             });
         }
-        if plan
-            .sources
-            .iter()
-            .any(|&s| s != NO_SOURCE && s as usize >= n)
-        {
-            return Err(PassError::InvalidInput {
-                what: "DilatePlan.sources".into(),
-                problem: "a source index lies outside the map; build the plan with \
-                          DilatePlan::new"
-                    .into(),
-            });
-        }
+        plan.check_sources()?;
         gpu.scoped("ortm.dilate.prepare", || {
             let device = &gpu.device;
             let sources = util::texture_2d(

@@ -290,25 +290,11 @@ fn plans_of_another_size_are_errors() {
 #[test]
 fn frame_plan_is_the_first_order_coverage_and_dilates_like_the_mirror() {
     use passes::demo::{blur_transfer, demo_lights, floor_and_box};
-    use passes::display::{Camera, DisplayOptions};
-    use passes::first_order::FirstOrderOptions;
-    use passes::frame::{FrameParams, Renderer, RendererOptions};
+    use passes::frame::{FrameParams, Renderer};
 
     let gpu = gpu();
     let size = 64;
-    let options = RendererOptions {
-        first_order: FirstOrderOptions {
-            shadow_map_size: 256,
-            max_shadow_layers: 8,
-            ..Default::default()
-        },
-        display: DisplayOptions {
-            width: 32,
-            height: 16,
-            side_by_side: true,
-        },
-        ..Default::default()
-    };
+    let options = common::demo_renderer_options(32, 16);
     let renderer = Renderer::new(&gpu, &options).unwrap();
     let (mesh, albedo) = floor_and_box(size);
     let (atlases, pieces) = blur_transfer([size, size], 2, 1, 0.02);
@@ -318,14 +304,7 @@ fn frame_plan_is_the_first_order_coverage_and_dilates_like_the_mirror() {
     let lights = demo_lights();
     let params = FrameParams {
         lights: &lights,
-        camera: Camera {
-            eye: [2.0, 2.0, 3.0],
-            target: [0.0; 3],
-            up: [0.0, 1.0, 0.0],
-            fov_y_deg: 45.0,
-            near: 0.05,
-            far: 20.0,
-        },
+        camera: common::demo_camera(),
         exposure: 1.0,
         specular: None,
     };

@@ -20,12 +20,34 @@ use passes::first_order::{
 use passes::{Gpu, LightDesc, MeshData, TexelImage};
 
 fn uniform_map(gpu: &Gpu, b: [f32; 3]) -> wgpu::TextureView {
+    lightmap_view(
+        gpu,
+        "test.uniform_map",
+        64,
+        &vec![[b[0], b[1], b[2], 1.0]; 64 * 64],
+    )
+}
+
+/// Side of [`gradient_map`], texels.
+const GRADIENT_SIDE: u32 = 64;
+
+/// A lightmap that varies across texels: R = step·x, G = step·y, B = `b`, covered.
+fn gradient_map(gpu: &Gpu, step: f32, b: f32) -> wgpu::TextureView {
+    let n = GRADIENT_SIDE as usize;
+    let texels: Vec<[f32; 4]> = (0..n * n)
+        .map(|i| [(i % n) as f32 * step, (i / n) as f32 * step, b, 1.0])
+        .collect();
+    lightmap_view(gpu, "test.gradient", n as u32, &texels)
+}
+
+/// A `side × side` RGBA32F lightmap texture's view.
+fn lightmap_view(gpu: &Gpu, label: &str, side: u32, texels: &[[f32; 4]]) -> wgpu::TextureView {
     let tex = gpu
         .create_rgba32f_texture(
-            "test.uniform_map",
-            64,
-            64,
-            &vec![[b[0], b[1], b[2], 1.0]; 64 * 64],
+            label,
+            side,
+            side,
+            texels,
             wgpu::TextureUsages::TEXTURE_BINDING,
         )
         .unwrap();
@@ -369,20 +391,7 @@ fn back_face_culling_of_closed_mesh_changes_no_pixel() {
     assert!(closed.is_closed_outward());
     assert!(!open.is_closed_outward());
     // A lightmap that varies across texels (so front and back faces would shade differently).
-    let n = 64usize;
-    let texels: Vec<[f32; 4]> = (0..n * n)
-        .map(|i| [(i % n) as f32 * 0.05, (i / n) as f32 * 0.05, 1.0, 1.0])
-        .collect();
-    let tex = gpu
-        .create_rgba32f_texture(
-            "test.gradient",
-            n as u32,
-            n as u32,
-            &texels,
-            wgpu::TextureUsages::TEXTURE_BINDING,
-        )
-        .unwrap();
-    let view = tex.create_view(&Default::default());
+    let view = gradient_map(&gpu, 0.05, 1.0);
     let options = DisplayOptions {
         width: 160,
         height: 120,
@@ -393,7 +402,7 @@ fn back_face_culling_of_closed_mesh_changes_no_pixel() {
             draw(&DisplayInputs {
                 scene,
                 final_lightmap: &view,
-                lightmap_size: [n as u32, n as u32],
+                lightmap_size: [GRADIENT_SIDE, GRADIENT_SIDE],
                 first_order: None,
                 camera: oblique_camera(),
                 exposure: 1.0,
@@ -565,20 +574,7 @@ fn magnified_lightmap_matches_cpu_bilinear_for_each_filter() {
 fn specular_pipeline_with_zero_strength_matches_diffuse_pipeline() {
     let gpu = gpu();
     let (mesh, _) = floor_and_box(64);
-    let n = 64usize;
-    let texels: Vec<[f32; 4]> = (0..n * n)
-        .map(|i| [(i % n) as f32 * 0.1, (i / n) as f32 * 0.1, 2.0, 1.0])
-        .collect();
-    let tex = gpu
-        .create_rgba32f_texture(
-            "test.gradient",
-            n as u32,
-            n as u32,
-            &texels,
-            wgpu::TextureUsages::TEXTURE_BINDING,
-        )
-        .unwrap();
-    let view = tex.create_view(&Default::default());
+    let view = gradient_map(&gpu, 0.1, 2.0);
     let lights = [LightDesc::Point {
         position_m: [0.3, 1.0, 0.2],
         color: [1.0; 3],
@@ -599,7 +595,7 @@ fn specular_pipeline_with_zero_strength_matches_diffuse_pipeline() {
                     draw(&DisplayInputs {
                         scene,
                         final_lightmap: &view,
-                        lightmap_size: [n as u32, n as u32],
+                        lightmap_size: [GRADIENT_SIDE, GRADIENT_SIDE],
                         first_order: None,
                         camera: oblique_camera(),
                         exposure: 0.7,

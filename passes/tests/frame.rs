@@ -6,8 +6,6 @@ mod common;
 use common::gpu;
 use passes::bench::{TimingSource, bench_frame};
 use passes::demo::{blur_transfer, demo_lights, floor_and_box};
-use passes::display::{Camera, DisplayOptions};
-use passes::first_order::FirstOrderOptions;
 use passes::frame::{FrameParams, Renderer, RendererOptions};
 use passes::transfer::{TransferOptions, TransferPath};
 use passes::{PassError, cpu};
@@ -17,23 +15,13 @@ fn renderer_final_map_matches_mirror_and_bench_reports_every_pass() {
     let gpu = gpu();
     let size = 64;
     let options = RendererOptions {
-        first_order: FirstOrderOptions {
-            shadow_map_size: 256,
-            max_shadow_layers: 8,
-            ..Default::default()
-        },
         // The blend path with `best_for`'s other settings (on a CPU adapter such as lavapipe
         // that is `best_for` itself; hardware GPUs default to the compute path).
         transfer: TransferOptions {
             path: TransferPath::Blend,
             ..TransferOptions::best_for(&gpu)
         },
-        display: DisplayOptions {
-            width: 64,
-            height: 32,
-            side_by_side: true,
-        },
-        ..Default::default()
+        ..common::demo_renderer_options(64, 32)
     };
     let renderer = Renderer::new(&gpu, &options).unwrap();
     let (mesh, albedo) = floor_and_box(size);
@@ -71,14 +59,7 @@ fn renderer_final_map_matches_mirror_and_bench_reports_every_pass() {
 
     let params = FrameParams {
         lights: &lights,
-        camera: Camera {
-            eye: [2.0, 2.0, 3.0],
-            target: [0.0; 3],
-            up: [0.0, 1.0, 0.0],
-            fov_y_deg: 45.0,
-            near: 0.05,
-            far: 20.0,
-        },
+        camera: common::demo_camera(),
         exposure: 1.0,
         specular: None,
     };

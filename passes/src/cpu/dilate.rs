@@ -5,7 +5,7 @@
 //! [`crate::dilate`]); every other texel is 0. Both GPU paths
 //! ([`crate::dilate::DilatePath`]) give exactly this.
 
-use crate::dilate::{DilatePlan, FILLED_ALPHA, NO_SOURCE};
+use crate::dilate::{DilatePlan, FILLED_ALPHA};
 use crate::error::PassError;
 use crate::types::TexelImage;
 
@@ -26,18 +26,7 @@ pub fn dilate(src: &TexelImage, plan: &DilatePlan) -> Result<TexelImage, PassErr
             ),
         });
     }
-    let n = src.rgba.len();
-    if plan
-        .sources
-        .iter()
-        .any(|&s| s != NO_SOURCE && s as usize >= n)
-    {
-        return Err(PassError::InvalidInput {
-            what: "DilatePlan.sources".into(),
-            problem: "a source index lies outside the map; build the plan with DilatePlan::new"
-                .into(),
-        });
-    }
+    plan.check_sources()?;
     let mut out = TexelImage::new(src.width, src.height);
     for y in 0..src.height {
         for x in 0..src.width {

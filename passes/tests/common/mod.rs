@@ -93,3 +93,33 @@ pub fn opened(mesh: &passes::MeshData, at: [f32; 3]) -> passes::MeshData {
     m.indices.extend([base, base + 1, base + 2]);
     m
 }
+
+/// Renderer options of the frame tests on the demo scene: 256² shadow maps of 8 layers, a
+/// side-by-side display of `width × height` pixels, the rest default.
+pub fn demo_renderer_options(width: u32, height: u32) -> passes::RendererOptions {
+    passes::RendererOptions {
+        first_order: passes::first_order::FirstOrderOptions {
+            shadow_map_size: 256,
+            max_shadow_layers: 8,
+            ..Default::default()
+        },
+        display: passes::display::DisplayOptions {
+            width,
+            height,
+            side_by_side: true,
+        },
+        ..Default::default()
+    }
+}
+
+/// The camera the frame tests view the demo scene with.
+pub fn demo_camera() -> passes::display::Camera {
+    passes::display::Camera {
+        eye: [2.0, 2.0, 3.0],
+        target: [0.0; 3],
+        up: [0.0, 1.0, 0.0],
+        fov_y_deg: 45.0,
+        near: 0.05,
+        far: 20.0,
+    }
+}
