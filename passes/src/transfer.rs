@@ -206,7 +206,8 @@ impl TransferPass {
     /// Builds the pipelines of `options.path`.
     ///
     /// Errors: [`PassError::MissingFeature`] for RGBA32F blending without
-    /// `FLOAT32_BLENDABLE`; [`PassError::Gpu`] when pipeline creation fails.
+    /// `FLOAT32_BLENDABLE` or storage-texture reads the device lacks; [`PassError::Gpu`] when
+    /// pipeline creation fails.
     pub fn new(gpu: &Gpu, options: &TransferOptions) -> Result<Self, PassError> {
         if options.path == TransferPath::Blend
             && options.accum_format == AccumFormat::Rgba32Float
