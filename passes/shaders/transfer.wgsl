@@ -9,13 +9,8 @@
 // storage texture, chosen by `TransferOptions::texel_reads`).
 // Coordinates: texel (x, y), y down, row 0 = v = 1; framebuffer pixel (x, y) is lightmap texel (x, y).
 
-// Must match `TransferParams` in transfer.rs (16 bytes).
-struct Params {
-    lightmap_size: vec2<u32>,
-    _pad: vec2<u32>,
-}
-
-@group(0) @binding(0) var<uniform> params: Params;
+// Params (binding 0 of group 0), `texel_to_clip` and `quad_clip`: transfer_quad.wgsl, also
+// prepended by the host.
 
 // Per-instance attributes: must match `PieceInstance` in schedule.rs (32 bytes, locations 0–3).
 struct PieceIn {
@@ -32,23 +27,11 @@ struct PieceOut {
     @location(1) @interpolate(flat) offset: vec2<i32>,
 }
 
-// Texel-space point (x right, y down, in texels) to clip space.
-fn texel_to_clip(p: vec2<f32>) -> vec4<f32> {
-    let size = vec2<f32>(params.lightmap_size);
-    return vec4<f32>(2.0 * p.x / size.x - 1.0, 1.0 - 2.0 * p.y / size.y, 0.0, 1.0);
-}
-
-// One quad (two triangles, 6 vertices) per piece covering texels [dst, dst + size):
-// the rasteriser's pixel-centre rule selects exactly those texels.
+// One quad (two triangles, 6 vertices) per piece covering texels [dst, dst + size).
 @vertex
 fn vs_piece(@builtin(vertex_index) vi: u32, piece: PieceIn) -> PieceOut {
-    var corners = array<vec2<f32>, 6>(
-        vec2<f32>(0.0, 0.0), vec2<f32>(1.0, 0.0), vec2<f32>(0.0, 1.0),
-        vec2<f32>(0.0, 1.0), vec2<f32>(1.0, 0.0), vec2<f32>(1.0, 1.0),
-    );
-    let c = corners[vi];
     var out: PieceOut;
-    out.clip = texel_to_clip(vec2<f32>(piece.dst) + c * vec2<f32>(piece.size));
+    out.clip = quad_clip(vi, piece.dst, piece.size);
     out.src_minus_dst = vec2<i32>(piece.src) - vec2<i32>(piece.dst);
     out.offset = piece.offset;
     return out;

@@ -12,13 +12,8 @@
 // by 2^k per piece; values are 0 outside a piece's own rectangle).
 // Coordinates: texel (x, y), y down, row 0 = v = 1; framebuffer pixel (x, y) is lightmap texel (x, y).
 
-// Must match `TransferParams` in transfer.rs (16 bytes).
-struct Params {
-    lightmap_size: vec2<u32>,
-    _pad: vec2<u32>,
-}
-
-@group(0) @binding(0) var<uniform> params: Params;
+// Params (binding 0 of group 0), `texel_to_clip` and `quad_clip`: transfer_quad.wgsl, also
+// prepended by the host.
 
 // Per-instance attributes: must match `PairInstance` in pairing.rs (48 bytes, locations 0–5).
 struct PairIn {
@@ -39,20 +34,10 @@ struct PairOut {
     @location(3) @interpolate(flat) scale: vec2<f32>,
 }
 
-fn texel_to_clip(p: vec2<f32>) -> vec4<f32> {
-    let size = vec2<f32>(params.lightmap_size);
-    return vec4<f32>(2.0 * p.x / size.x - 1.0, 1.0 - 2.0 * p.y / size.y, 0.0, 1.0);
-}
-
 @vertex
 fn vs_pair(@builtin(vertex_index) vi: u32, pair: PairIn) -> PairOut {
-    var corners = array<vec2<f32>, 6>(
-        vec2<f32>(0.0, 0.0), vec2<f32>(1.0, 0.0), vec2<f32>(0.0, 1.0),
-        vec2<f32>(0.0, 1.0), vec2<f32>(1.0, 0.0), vec2<f32>(1.0, 1.0),
-    );
-    let c = corners[vi];
     var out: PairOut;
-    out.clip = texel_to_clip(vec2<f32>(pair.dst) + c * vec2<f32>(pair.size));
+    out.clip = quad_clip(vi, pair.dst, pair.size);
     out.src_minus_dst = vec2<i32>(pair.src) - vec2<i32>(pair.dst);
     out.offset_a = pair.offset_a;
     out.offset_b = pair.offset_b;

@@ -124,8 +124,12 @@ impl TransferOptions {
     }
 }
 
+/// The uniform and quad vertex code shared by `transfer.wgsl` and `transfer_pair.wgsl`,
+/// prepended to each.
+const QUAD_WGSL: &str = include_str!("../shaders/transfer_quad.wgsl");
+
 /// Uniform of both transfer shaders. 16 bytes.
-/// Must match `Params` in `shaders/transfer.wgsl` and `shaders/transfer_gather.wgsl`.
+/// Must match `Params` in `shaders/transfer_quad.wgsl` and `shaders/transfer_gather.wgsl`.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Pod, Zeroable)]
 pub struct TransferParams {
@@ -271,7 +275,7 @@ impl TransferPass {
             device,
             "ortm.transfer.shader",
             &format!(
-                "{}{}{}",
+                "{}{}{QUAD_WGSL}{}",
                 reads.wgsl(0, 1, "first_order", f32x4),
                 reads.wgsl(1, 0, "atlas", f32x4),
                 include_str!("../shaders/transfer.wgsl")
@@ -350,7 +354,7 @@ impl TransferPass {
             device,
             "ortm.transfer.pair_shader",
             &format!(
-                "{}{}{}",
+                "{}{}{QUAD_WGSL}{}",
                 reads.wgsl(0, 1, "first_order", wgpu::TextureFormat::Rgba32Float),
                 reads.wgsl(1, 0, "page", page_format),
                 include_str!("../shaders/transfer_pair.wgsl")
