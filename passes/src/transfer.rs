@@ -441,18 +441,7 @@ impl TransferPass {
         );
         let (instance_buffers, gather, final_tex) = match self.options.path {
             TransferPath::Blend => {
-                let bufs = schedule
-                    .batches
-                    .iter()
-                    .map(|b| {
-                        util::buffer_init(
-                            device,
-                            &format!("ortm.transfer.instances.atlas{}", b.atlas),
-                            bytemuck::cast_slice(&b.instances),
-                            wgpu::BufferUsages::VERTEX,
-                        )
-                    })
-                    .collect();
+                let bufs = instance_buffers(device, "instances", &schedule.batches);
                 let tex = util::texture_2d(
                     device,
                     "ortm.transfer.final_lightmap",
@@ -546,19 +535,7 @@ impl TransferPass {
                 wgpu::BufferUsages::VERTEX,
             ));
         }
-        let single_buffers = paired
-            .singles
-            .batches
-            .iter()
-            .map(|b| {
-                util::buffer_init(
-                    device,
-                    &format!("ortm.transfer.single_instances.atlas{}", b.atlas),
-                    bytemuck::cast_slice(&b.instances),
-                    wgpu::BufferUsages::VERTEX,
-                )
-            })
-            .collect();
+        let single_buffers = instance_buffers(device, "single_instances", &paired.singles.batches);
         Ok(PairGpu {
             page_views,
             page_buffers,
@@ -659,6 +636,25 @@ impl TransferPass {
             }
         }
     }
+}
+
+/// One vertex buffer of piece instances per atlas batch, labelled `ortm.transfer.WHAT.atlasN`.
+fn instance_buffers(
+    device: &wgpu::Device,
+    what: &str,
+    batches: &[crate::schedule::AtlasBatch],
+) -> Vec<wgpu::Buffer> {
+    batches
+        .iter()
+        .map(|b| {
+            util::buffer_init(
+                device,
+                &format!("ortm.transfer.{what}.atlas{}", b.atlas),
+                bytemuck::cast_slice(&b.instances),
+                wgpu::BufferUsages::VERTEX,
+            )
+        })
+        .collect()
 }
 
 #[cfg(test)]
