@@ -817,20 +817,12 @@ impl FirstOrderPass {
             label: Some("ortm.first_order.gbuffer_encoder"),
         });
         {
-            let attachment = |view| {
-                Some(wgpu::RenderPassColorAttachment {
-                    view,
-                    depth_slice: None,
-                    resolve_target: None,
-                    ops: wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
-                        store: wgpu::StoreOp::Store,
-                    },
-                })
-            };
             let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
                 label: Some("ortm.first_order.gbuffer_pass"),
-                color_attachments: &[attachment(&gbuffer_views[0]), attachment(&gbuffer_views[1])],
+                color_attachments: &[
+                    util::cleared_attachment(&gbuffer_views[0]),
+                    util::cleared_attachment(&gbuffer_views[1]),
+                ],
                 depth_stencil_attachment: None,
                 timestamp_writes: None,
                 occlusion_query_set: None,

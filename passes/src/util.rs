@@ -275,6 +275,19 @@ pub fn fullscreen_pipeline(
     )
 }
 
+/// A colour attachment of `view` cleared to transparent (0, 0, 0, 0) and stored.
+pub fn cleared_attachment(view: &wgpu::TextureView) -> Option<wgpu::RenderPassColorAttachment<'_>> {
+    Some(wgpu::RenderPassColorAttachment {
+        view,
+        depth_slice: None,
+        resolve_target: None,
+        ops: wgpu::Operations {
+            load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
+            store: wgpu::StoreOp::Store,
+        },
+    })
+}
+
 /// A render pass over one colour `view`, cleared to transparent black, no depth: how every
 /// lightmap-space pass starts.
 pub fn clear_pass<'e>(
@@ -284,15 +297,7 @@ pub fn clear_pass<'e>(
 ) -> wgpu::RenderPass<'e> {
     encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
         label: Some(label),
-        color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-            view,
-            depth_slice: None,
-            resolve_target: None,
-            ops: wgpu::Operations {
-                load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
-                store: wgpu::StoreOp::Store,
-            },
-        })],
+        color_attachments: &[cleared_attachment(view)],
         depth_stencil_attachment: None,
         timestamp_writes: None,
         occlusion_query_set: None,
