@@ -9,12 +9,12 @@ use std::sync::OnceLock;
 
 /// The repository's fixture bake directory.
 pub fn fixture_dir() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/data/fuzz/fixture_bake")
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../apps/ortm/tests/data/fuzz/fixture_bake")
 }
 
 /// The repository's small scene data (`tests/data/scene`).
 pub fn scene_data_dir() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/data/scene")
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../apps/ortm/tests/data/scene")
 }
 
 /// A fresh scratch directory for this process (`$TMPDIR/ortm-fuzz-<name>-<pid>`), holding a

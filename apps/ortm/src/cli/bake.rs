@@ -1,0 +1,169 @@
+//! `ortm bake SCENE -o DIR`: offsets, transfer maps, index and report, with progress bars,
+//! Ctrl-C handling and resume.
+
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+
+use anyhow::{Context, Result, bail};
+use indicatif::{ProgressBar, ProgressStyle};
+use ortm::bake::{BakeEvent, BakeSettings, CellRule, Selector, bake};
+use ortm::bake::offsets::ImportanceMetric;
+use ortm::bake::transport::Effects;
+
+/// Arguments of `ortm bake`.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// Scene file (TOML) or built-in scene name (`cornell`).
+    #[arg(default_value = "cornell")]
+    pub scene: String,
+    /// Output bake directory.
+    #[arg(short, long, default_value = "out/bake")]
+    pub output: PathBuf,
+    /// Lightmap size (square), texels; default: the scene's.
+    #[arg(long)]
+    pub size: Option<u32>,
+    /// Number of offsets (transfer maps).
+    #[arg(long, default_value_t = 100)]
+    pub offsets: usize,
+    /// Effects: comma-separated `radiosity`, `sss`.
+    #[arg(long, default_value = "radiosity,sss")]
+    pub effects: String,
+    /// Random seed of the offset selection.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Offset selector: `importance` (the paper's) or `jittered-grid` (baseline).
+    #[arg(long, default_value = "importance")]
+    pub selector: String,
+    /// Transference metric: `max` or `average`.
+    #[arg(long, default_value = "max")]
+    pub metric: String,
+    /// How a map covers its Voronoi cell: `integrated` (the transfer summed over the cell) or
+    /// `sampled` (the paper's Eq. 10, `TR·TVA`).
+    #[arg(long, default_value = "integrated")]
+    pub cell_rule: String,
+    /// Refinement iterations of the importance density.
+    #[arg(long, default_value_t = 1000)]
+    pub iterations: usize,
+    /// Texels per side of the clusters of the coarse higher-order solve.
+    #[arg(long, default_value_t = 8)]
+    pub coarse_block: u32,
+}
+
+/// Parses `--effects`.
+pub fn parse_effects(s: &str) -> Result<Effects> {
+    let mut e = Effects {
+        radiosity: false,
+        subsurface: false,
+    };
+    for part in s.split(',').map(str::trim).filter(|p| !p.is_empty()) {
+        match part {
+            "radiosity" => e.radiosity = true,
+            "sss" | "subsurface" => e.subsurface = true,
+            other => bail!(
+                "--effects: unknown effect '{other}'; use radiosity, sss or both (radiosity,sss)"
+            ),
+        }
+    }
+    if !e.radiosity && !e.subsurface {
+        bail!("--effects: name at least one of radiosity, sss");
+    }
+    Ok(e)
+}
+
+/// Builds the settings from the arguments and the scene's lightmap size.
+pub fn settings(a: &Args, size: (u32, u32)) -> Result<BakeSettings> {
+    let selector = match a.selector.as_str() {
+        "importance" => Selector::Importance,
+        "jittered-grid" | "jittered" => Selector::JitteredGrid,
+        o => bail!("--selector: unknown '{o}'; use importance or jittered-grid"),
+    };
+    let metric = match a.metric.as_str() {
+        "max" => ImportanceMetric::Max,
+        "average" | "avg" => ImportanceMetric::Average,
+        o => bail!("--metric: unknown '{o}'; use max or average"),
+    };
+    let cell_rule = match a.cell_rule.as_str() {
+        "integrated" => CellRule::Integrated,
+        "sampled" => CellRule::Sampled,
+        o => bail!("--cell-rule: unknown '{o}'; use integrated or sampled"),
+    };
+    Ok(BakeSettings {
+        size,
+        cell_rule,
+        offsets: a.offsets,
+        effects: parse_effects(&a.effects)?,
+        seed: a.seed,
+        selector,
+        metric,
+        refinement_iterations: a.iterations,
+        coarse_block: a.coarse_block.max(1),
+        scene: Some(a.scene.clone()),
+        ..BakeSettings::default()
+    })
+}
+
+/// Runs `ortm bake`.
+pub fn run(a: Args) -> Result<()> {
+    let scene = super::load_scene(&a.scene, a.size)?;
+    let s = settings(&a, scene.lightmap_size)?;
+    let cancel = Arc::new(AtomicBool::new(false));
+    {
+        let c = cancel.clone();
+        // A second Ctrl-C exits at once; the first lets the current map finish.
+        let _ = ctrlc::set_handler(move || {
+            if c.swap(true, Ordering::SeqCst) {
+                std::process::exit(130);
+            }
+            eprintln!(
+                "\ninterrupt: finishing the current map, then stopping (Ctrl-C again to abort)"
+            );
+        });
+    }
+    let bar = std::sync::Mutex::new(ProgressBar::hidden());
+    let style =
+        ProgressStyle::with_template("{msg:24} [{bar:40}] {pos}/{len} {elapsed_precise} eta {eta}")
+            .expect("valid template")
+            .progress_chars("=> ");
+    let events = |e: BakeEvent| match e {
+        BakeEvent::Phase { name, total } => {
+            let mut b = bar.lock().expect("progress lock");
+            b.finish();
+            *b = ProgressBar::new(total)
+                .with_style(style.clone())
+                .with_message(name);
+        }
+        BakeEvent::Advance(n) => bar.lock().expect("progress lock").inc(n),
+        BakeEvent::Message(m) => {
+            let b = bar.lock().expect("progress lock");
+            // A hidden bar (stderr is not a terminal) drops `println`: print plainly instead.
+            if b.is_hidden() {
+                eprintln!("{m}");
+            } else {
+                b.println(m);
+            }
+        }
+    };
+    let summary = bake(&scene, &s, &a.output, &events, &cancel)
+        .with_context(|| format!("baking '{}' into '{}'", a.scene, a.output.display()));
+    bar.lock().expect("progress lock").finish();
+    let summary = summary?;
+    println!(
+        "baked {} maps ({} reused) for {} texels at {}x{} into {}",
+        summary.maps,
+        summary.reused,
+        summary.texels,
+        s.size.0,
+        s.size.1,
+        a.output.display()
+    );
+    println!(
+        "time: transport {:.2} s, offset selection {:.2} s, maps {:.2} s; stored {} texels ({:.1} per map)",
+        summary.seconds[0],
+        summary.seconds[1],
+        summary.seconds[2],
+        summary.stored_texels,
+        summary.stored_texels as f64 / summary.maps.max(1) as f64
+    );
+    Ok(())
+}

@@ -1,0 +1,88 @@
+//! `ortm inspect SCENE`: mesh and chart statistics, coverage, overlaps, and a coverage PNG.
+
+use std::path::PathBuf;
+
+use anyhow::{Context, Result};
+use ortm::bake::texels::TexelGrid;
+
+/// Arguments of `ortm inspect`.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// Scene file (TOML) or built-in scene name (`cornell`).
+    scene: String,
+    /// Lightmap size (square), overriding the scene's.
+    #[arg(long)]
+    size: Option<u32>,
+    /// Where to write the coverage/charts PNG.
+    #[arg(short, long, default_value = "coverage.png")]
+    output: PathBuf,
+}
+
+/// Runs `ortm inspect`.
+pub fn run(a: Args) -> Result<()> {
+    let scene = super::load_scene(&a.scene, a.size)?;
+    let m = &scene.mesh;
+    let (mut lo, mut hi) = (
+        glam::Vec3::splat(f32::INFINITY),
+        glam::Vec3::splat(f32::NEG_INFINITY),
+    );
+    for p in &m.positions_m {
+        lo = lo.min(*p);
+        hi = hi.max(*p);
+    }
+    let area: f64 = m
+        .triangles
+        .iter()
+        .map(|t| {
+            let p = |k: usize| m.positions_m[t.position[k] as usize];
+            0.5 * (p(1) - p(0)).cross(p(2) - p(0)).length() as f64
+        })
+        .sum();
+    println!("scene        {}", scene.name);
+    println!(
+        "mesh         {} positions, {} UVs, {} triangles, {} materials, {} lights",
+        m.positions_m.len(),
+        m.uvs.len(),
+        m.triangles.len(),
+        scene.materials.len(),
+        scene.lights.len()
+    );
+    println!(
+        "extent       {:.3} x {:.3} x {:.3} m, surface area {:.4} m²",
+        hi.x - lo.x,
+        hi.y - lo.y,
+        hi.z - lo.z,
+        area
+    );
+    let (w, h) = scene.lightmap_size;
+    let grid = TexelGrid::build(&scene)
+        .with_context(|| format!("rasterizing the lightmap UVs of '{}'", a.scene))?;
+    let s = &grid.stats;
+    println!(
+        "lightmap     {w}x{h}: {} covered texels ({:.1}%), {} charts",
+        s.covered,
+        100.0 * s.covered as f64 / (w as f64 * h as f64),
+        s.charts
+    );
+    let mut areas: Vec<f32> = grid.texels.iter().map(|t| t.area_m2).collect();
+    areas.sort_by(f32::total_cmp);
+    let q = |f: f64| areas[((areas.len() - 1) as f64 * f) as usize].sqrt() * 1000.0;
+    println!(
+        "texel size   {:.2} mm median (5%: {:.2} mm, 95%: {:.2} mm); covered area {:.4} m² ({:.1}% of the mesh)",
+        q(0.5),
+        q(0.05),
+        q(0.95),
+        s.area_m2,
+        100.0 * s.area_m2 / area.max(1e-30)
+    );
+    println!(
+        "overlaps     {} texel(s); {} triangle(s) cover no texel centre",
+        s.overlapping, s.triangles_without_texels
+    );
+    for w in &s.warnings {
+        println!("warning      {w}");
+    }
+    ortm::bake::report::save_png(&ortm::bake::report::coverage_image(&grid), &a.output)?;
+    println!("wrote        {}", a.output.display());
+    Ok(())
+}

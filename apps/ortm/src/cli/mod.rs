@@ -1,0 +1,140 @@
+//! Subcommands of the `ortm` tool.
+
+mod bake;
+mod bench;
+mod bench_render;
+mod bin;
+mod demo;
+mod inspect;
+mod render;
+mod solve;
+mod view;
+
+pub(crate) use render::save_png_atomic;
+
+use std::path::PathBuf;
+
+use anyhow::{Context, Result};
+use clap::{Parser, Subcommand};
+use ortm::scene::Scene;
+
+/// Offset Radiance Transfer Mapping: bake, bin and render multi-bounce and subsurface transfer.
+#[derive(Parser, Debug)]
+#[command(version, about, long_about = None)]
+pub struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+enum Command {
+    /// Demos: `cornell` (default; inspect, exact solve, bake, bin, render) or `face` (the
+    /// paper's face figures on the scanned head).
+    Demo(demo::Args),
+    /// Mesh and chart statistics, coverage, overlaps, and a PNG of the texel charts.
+    Inspect(inspect::Args),
+    /// Bake offset transfer maps (OpenEXR + index.json) for a scene; resumable.
+    Bake(bake::Args),
+    /// Pack a bake's transfer maps into texture atlases (OpenEXR + atlases.json + PNGs).
+    Bin(bin::Args),
+    /// Benchmarks printed as tables: `transport`, `bake`, `render`.
+    Bench(BenchArgs),
+    /// Exact dense solve (small lightmaps): first-order, final and indirect lightmaps as PNG.
+    Solve(solve::Args),
+    /// Relight a bake on the GPU: frame PNG, final and first-order lightmaps (OpenEXR).
+    Render(render::Args),
+    /// Interactive viewer: move lights and watch the relit bake (egui window).
+    View(view::Args),
+}
+
+/// `ortm bench render …` (a subcommand with its own options) or `ortm bench transport|bake`.
+#[derive(clap::Args, Debug)]
+#[command(args_conflicts_with_subcommands = true, subcommand_negates_reqs = true)]
+struct BenchArgs {
+    #[command(subcommand)]
+    sub: Option<BenchCommand>,
+    #[command(flatten)]
+    other: Option<bench::Args>,
+}
+
+/// `ortm bench …` subcommands with their own options.
+#[derive(Subcommand, Debug)]
+enum BenchCommand {
+    /// Per-pass GPU frame times for the paper's Table 1 configurations (head).
+    Render(bench_render::Args),
+}
+
+/// Runs a parsed command line.
+pub fn run(cli: Cli) -> Result<()> {
+    match cli.command {
+        Command::Demo(a) => demo::run(a),
+        Command::Inspect(a) => inspect::run(a),
+        Command::Solve(a) => solve::run(a),
+        Command::Bake(a) => bake::run(a),
+        Command::Bench(BenchArgs {
+            sub: Some(BenchCommand::Render(a)),
+            ..
+        }) => bench_render::run(a),
+        Command::Bench(BenchArgs { other: Some(a), .. }) => bench::run(a),
+        Command::Bench(_) => {
+            anyhow::bail!("ortm bench: name a benchmark: transport, bake or render")
+        }
+        Command::Bin(a) => bin::run(a),
+        Command::Render(a) => render::run(a),
+        Command::View(a) => view::run(a),
+    }
+}
+
+/// Loads a scene argument: the name of a built-in scene (`cornell`, `head`,
+/// `head-exponential`) or a scene-file path.
+/// `size` overrides the lightmap size (square).
+pub fn load_scene(arg: &str, size: Option<u32>) -> Result<Scene> {
+    let mut scene = match arg {
+        "cornell" => {
+            if size.is_some_and(|s| s < 32) {
+                anyhow::bail!(
+                    "the built-in cornell scene needs --size 32 or more (its charts have 2-texel gutters)"
+                );
+            }
+            ortm::scene::cornell::cornell_box(size.unwrap_or(64))
+        }
+        "head" => head_scene()?,
+        "head-exponential" => ortm::scene::head::head_scene_with(faces::Falloff::Exponential)
+            .with_context(|| {
+                format!(
+                    "loading the head scan '{}'",
+                    faces::head_obj_path().display()
+                )
+            })?,
+        path => ortm::scene::file::load_scene(&PathBuf::from(path))
+            .with_context(|| format!("loading scene '{path}'"))?,
+    };
+    if let Some(s) = size {
+        if s == 0 || s > 8192 {
+            anyhow::bail!("--size {s} is out of range: use 1..=8192 texels");
+        }
+        scene.lightmap_size = (s, s);
+    }
+    Ok(scene)
+}
+
+/// Creates `dir` (and parents), with a clear error.
+pub fn ensure_dir(dir: &std::path::Path) -> Result<()> {
+    std::fs::create_dir_all(dir)
+        .with_context(|| format!("cannot create output folder '{}'", dir.display()))
+}
+
+/// The built-in `head` scene ([`ortm::scene::head::head_scene`]): the scanned head at
+/// [`faces::HEAD_METRES_PER_UNIT`] m per model unit, Jensen et al. 2001 "skin1" dipole, 256²
+/// lightmap, the point light of the paper's Fig. 5. The mesh comes from `$ORTM_HEAD_OBJ` or
+/// `../shared/faces/head.obj`. Head scan © Lee Perry-Smith / Infinite Realities, CC BY 3.0.
+pub fn head_scene() -> Result<Scene> {
+    ortm::scene::head::head_scene().with_context(|| {
+        format!(
+            "loading the head scan '{}' (set {} to its path; it is {})",
+            faces::head_obj_path().display(),
+            faces::HEAD_OBJ_ENV,
+            faces::head::HEAD_SOURCE
+        )
+    })
+}

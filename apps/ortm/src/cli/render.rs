@@ -1,0 +1,308 @@
+//! `ortm render DIR`: relights a bake on the GPU (wgpu; any Vulkan/Metal/DX12 adapter, or
+//! Mesa's lavapipe) and writes the displayed frame as PNG, and optionally the final and
+//! first-order lightmaps as linear OpenEXR (W/m²).
+//!
+//! # Data flow
+//! `DIR/atlases.json` (from `ortm bin`; else the maps of `DIR/index.json` are packed into
+//! 1024² atlases in memory) + the scene (`--scene`, checked against the bake's scene hash) +
+//! lights (`--light`, default the scene's) → `passes::Renderer`: first order with shadow maps
+//! → transfer (Eq. 9, blend or compute) → dilation → display → `-o` PNG.
+//!
+//! # Options worth knowing
+//! - `--light` (repeatable) replaces the scene's lights: see [`ortm::render::LIGHT_SYNTAX`].
+//! - `--camera EX,EY,EZ:TX,TY,TZ[:FOV]`; default: looking along −z at the whole mesh.
+//! - `--exposure auto` (default) maps the 95th percentile of the final radiance to 1 before
+//!   Reinhard tonemapping; a number sets it directly (multiplies `L = B/π`).
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::{Context, Result, bail};
+use ortm::render::{
+    self, AtlasSource, CAMERA_SYNTAX, DEFAULT_ATLAS_SIDE, LIGHT_SYNTAX, to_lightmap,
+    write_lightmap_exr,
+};
+use ortm::bake::texels::TexelGrid;
+use passes::display::{Camera, DisplayOptions};
+use passes::first_order::FirstOrderOptions;
+use passes::frame::{FrameParams, Renderer, RendererOptions};
+use passes::transfer::{TransferOptions, TransferPath};
+use passes::{Gpu, TexelImage};
+
+/// Transfer implementation.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PathArg {
+    /// `TransferOptions::best_for` the adapter: blend on a CPU adapter (lavapipe), compute on
+    /// a hardware GPU (both measured by `ortm bench render`).
+    Auto,
+    /// Instanced quads with additive blending (the paper's method; RGBA32F when blendable).
+    Blend,
+    /// Compute shader gathering per 8×8 tile (reference / fallback).
+    Compute,
+}
+
+/// Arguments of `ortm render`.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// Bake directory (with index.json from `ortm bake`, and atlases.json from `ortm bin` if
+    /// binned; otherwise the maps are packed in memory).
+    dir: PathBuf,
+    /// Scene the bake was made from: `cornell` or a scene file. Default: the `scene` recorded
+    /// in the bake's settings, if any.
+    #[arg(long)]
+    scene: Option<String>,
+    /// A light replacing the scene's lights (repeatable).
+    #[arg(long = "light", value_name = "SPEC", help = format!("A light replacing the scene's lights (repeatable): {LIGHT_SYNTAX}"))]
+    lights: Vec<String>,
+    /// Camera; default: looking along −z at the whole mesh.
+    #[arg(long, value_name = "SPEC", help = format!("Camera: {CAMERA_SYNTAX}; default: looking along −z at the whole mesh"))]
+    camera: Option<String>,
+    /// Vertical field of view in degrees (default camera, or a --camera without FOV).
+    #[arg(long, default_value_t = 40.0)]
+    fov: f32,
+    /// Image size in pixels, WIDTHxHEIGHT.
+    #[arg(long, default_value = "1280x720")]
+    size: String,
+    /// First order (left) and final (right) side by side.
+    #[arg(long)]
+    side_by_side: bool,
+    /// Transfer implementation.
+    #[arg(long, value_enum, default_value_t = PathArg::Auto)]
+    path: PathArg,
+    /// Exposure: `auto`, or a number multiplying the radiance B/π before tonemapping.
+    #[arg(long, default_value = "auto")]
+    exposure: String,
+    /// Side of each shadow-map layer, texels.
+    #[arg(long, default_value_t = 2048)]
+    shadow_size: u32,
+    /// Atlas side when the bake has no atlases.json (power of two).
+    #[arg(long, default_value_t = DEFAULT_ATLAS_SIDE)]
+    atlas_size: u32,
+    /// Output image (PNG).
+    #[arg(short, long, default_value = "frame.png")]
+    output: PathBuf,
+    /// Also write the final lightmap (undilated, W/m², linear) as OpenEXR.
+    #[arg(long)]
+    lightmap_out: Option<PathBuf>,
+    /// Also write the first-order lightmap (W/m², linear) as OpenEXR.
+    #[arg(long)]
+    first_order_out: Option<PathBuf>,
+}
+
+/// Saves a PNG atomically (temporary name in the same folder, then rename).
+pub fn save_png_atomic(img: &image::RgbaImage, path: &Path) -> Result<()> {
+    let name = path
+        .file_name()
+        .map_or_else(|| "frame.png".into(), |n| n.to_string_lossy().into_owned());
+    let tmp = path.with_file_name(format!(".{name}.{}.tmp", std::process::id()));
+    let res = img
+        .save_with_format(&tmp, image::ImageFormat::Png)
+        .map_err(anyhow::Error::from)
+        .and_then(|()| std::fs::rename(&tmp, path).map_err(anyhow::Error::from));
+    if res.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    res.with_context(|| format!("cannot write image '{}'", path.display()))
+}
+
+/// A bake directory's atlases (built from its maps when `ortm bin` was not run) and its scene:
+/// `scene` when given, else the one the bake recorded; the scene is checked against the bake.
+pub(crate) struct BakeAndScene {
+    /// The bake index, when the directory has one.
+    pub index: Option<ortm::maps::BakeIndex>,
+    /// The atlases.
+    pub set: ortm::atlas::AtlasSet,
+    /// Where the atlases came from.
+    pub source: AtlasSource,
+    /// The scene at the bake's lightmap size.
+    pub scene: ortm::scene::Scene,
+}
+
+/// Loads a bake directory for `ortm render` and `ortm view` (see [`BakeAndScene`]).
+pub(crate) fn load_bake_and_scene(
+    dir: &Path,
+    scene: Option<&str>,
+    atlas_size: u32,
+) -> Result<BakeAndScene> {
+    let (index, set, source) = render::load_bake_atlases(dir, atlas_size)
+        .with_context(|| format!("reading bake directory '{}'", dir.display()))?;
+    let scene_arg = match (
+        scene,
+        index.as_ref().and_then(render::scene_arg_from_settings),
+    ) {
+        (Some(s), _) => s.to_owned(),
+        (None, Some(s)) => s,
+        (None, None) => bail!(
+            "the bake in '{}' does not record which scene it was made from; pass it with \
+             --scene (`cornell` or the scene file used for `ortm bake`)",
+            dir.display()
+        ),
+    };
+    let (w, h) = set.lightmap_size;
+    let mut scene = super::load_scene(&scene_arg, (w == h).then_some(w))?;
+    scene.lightmap_size = (w, h);
+    if let Some(index) = &index {
+        render::check_scene(dir, index, &scene, &scene_arg)?;
+    }
+    Ok(BakeAndScene {
+        index,
+        set,
+        source,
+        scene,
+    })
+}
+
+/// Runs `ortm render`.
+pub fn run(a: Args) -> Result<()> {
+    let t0 = Instant::now();
+    let (img_w, img_h) = render::parse_size(&a.size)?;
+    let BakeAndScene {
+        set, source, scene, ..
+    } = load_bake_and_scene(&a.dir, a.scene.as_deref(), a.atlas_size)?;
+    let (w, h) = set.lightmap_size;
+    let grid = TexelGrid::build_with_size(&scene, w, h)?;
+    let lights = if a.lights.is_empty() {
+        scene.lights.clone()
+    } else {
+        a.lights
+            .iter()
+            .map(|s| render::parse_light(s))
+            .collect::<Result<Vec<_>, _>>()?
+    };
+    if lights.is_empty() {
+        eprintln!(
+            "warning: no lights (the scene has none and no --light was given): the image is black"
+        );
+    }
+    let light_descs: Vec<_> = lights.iter().map(render::light_desc).collect();
+    let (atlases, pieces) = render::transfer_inputs(&set, (w, h))?;
+    let t_load = t0.elapsed().as_secs_f64();
+
+    let gpu = Gpu::new_headless()?;
+    let transfer = match a.path {
+        PathArg::Auto => TransferOptions::best_for(&gpu),
+        PathArg::Blend => TransferOptions {
+            path: TransferPath::Blend,
+            ..TransferOptions::best_for(&gpu)
+        },
+        PathArg::Compute => TransferOptions {
+            path: TransferPath::Compute,
+            ..TransferOptions::best_for(&gpu)
+        },
+    };
+    let options = RendererOptions {
+        first_order: FirstOrderOptions {
+            shadow_map_size: a.shadow_size,
+            max_shadow_layers: render::shadow_layers_for(&lights),
+            ..Default::default()
+        },
+        transfer,
+        display: DisplayOptions {
+            width: img_w,
+            height: img_h,
+            side_by_side: a.side_by_side,
+        },
+        ..Default::default()
+    };
+    let renderer = Renderer::new(&gpu, &options)?;
+    let mesh = render::mesh_data(&scene.mesh);
+    let rscene = renderer.prepare(&gpu, &mesh, &render::albedo_map(&grid), &atlases, &pieces)?;
+    let t1 = Instant::now();
+    let (fo, fin) = renderer.render_lightmaps(&gpu, &rscene, &light_descs)?;
+    let exposure = match a.exposure.as_str() {
+        "auto" => render::auto_exposure(&fin),
+        s => s
+            .parse::<f32>()
+            .ok()
+            .filter(|e| e.is_finite() && *e > 0.0)
+            .with_context(|| format!("--exposure {s:?}: use `auto` or a positive number"))?,
+    };
+    let aspect = if a.side_by_side {
+        (img_w / 2).max(1) as f32 / img_h as f32
+    } else {
+        img_w as f32 / img_h as f32
+    };
+    let camera: Camera = match &a.camera {
+        Some(spec) => {
+            let r = bounding_radius(&scene.mesh);
+            render::parse_camera(spec, a.fov, r)?
+        }
+        None => render::default_camera(&scene.mesh, aspect, a.fov),
+    };
+    let params = FrameParams {
+        lights: &light_descs,
+        camera,
+        exposure,
+        specular: None,
+    };
+    let img = renderer.render_image(&gpu, &rscene, &params)?;
+    let t_gpu = t1.elapsed().as_secs_f64();
+    save_png_atomic(&img, &a.output)?;
+    if let Some(p) = &a.lightmap_out {
+        write_lightmap_exr(p, &to_lightmap(&fin))?;
+    }
+    if let Some(p) = &a.first_order_out {
+        write_lightmap_exr(p, &to_lightmap(&fo))?;
+    }
+    let stats = set.stats();
+    println!(
+        "{}: {} covered texels at {w}x{h}, {} lights, {} atlases of {}x{} ({}), {} pieces of {} maps",
+        scene.name,
+        grid.texels.len(),
+        lights.len(),
+        stats.atlases,
+        set.atlas_size.0,
+        set.atlas_size.1,
+        match source {
+            AtlasSource::Files => "from atlases.json",
+            AtlasSource::PackedFromMaps => "packed from the maps",
+        },
+        stats.pieces,
+        stats.maps
+    );
+    println!(
+        "adapter {} ({:?}); {:?} transfer; exposure {exposure:.4}; energy: first order {:.4e}, \
+         final {:.4e} W/m² summed over texels",
+        gpu.adapter_info.name,
+        gpu.adapter_info.backend,
+        options.transfer.path,
+        sum_rgb(&fo),
+        sum_rgb(&fin)
+    );
+    println!(
+        "wrote {} ({img_w}x{img_h}){}{}; load {t_load:.2} s, GPU {t_gpu:.2} s",
+        a.output.display(),
+        a.lightmap_out
+            .as_ref()
+            .map(|p| format!(", {}", p.display()))
+            .unwrap_or_default(),
+        a.first_order_out
+            .as_ref()
+            .map(|p| format!(", {}", p.display()))
+            .unwrap_or_default(),
+    );
+    Ok(())
+}
+
+fn sum_rgb(img: &TexelImage) -> f64 {
+    img.rgba
+        .iter()
+        .map(|p| (p[0] + p[1] + p[2]) as f64 / 3.0)
+        .sum()
+}
+
+/// Half the diagonal of the mesh's bounding box, metres.
+pub fn bounding_radius(mesh: &ortm::scene::Mesh) -> f32 {
+    let (lo, hi) = mesh.positions_m.iter().fold(
+        (
+            glam::Vec3::splat(f32::INFINITY),
+            glam::Vec3::splat(f32::NEG_INFINITY),
+        ),
+        |(lo, hi), p| (lo.min(*p), hi.max(*p)),
+    );
+    if lo.is_finite() && hi.is_finite() {
+        (hi - lo).length() * 0.5
+    } else {
+        1.0
+    }
+}

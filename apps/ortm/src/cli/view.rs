@@ -1,0 +1,194 @@
+//! `ortm view DIR`: the interactive viewer (see `src/view/` and `docs/viewer.md`). This file
+//! only parses the arguments and loads the bake (the same checks as `ortm render`: scene hash,
+//! atlas sizes), so a missing or corrupt bake directory is reported on stderr before any
+//! window opens.
+
+use std::path::PathBuf;
+
+use anyhow::{Context, Result, bail};
+use ortm::render::{self, DEFAULT_ATLAS_SIDE, LIGHT_SYNTAX};
+use ortm::bake::texels::TexelGrid;
+
+use crate::view::app::{DebugView, ViewMode};
+use crate::view::{RunOptions, ViewerInput, importance_order};
+
+/// Initial view (`--view`).
+#[derive(clap::ValueEnum, Clone, Copy, Debug)]
+pub enum ViewArg {
+    /// First-order lightmap.
+    FirstOrder,
+    /// Final lightmap.
+    Final,
+    /// Final − first order.
+    Indirect,
+    /// First order | final.
+    SideBySide,
+}
+
+/// Initial debug view (`--debug`).
+#[derive(clap::ValueEnum, Clone, Copy, Debug)]
+pub enum DebugArg {
+    /// None.
+    Off,
+    /// Covered texels and chart borders.
+    Coverage,
+    /// Texels per m².
+    Density,
+    /// One offset map's contribution (`--debug-map`).
+    Map,
+}
+
+/// Arguments of `ortm view`.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// Bake directory (index.json from `ortm bake`; atlases.json from `ortm bin`, else the
+    /// maps are packed in memory).
+    dir: PathBuf,
+    /// Scene the bake was made from: `cornell` or a scene file. Default: the scene recorded
+    /// in the bake.
+    #[arg(long)]
+    scene: Option<String>,
+    /// A light replacing the scene's lights (repeatable).
+    #[arg(long = "light", value_name = "SPEC", help = format!("A light replacing the scene's lights (repeatable): {LIGHT_SYNTAX}"))]
+    lights: Vec<String>,
+    /// Light set-up file (`[[light]]` tables, as saved by the viewer) replacing the scene's
+    /// lights; also the file the viewer's save/load buttons use.
+    #[arg(long = "lights", value_name = "FILE")]
+    lights_file: Option<PathBuf>,
+    /// Window size in pixels, WIDTHxHEIGHT.
+    #[arg(long, default_value = "1280x800")]
+    size: String,
+    /// Exposure: `auto`, or a number multiplying the radiance B/π before tonemapping.
+    #[arg(long, default_value = "auto")]
+    exposure: String,
+    /// Side of each shadow-map layer, texels (24 layers: 4 point lights, or more spot and
+    /// directional ones).
+    #[arg(long, default_value_t = 1024)]
+    shadow_size: u32,
+    /// Atlas side when the bake has no atlases.json (power of two).
+    #[arg(long, default_value_t = DEFAULT_ATLAS_SIDE)]
+    atlas_size: u32,
+    /// Initial view.
+    #[arg(long, value_enum, default_value_t = ViewArg::Final)]
+    view: ViewArg,
+    /// Initial debug view.
+    #[arg(long, value_enum, default_value_t = DebugArg::Off)]
+    debug: DebugArg,
+    /// Map shown by `--debug map`: its rank in importance order (0 = most important).
+    #[arg(long, default_value_t = 0)]
+    debug_map: usize,
+    /// Start in reference mode (CPU ray-traced first order + CPU transfer).
+    #[arg(long)]
+    reference: bool,
+    /// Number of transfer maps used at start (first K by importance; default all).
+    #[arg(long, value_name = "K")]
+    maps: Option<usize>,
+    /// Draw N frames, then exit (for tests and documentation).
+    #[arg(long, value_name = "N")]
+    frames: Option<u32>,
+    /// With --frames: write the last frame's 3D view (read back from the GPU) as PNG.
+    #[arg(long, value_name = "PNG", requires = "frames")]
+    screenshot: Option<PathBuf>,
+    /// With --frames: resize the window to WIDTHxHEIGHT after half the frames (checks that
+    /// resizing keeps drawing).
+    #[arg(long, value_name = "WxH", requires = "frames")]
+    resize: Option<String>,
+    /// With --frames: also write the whole window, panels included, as PNG (when the
+    /// window surface allows copies).
+    #[arg(long, value_name = "PNG", requires = "frames")]
+    window_screenshot: Option<PathBuf>,
+}
+
+/// Runs `ortm view`.
+pub fn run(a: Args) -> Result<()> {
+    if a.frames == Some(0) {
+        bail!("--frames 0: give at least one frame");
+    }
+    let window_size = render::parse_size(&a.size)?;
+    let exposure = match a.exposure.as_str() {
+        "auto" => None,
+        s => Some(
+            s.parse::<f32>()
+                .ok()
+                .filter(|e| e.is_finite() && *e > 0.0)
+                .with_context(|| format!("--exposure {s:?}: use `auto` or a positive number"))?,
+        ),
+    };
+    if !a.dir.is_dir() {
+        bail!(
+            "bake directory '{}' does not exist or is not a folder (make one with `ortm bake \
+             SCENE -o DIR`)",
+            a.dir.display()
+        );
+    }
+    let super::render::BakeAndScene {
+        index, set, scene, ..
+    } = super::render::load_bake_and_scene(&a.dir, a.scene.as_deref(), a.atlas_size)?;
+    let (w, h) = set.lightmap_size;
+    let grid = TexelGrid::build_with_size(&scene, w, h)?;
+    let lights = match (&a.lights_file, a.lights.is_empty()) {
+        (Some(_), false) => bail!("give either --light or --lights FILE, not both"),
+        (Some(p), true) => ortm::scene::file::load_lights_fragment(p)
+            .with_context(|| format!("loading the light set-up '{}'", p.display()))?,
+        (None, false) => a
+            .lights
+            .iter()
+            .map(|s| render::parse_light(s))
+            .collect::<Result<Vec<_>, _>>()?,
+        (None, true) => scene.lights.clone(),
+    };
+    if render::shadow_layers_for(&lights) > 24 {
+        bail!(
+            "{} lights need {} shadow-map layers; the viewer has 24 (6 per point light, 1 per \
+             spot or directional light)",
+            lights.len(),
+            render::shadow_layers_for(&lights)
+        );
+    }
+    let note = if lights.is_empty() {
+        "no lights: add one in the Lights panel (P, L or I)".to_string()
+    } else {
+        String::new()
+    };
+    let (atlases, _pieces) = render::transfer_inputs(&set, (w, h))?;
+    let map_order = importance_order(&set, index.as_ref());
+    let input = ViewerInput {
+        title: format!("{} — {}", scene.name, a.dir.display()),
+        scene,
+        grid,
+        set,
+        atlases,
+        map_order,
+        lights,
+        shadow_size: a.shadow_size,
+        note,
+    };
+    crate::view::run(
+        input,
+        RunOptions {
+            frames: a.frames,
+            screenshot: a.screenshot,
+            window_size,
+            resize: a.resize.as_deref().map(render::parse_size).transpose()?,
+            exposure,
+            lights_file: a.lights_file,
+            mode: match a.view {
+                ViewArg::FirstOrder => ViewMode::FirstOrder,
+                ViewArg::Final => ViewMode::Final,
+                ViewArg::Indirect => ViewMode::Indirect,
+                ViewArg::SideBySide => ViewMode::SideBySide,
+            },
+            debug: match a.debug {
+                DebugArg::Off => DebugView::Off,
+                DebugArg::Coverage => DebugView::Coverage,
+                DebugArg::Density => DebugView::Density,
+                DebugArg::Map => DebugView::MapContribution,
+            },
+            debug_map: a.debug_map,
+            reference: a.reference,
+            maps: a.maps,
+            window_screenshot: a.window_screenshot,
+        },
+    )?;
+    Ok(())
+}

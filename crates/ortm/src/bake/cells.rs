@@ -1,0 +1,661 @@
+//! Transfer-map values by integrating the transfer over each offset's Voronoi cell.
+//!
+//! # Why
+//! Eq. 9 of the paper splits the indirect light at `t` by offset cells,
+//! `B(t) − B_o(t) = Σ_k Σ_{v ∈ V_k} R(t, t+v)·B_o(t+v)`, and approximates every cell by its site:
+//! `≈ Σ_k M_k(t)·B_o(t+Δt_k)`. Eq. 10 takes `M_k(t) = TR(t, t+Δt_k)·TVA(t, Δt_k)` — one sample of
+//! the transfer times the cell's area. The transfer is far from smooth in offset space: a cell
+//! of a few hundred offsets spans several UV charts, and across a seam the sample can land on the
+//! near-singular peak of the form factor or the subsurface profile (then the whole cell is
+//! weighted by it) or on an unrelated chart. Measured on the head at 64² (`ortm bench
+//! cells`), that one-sample estimate is what makes importance-sampled offsets lose to a jittered
+//! grid. Here `M_k(t) = Σ_{v ∈ V_k} R(t, t+v)` — the transfer integrated over the cell, only
+//! `B_o` is taken at the site. The render-time format and Eq. 9 are unchanged; when every integer
+//! offset is selected both rules agree and are exact.
+//!
+//! # How (receiver-major)
+//! For each receiving texel `t` the sum runs over every sender `j`, binned into the cell of the
+//! offset `j − t` (a lookup table over all offsets). Senders are grouped by the clusters of the
+//! coarse level ([`crate::bake::transport::coarse`]):
+//! - **far clusters**: the cluster transfer `R(I, J)` of the dense coarse solve, shared by area.
+//!   When the cluster's tile, seen from `t`, lies inside one cell (a precomputed table of
+//!   cell-uniform windows) it adds to that cell in O(1); otherwise each quadrant of the tile
+//!   goes whole to the cell of its texel nearest the quadrant's centre. So for far pairs the
+//!   partition of offset space is the Voronoi one up to ±`P/4` texels (±2 at the default 8×8
+//!   clusters; exact for 1×1 and 2×2 clusters) — still a partition, so every sender's transfer
+//!   is counted once, only the site whose first-order light it multiplies can be a neighbouring
+//!   one. Resolving those windows texel by texel cost more than half of the bake.
+//! - **near clusters** (centroids closer than [`NEAR_FACTOR`]·(r_I + r_J), or within reach of
+//!   the subsurface profile's support): the coarse remainder by area, plus texel by texel the
+//!   exact subsurface term (within the profile's support) and the exact first bounce (shadow
+//!   ray) — for every texel of form-factor-near clusters, and for the near-singular neighbours
+//!   closer than [`FF_EXACT_PITCHES`] texel pitches of the others (whose remaining bounce is the
+//!   cluster's, by area).
+//!
+//! # Seams
+//! Texture-space Voronoi assumes the first-order light is smooth across a cell. Where a cell
+//! straddles a UV seam or several charts, its site can land on an unrelated surface. So every
+//! sender (texel-exact or far cluster) is counted with whichever of its cell's site, the sites
+//! of the cell's Voronoi neighbours and the receiver itself lies physically nearest to it. The
+//! total transfer of `t` is unchanged; only which first-order sample it multiplies. Measured
+//! (`bake_exact` tests): on the head a 2.7 mm seam partner had put 1.57 of red transfer on a lit
+//! site 17 texels away. The Cornell box's convergence is printed by `cornell_offsets_converge`.
+//!
+//! A receiver whose site `t + Δt_k` is uncovered cannot be reached by map `k` (its first-order
+//! light is 0 there). Its transfer in that cell is counted with the receiver's own cell (the
+//! one holding `Δt = 0`; if that cell's site is uncovered too, the covered site nearest to
+//! `Δt = 0`): like a seam crossing, `B_o` near the receiver is a far better sample than the
+//! unrelated chart a neighbouring site would land on, and dropping it (as Eq. 10 must) lost
+//! whole cells of transfer wherever a site fell off the charts. On the head at 64² that loss was
+//! the largest and most seed-dependent part of the error; moving it to the nearest covered site
+//! in offset space instead was worse still (`bake_exact` tests, this session's notes).
+
+//! The error of each choice against the exact solve (head, 64²) is printed by the
+//! `bake_exact` tests.
+
+use glam::{IVec2, Vec3};
+use rayon::prelude::*;
+
+use crate::Lightmap;
+use crate::bake::offsets::DiscreteCells;
+use crate::bake::texels::TexelGrid;
+use crate::bake::transport::{Patch, Transport};
+
+/// Cluster pairs whose centroids are closer than this many times the sum of their radii get
+/// texel-exact first-bounce form factors; farther pairs use the cluster transfer.
+pub const NEAR_FACTOR: f32 = 1.0;
+
+const NO_CELL: u32 = u32::MAX;
+
+/// Cell values of every map, receiver-major: `values[slot · K + k]` is map `k`'s value at lightmap
+/// slot `slot` (0 where the receiver is uncovered or its site `t + Δt_k` is).
+pub struct CellValues {
+    /// Lightmap width, texels.
+    pub width: u32,
+    /// Lightmap height, texels.
+    pub height: u32,
+    /// Number of maps `K`.
+    pub maps: usize,
+    values: Vec<[f32; 3]>,
+    /// Per map, the largest channel of `|value|` over the map.
+    pub peak: Vec<f64>,
+    /// Diagnostics of the integration.
+    pub stats: CellStats,
+}
+
+/// What the integration did (for reports and benchmarks).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct CellStats {
+    /// Cluster pairs evaluated texel by texel (near field).
+    pub near_cluster_pairs: u64,
+    /// Texel pairs evaluated exactly (near field).
+    pub near_texel_pairs: u64,
+    /// Far cluster windows that fell inside one cell (O(1) each).
+    pub uniform_windows: u64,
+    /// Far cluster windows split texel by texel.
+    pub split_windows: u64,
+    /// Texel-exact pairs counted at a nearer site than their own cell's (module docs, "Seams").
+    pub rehomed: u64,
+    /// Far cluster windows counted at a nearer site than their own cell's (module docs, "Seams").
+    pub rehomed_far: u64,
+    /// Receiver cells whose site was uncovered, moved to the nearest cell with a covered site.
+    pub moved_uncovered: u64,
+}
+
+impl CellValues {
+    /// Map `k` as a full lightmap.
+    pub fn map(&self, k: usize) -> Lightmap {
+        let mut m = Lightmap::new(self.width, self.height);
+        for (slot, v) in m.data.iter_mut().enumerate() {
+            *v = self.values[slot * self.maps + k];
+        }
+        m
+    }
+}
+
+/// Offset → cell lookup with a table of cell-uniform `P × P` windows (`P` = the cluster block
+/// rounded up to a power of two).
+struct CellTable {
+    w: i32,
+    h: i32,
+    /// Row length of the tables (`2W − 1 + P`).
+    stride: usize,
+    cell: Vec<u32>,
+    /// For each window origin, the cell when the `P × P` window starting there lies in one
+    /// cell, else [`NO_CELL`] (empty when `P` = 1).
+    uniform: Vec<u32>,
+}
+
+/// For every start `(c, r)` of the table, the cell when the `b × b` window starting there lies in
+/// one cell, else [`NO_CELL`].
+fn uniform_windows(cell: &[u32], stride: usize, rows: usize, b: usize) -> Vec<u32> {
+    // Horizontal: the window of `b` entries starting at c is one cell.
+    let mut horiz = vec![NO_CELL; stride * rows];
+    for (crow, hrow) in cell
+        .chunks_exact(stride)
+        .zip(horiz.chunks_exact_mut(stride))
+    {
+        let mut run = 0usize;
+        for c in (0..stride).rev() {
+            run = if c + 1 < stride && crow[c] == crow[c + 1] {
+                run + 1
+            } else {
+                1
+            };
+            if crow[c] != NO_CELL && run >= b {
+                hrow[c] = crow[c];
+            }
+        }
+    }
+    // Vertical: `b` rows of equal horizontal windows.
+    let mut uniform = vec![NO_CELL; stride * rows];
+    for c in 0..stride {
+        let mut run = 0usize;
+        for r in (0..rows).rev() {
+            let v = horiz[r * stride + c];
+            run = if v == NO_CELL {
+                0
+            } else if r + 1 < rows && horiz[(r + 1) * stride + c] == v {
+                run + 1
+            } else {
+                1
+            };
+            if run >= b {
+                uniform[r * stride + c] = v;
+            }
+        }
+    }
+    uniform
+}
+
+impl CellTable {
+    fn new(cells: &DiscreteCells, w: u32, h: u32, p: usize) -> Self {
+        let (wi, hi) = (w as i32, h as i32);
+        let stride = (2 * w as usize - 1) + p;
+        let rows = (2 * h as usize - 1) + p;
+        let mut cell = vec![NO_CELL; stride * rows];
+        for (k, runs) in cells.real.iter().enumerate() {
+            for r in runs {
+                let row = (r.dy + hi - 1) as usize * stride;
+                for dx in r.dx_start..=r.dx_end_inclusive {
+                    cell[row + (dx + wi - 1) as usize] = k as u32;
+                }
+            }
+        }
+        let uniform = if p >= 2 {
+            uniform_windows(&cell, stride, rows, p)
+        } else {
+            Vec::new()
+        };
+        Self {
+            w: wi,
+            h: hi,
+            stride,
+            cell,
+            uniform,
+        }
+    }
+
+    #[inline]
+    fn index(&self, dx: i32, dy: i32) -> usize {
+        (dy + self.h - 1) as usize * self.stride + (dx + self.w - 1) as usize
+    }
+
+    #[inline]
+    fn cell(&self, dx: i32, dy: i32) -> u32 {
+        self.cell[self.index(dx, dy)]
+    }
+}
+
+/// A far sender cluster as the offset-space window of its tile.
+struct Tile {
+    /// Tile origin, texels.
+    origin: IVec2,
+    /// Per quadrant of the `P × P` tile (index `qx + 2·qy`): the quadrant's texel nearest its
+    /// centre (it picks the quadrant's cell when the window straddles cells) and the quadrant's
+    /// area share (0 for an empty quadrant).
+    quads: [(IVec2, f64); 4],
+}
+
+/// A near cluster of a receiving cluster.
+#[derive(Clone, Copy)]
+struct Near {
+    cluster: u32,
+    /// First bounce texel by texel for every texel of the cluster (centroids closer than
+    /// [`NEAR_FACTOR`]·(r_I + r_J)); else the cluster-level bounce `bounce`, shared by area.
+    exact_bounce: bool,
+    /// Cluster-level first bounce `ρ̄_I F_IJ` with centroid visibility.
+    bounce: [f32; 3],
+    /// Whether some texel pair may lie in the exact zone (subsurface support or
+    /// [`FF_EXACT_PITCHES`]).
+    exact_zone: bool,
+}
+
+/// Texel pairs closer than this many texel pitches (`√A` of the receiver) get the exact texel
+/// form factor (the near-singular neighbours); farther near pairs use the point-to-cluster one.
+pub const FF_EXACT_PITCHES: f32 = 3.0;
+
+struct Clusters {
+    /// Texel indices of each cluster.
+    texels: Vec<Vec<u32>>,
+    /// Each cluster's texels as a quadtree over its tile.
+    tiles: Vec<Tile>,
+    /// Near clusters of each cluster, sorted by index.
+    near: Vec<Vec<Near>>,
+}
+
+fn clusters(transport: &Transport, grid: &TexelGrid) -> Clusters {
+    let rem = &transport.remainder;
+    let nc = rem.clusters.len();
+    let b = rem.block.max(1);
+    let mut texels = vec![Vec::new(); nc];
+    let mut tile = vec![IVec2::ZERO; nc];
+    for (i, &c) in rem.cluster_of.iter().enumerate() {
+        texels[c as usize].push(i as u32);
+        let t = &grid.texels[i];
+        tile[c as usize] = IVec2::new((t.x / b * b) as i32, (t.y / b * b) as i32);
+    }
+    let radius: Vec<f32> = (0..nc)
+        .map(|c| {
+            let p = rem.clusters[c].position_m;
+            texels[c]
+                .iter()
+                .map(|&i| (transport.patches[i as usize].position_m - p).length())
+                .fold(0.0f32, f32::max)
+        })
+        .collect();
+    let max_pitch = transport
+        .patches
+        .iter()
+        .map(|p| p.area_m2.sqrt())
+        .fold(0.0f32, f32::max);
+    let k = &transport.kernels;
+    let near = (0..nc)
+        .into_par_iter()
+        .map(|ci| {
+            let a: &Patch = &rem.clusters[ci];
+            (0..nc)
+                .filter_map(|cj| {
+                    let bp: &Patch = &rem.clusters[cj];
+                    let d = (a.position_m - bp.position_m).length();
+                    let reach = radius[ci] + radius[cj];
+                    let support = if k.is_translucent(a.material) && a.material == bp.material {
+                        k.support_m[a.material as usize] as f32
+                    } else {
+                        0.0
+                    };
+                    let ff_zone = if k.effects.radiosity {
+                        FF_EXACT_PITCHES * max_pitch
+                    } else {
+                        0.0
+                    };
+                    let exact_zone = ci == cj || d - reach < support.max(ff_zone);
+                    let near_bounce = k.effects.radiosity && d < NEAR_FACTOR * reach;
+                    if !(exact_zone || near_bounce || support > 0.0 && d - reach < support) {
+                        return None;
+                    }
+                    let exact_bounce = near_bounce;
+                    let bounce = if exact_bounce || ci == cj {
+                        [0.0; 3]
+                    } else {
+                        k.r_bounce(a, bp, false).map(|v| v as f32)
+                    };
+                    Some(Near {
+                        cluster: cj as u32,
+                        exact_bounce,
+                        bounce,
+                        exact_zone: exact_zone || exact_bounce,
+                    })
+                })
+                .collect()
+        })
+        .collect();
+    let p = b.next_power_of_two() as i32;
+    let tiles = texels
+        .iter()
+        .enumerate()
+        .map(|(c, list)| {
+            let inv_area = 1.0 / rem.clusters[c].area_m2 as f64;
+            let origin = tile[c];
+            let half = (p / 2).max(1);
+            let ideal = [0, 1, 2, 3]
+                .map(|q| origin + IVec2::new((q % 2) * half + p / 4, (q / 2) * half + p / 4));
+            // (representative texel, its squared distance to the ideal centre, share)
+            let mut best = [(IVec2::ZERO, i32::MAX, 0.0f64); 4];
+            for &i in list {
+                let t = &grid.texels[i as usize];
+                let at = IVec2::new(t.x as i32, t.y as i32);
+                let rel = at - origin;
+                let q = ((rel.x / half).min(1) + 2 * (rel.y / half).min(1)) as usize;
+                let d2 = (at - ideal[q]).length_squared();
+                let e = &mut best[q];
+                if d2 < e.1 {
+                    e.0 = at;
+                    e.1 = d2;
+                }
+                e.2 += transport.patches[i as usize].area_m2 as f64 * inv_area;
+            }
+            let quads = best.map(|(at, _, share)| (at, share));
+            Tile { origin, quads }
+        })
+        .collect();
+    Clusters {
+        texels,
+        tiles,
+        near,
+    }
+}
+
+/// The cell whose site represents a sender at `p_m` whose offset lies in `cell`, for a receiver
+/// with sites `sites` (per cell, `None` when uncovered): of the cell's own site, its Voronoi
+/// neighbours' sites and the origin's (the receiver itself), the one physically nearest the
+/// sender. Texture-space Voronoi assumes the first-order light is smooth across a cell; where
+/// the cell straddles a UV seam or several charts, its own site can land on an unrelated surface
+/// while a neighbouring site (or the receiver, for a sender across a seam) lies next to the
+/// sender.
+#[inline]
+fn place(
+    cell: u32,
+    p_m: Vec3,
+    sites: &[Option<Vec3>],
+    origin: Option<u32>,
+    neighbours: &[Vec<u32>],
+    moved: &mut u64,
+) -> u32 {
+    let dist = |k: u32| sites[k as usize].map(|s| (p_m - s).length_squared());
+    let mut best = cell;
+    let mut d_best = dist(cell).unwrap_or(f32::INFINITY);
+    for &k in neighbours[cell as usize].iter().chain(origin.iter()) {
+        if let Some(d) = dist(k)
+            && d < d_best
+        {
+            best = k;
+            d_best = d;
+        }
+    }
+    if best != cell {
+        *moved += 1;
+    }
+    best
+}
+
+/// Voronoi neighbours of every cell: cells whose offsets touch in the lookup table.
+fn cell_neighbours(table: &CellTable, cells: usize) -> Vec<Vec<u32>> {
+    let mut n: Vec<Vec<u32>> = vec![Vec::new(); cells];
+    let rows = table.cell.len() / table.stride;
+    for r in 0..rows {
+        for c in 0..table.stride {
+            let a = table.cell[r * table.stride + c];
+            if a == NO_CELL {
+                continue;
+            }
+            let right = (c + 1 < table.stride).then(|| table.cell[r * table.stride + c + 1]);
+            let down = (r + 1 < rows).then(|| table.cell[(r + 1) * table.stride + c]);
+            for b in [right, down].into_iter().flatten() {
+                if b != NO_CELL && b != a {
+                    n[a as usize].push(b);
+                    n[b as usize].push(a);
+                }
+            }
+        }
+    }
+    for v in &mut n {
+        v.sort_unstable();
+        v.dedup();
+    }
+    n
+}
+
+/// The offset nearest to `Δt = 0` for which `valid` holds (ties by index).
+fn nearest_valid_to_zero(offsets: &[IVec2], valid: &dyn Fn(usize) -> bool) -> Option<usize> {
+    (0..offsets.len())
+        .filter(|&j| valid(j))
+        .min_by_key(|&j| (offsets[j].length_squared(), j))
+}
+
+/// Integrates the transfer over every cell of `cells` (the discrete Voronoi cells of `offsets`)
+/// for every receiver; see the module docs. Receivers are processed cluster by cluster (a far
+/// cluster pair's transfer is read once for all receivers of the cluster, and the receivers'
+/// table lookups stay within a few cache lines). `progress` is called with the number of
+/// receivers (covered texels) finished.
+pub fn integrate(
+    transport: &Transport,
+    grid: &TexelGrid,
+    offsets: &[IVec2],
+    cells: &DiscreteCells,
+    progress: &(dyn Fn(u64) + Sync),
+) -> CellValues {
+    let (w, h) = (grid.width, grid.height);
+    let kmaps = offsets.len();
+    let rem = &transport.remainder;
+    let nc = rem.clusters.len();
+    let p = rem.block.max(1).next_power_of_two() as usize;
+    let table = CellTable::new(cells, w, h, p);
+    let cl = clusters(transport, grid);
+    let origin = match table.cell(0, 0) {
+        NO_CELL => None,
+        c => Some(c),
+    };
+    let kern = &transport.kernels;
+    let neighbours = cell_neighbours(&table, kmaps);
+    let per_cluster: Vec<(Vec<[f32; 3]>, CellStats)> = (0..nc)
+        .into_par_iter()
+        .map(|ci| {
+            let mut st = CellStats::default();
+            let recv = &cl.texels[ci];
+            let n = recv.len();
+            let xy: Vec<(i32, i32)> = recv
+                .iter()
+                .map(|&i| {
+                    let t = &grid.texels[i as usize];
+                    (t.x as i32, t.y as i32)
+                })
+                .collect();
+            let mut acc = vec![[0.0f64; 3]; n * kmaps];
+            let mut sites: Vec<Option<Vec3>> = vec![None; n * kmaps];
+            for (r, &(xi, yi)) in xy.iter().enumerate() {
+                for (k, o) in offsets.iter().enumerate() {
+                    sites[r * kmaps + k] = grid
+                        .at(xi + o.x, yi + o.y)
+                        .map(|j| transport.patches[j as usize].position_m);
+                }
+            }
+            let near = &cl.near[ci];
+            // The share-able first bounce of a near cluster (0 when it is texel-exact).
+            let near_bounce = |n: &Near| -> [f64; 3] {
+                if n.exact_bounce {
+                    [0.0; 3]
+                } else {
+                    n.bounce.map(f64::from)
+                }
+            };
+            // Every cluster by area share: the cluster transfer for far clusters; the
+            // remainder plus the point-to-cluster bounce for near ones (their subsurface part
+            // and near-singular bounce are added texel by texel below).
+            let mut next_near = 0usize;
+            for cj in 0..nc {
+                let k = ci * nc + cj;
+                let v: [f64; 3] =
+                    if next_near < near.len() && near[next_near].cluster as usize == cj {
+                        let b = near_bounce(&near[next_near]);
+                        next_near += 1;
+                        [0, 1, 2].map(|c| rem.rem[c][k] as f64 + b[c])
+                    } else {
+                        [0, 1, 2].map(|c| rem.full[c][k] as f64)
+                    };
+                if v == [0.0; 3] {
+                    continue;
+                }
+                let tile = &cl.tiles[cj];
+                let pj = rem.clusters[cj].position_m;
+                for (r, &(xi, yi)) in xy.iter().enumerate() {
+                    let acc = &mut acc[r * kmaps..(r + 1) * kmaps];
+                    let sites = &sites[r * kmaps..(r + 1) * kmaps];
+                    if !table.uniform.is_empty() {
+                        let u = table.uniform[table.index(tile.origin.x - xi, tile.origin.y - yi)];
+                        if u != NO_CELL {
+                            st.uniform_windows += 1;
+                            let u = place(u, pj, sites, origin, &neighbours, &mut st.rehomed_far);
+                            let a = &mut acc[u as usize];
+                            for c in 0..3 {
+                                a[c] += v[c];
+                            }
+                            continue;
+                        }
+                    }
+                    // The window straddles cells: each quadrant goes whole to the cell of its
+                    // centre texel (see the module docs).
+                    st.split_windows += 1;
+                    for &(centre, share) in &tile.quads {
+                        if share == 0.0 {
+                            continue;
+                        }
+                        let cell = table.cell(centre.x - xi, centre.y - yi);
+                        if cell == NO_CELL {
+                            continue;
+                        }
+                        let cell = place(cell, pj, sites, origin, &neighbours, &mut st.rehomed_far);
+                        let a = &mut acc[cell as usize];
+                        for c in 0..3 {
+                            a[c] += v[c] * share;
+                        }
+                    }
+                }
+            }
+            // The exact zone, texel by texel: the subsurface term within the profile's
+            // support and the texel form factor of near-singular neighbours (replacing their
+            // point-to-cluster share).
+            for (r, (&i, &(xi, yi))) in recv.iter().zip(&xy).enumerate() {
+                let pi = &transport.patches[i as usize];
+                let sites = &sites[r * kmaps..(r + 1) * kmaps];
+                let acc = &mut acc[r * kmaps..(r + 1) * kmaps];
+                let translucent = kern.is_translucent(pi.material);
+                let support2 = if translucent {
+                    (kern.support_m[pi.material as usize] as f32).powi(2)
+                } else {
+                    0.0
+                };
+                let ff2 = if kern.effects.radiosity {
+                    FF_EXACT_PITCHES * FF_EXACT_PITCHES * pi.area_m2
+                } else {
+                    0.0
+                };
+                for n in near.iter().filter(|n| n.exact_zone) {
+                    st.near_cluster_pairs += 1;
+                    let cj = n.cluster as usize;
+                    let inv_area = 1.0 / rem.clusters[cj].area_m2 as f64;
+                    let approx = near_bounce(n);
+                    let one_texel = cl.texels[cj].len() == 1;
+                    for &j in &cl.texels[cj] {
+                        let pj = &transport.patches[j as usize];
+                        let d2 = (pj.position_m - pi.position_m).length_squared();
+                        let in_sss = translucent && pj.material == pi.material && d2 < support2;
+                        let in_ff = n.exact_bounce || one_texel || d2 < ff2;
+                        if !(in_sss || in_ff || i == j) {
+                            continue;
+                        }
+                        let t = &grid.texels[j as usize];
+                        let cell = table.cell(t.x as i32 - xi, t.y as i32 - yi);
+                        if cell == NO_CELL {
+                            continue;
+                        }
+                        st.near_texel_pairs += 1;
+                        let cell = place(
+                            cell,
+                            pj.position_m,
+                            sites,
+                            origin,
+                            &neighbours,
+                            &mut st.rehomed,
+                        );
+                        let mut e = kern.r_subsurface(pi, pj, i == j);
+                        if in_ff {
+                            let b = kern.r_bounce(pi, pj, i == j);
+                            let share = pj.area_m2 as f64 * inv_area;
+                            for c in 0..3 {
+                                e[c] += b[c] - approx[c] * share;
+                            }
+                        }
+                        let a = &mut acc[cell as usize];
+                        for c in 0..3 {
+                            a[c] += e[c];
+                        }
+                    }
+                }
+            }
+            // Cells whose site is uncovered for this receiver: their transfer is counted with
+            // the receiver's own cell (the one holding Δt = 0), or, when that cell's site is
+            // uncovered too, the cell with a covered site nearest to Δt = 0.
+            for r in 0..n {
+                let valid = |k: usize| sites[r * kmaps + k].is_some();
+                let Some(home) = origin
+                    .map(|o| o as usize)
+                    .filter(|&o| valid(o))
+                    .or_else(|| nearest_valid_to_zero(offsets, &valid))
+                else {
+                    continue;
+                };
+                for k in 0..kmaps {
+                    if valid(k) || acc[r * kmaps + k] == [0.0; 3] {
+                        continue;
+                    }
+                    st.moved_uncovered += 1;
+                    let moved = std::mem::take(&mut acc[r * kmaps + k]);
+                    let a = &mut acc[r * kmaps + home];
+                    for c in 0..3 {
+                        a[c] += moved[c];
+                    }
+                }
+            }
+            let out: Vec<[f32; 3]> = acc
+                .iter()
+                .zip(&sites)
+                .map(|(a, s)| {
+                    if s.is_some() {
+                        a.map(|v| v as f32)
+                    } else {
+                        [0.0; 3]
+                    }
+                })
+                .collect();
+            progress(n as u64);
+            (out, st)
+        })
+        .collect();
+    let mut values = vec![[0.0f32; 3]; (w * h) as usize * kmaps];
+    let mut stats = Vec::with_capacity(nc);
+    for ((out, st), recv) in per_cluster.into_iter().zip(&cl.texels) {
+        for (r, &i) in recv.iter().enumerate() {
+            let t = &grid.texels[i as usize];
+            let slot = (t.y * w + t.x) as usize;
+            values[slot * kmaps..(slot + 1) * kmaps]
+                .copy_from_slice(&out[r * kmaps..(r + 1) * kmaps]);
+        }
+        stats.push(st);
+    }
+    let mut peak = vec![0.0f64; kmaps];
+    for px in values.chunks_exact(kmaps) {
+        for (p, v) in peak.iter_mut().zip(px) {
+            *p = p.max(v[0].abs().max(v[1].abs()).max(v[2].abs()) as f64);
+        }
+    }
+    let stats = stats
+        .into_iter()
+        .fold(CellStats::default(), |a, b| CellStats {
+            near_cluster_pairs: a.near_cluster_pairs + b.near_cluster_pairs,
+            near_texel_pairs: a.near_texel_pairs + b.near_texel_pairs,
+            uniform_windows: a.uniform_windows + b.uniform_windows,
+            split_windows: a.split_windows + b.split_windows,
+            rehomed: a.rehomed + b.rehomed,
+            moved_uncovered: a.moved_uncovered + b.moved_uncovered,
+            rehomed_far: a.rehomed_far + b.rehomed_far,
+        });
+    CellValues {
+        width: w,
+        height: h,
+        maps: kmaps,
+        values,
+        peak,
+        stats,
+    }
+}

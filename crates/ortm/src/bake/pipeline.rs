@@ -1,0 +1,734 @@
+//! The bake orchestrator: selection, Voronoi cells, map values, resumable writing, report.
+//! See the [module docs](super) for the data flow.
+
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+
+use glam::{IVec2, Vec3};
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+use sha2::{Digest, Sha256};
+
+use crate::Lightmap;
+use crate::maps::{self, BakeIndex, BakeKey, LightmapSize, MapsError, TransferMap};
+use crate::bake::offsets::{self, ImportanceMetric, OffsetError, SelectionSettings};
+use crate::scene::Scene;
+use crate::bake::texels::{TexelError, TexelGrid};
+use crate::bake::transport::{Effects, Transport};
+
+/// How offsets are chosen.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum Selector {
+    /// Importance sampling of the Delaunay C0 density (the paper's method).
+    #[default]
+    Importance,
+    /// One jittered sample per cell of a regular grid (the paper's rejected baseline).
+    JitteredGrid,
+}
+
+/// How a map's value over its Voronoi cell is computed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum CellRule {
+    /// The transfer integrated over the cell, `Σ_{v ∈ V} R(t, t+v)`
+    /// ([`crate::bake::cells`]); the default.
+    #[default]
+    Integrated,
+    /// The paper's Eq. 10, `TR(t, t+Δt)·TVA(t, Δt)`: one sample of the transfer times the cell's
+    /// area (cells of at most [`EXACT_CELL_MAX`] offsets, and the origin's, are summed exactly).
+    Sampled,
+}
+
+/// Every setting that influences the bake's output (stored in the index).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct BakeSettings {
+    /// Lightmap width and height, texels.
+    pub size: (u32, u32),
+    /// Number of offsets (transfer maps), `(0, 0)` included.
+    pub offsets: usize,
+    /// Effects included in the transfer.
+    pub effects: Effects,
+    /// Random seed (selection).
+    pub seed: u64,
+    /// Offset selector.
+    pub selector: Selector,
+    /// Transference metric.
+    pub metric: ImportanceMetric,
+    /// Seed grid per axis (≈ `seed_grid²` seed offsets).
+    pub seed_grid: u32,
+    /// Refinement iterations of the importance density.
+    pub refinement_iterations: usize,
+    /// Draws between rebuilds of the density.
+    pub rebuild_every: usize,
+    /// Cluster size (texels per side) of the coarse higher-order solve.
+    pub coarse_block: u32,
+    /// Receivers sampled per offset when estimating its transference.
+    pub selection_receivers: usize,
+    /// How map values cover their Voronoi cells.
+    #[serde(default)]
+    pub cell_rule: CellRule,
+    /// How the scene was named when baking (a built-in name or a scene-file path, as given), so
+    /// that `ortm render DIR` can find it again; informational (the scene hash identifies it).
+    pub scene: Option<String>,
+}
+
+impl Default for BakeSettings {
+    fn default() -> Self {
+        Self {
+            size: (256, 256),
+            offsets: 100,
+            effects: Effects::default(),
+            seed: 1,
+            selector: Selector::Importance,
+            metric: ImportanceMetric::Max,
+            seed_grid: 10,
+            refinement_iterations: 1000,
+            rebuild_every: 20,
+            coarse_block: 8,
+            selection_receivers: 4096,
+            cell_rule: CellRule::Integrated,
+            scene: None,
+        }
+    }
+}
+
+/// Errors of the bake.
+#[derive(Debug, thiserror::Error)]
+pub enum BakeError {
+    /// The UV layout could not be rasterized.
+    #[error(transparent)]
+    Texels(#[from] TexelError),
+    /// Offset selection failed.
+    #[error("offset selection: {0}")]
+    Offsets(#[from] OffsetError),
+    /// Writing or reading maps failed.
+    #[error(transparent)]
+    Maps(#[from] MapsError),
+    /// A file could not be written.
+    #[error("cannot write '{path}': {source}")]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// Cause.
+        source: std::io::Error,
+    },
+    /// Stopped by the user; finished maps are kept.
+    #[error(
+        "interrupted after {done} of {total} maps; finished maps are kept — rerun the same command \
+         to resume"
+    )]
+    Interrupted {
+        /// Maps finished.
+        done: usize,
+        /// Maps planned.
+        total: usize,
+    },
+    /// Settings that cannot work.
+    #[error("invalid bake setting: {0}")]
+    Settings(String),
+}
+
+/// Progress events of a bake, for a progress display.
+#[derive(Clone, Debug)]
+pub enum BakeEvent {
+    /// A phase starts with `total` steps.
+    Phase {
+        /// Phase name.
+        name: &'static str,
+        /// Steps.
+        total: u64,
+    },
+    /// `n` more steps of the current phase are done.
+    Advance(u64),
+    /// A line of information.
+    Message(String),
+}
+
+/// Result of a bake.
+#[derive(Clone, Debug)]
+pub struct BakeSummary {
+    /// Maps in the index.
+    pub maps: usize,
+    /// Maps reused from an interrupted run.
+    pub reused: usize,
+    /// Seconds per phase: transport set-up, selection, maps.
+    pub seconds: [f64; 3],
+    /// Covered texels.
+    pub texels: usize,
+    /// Stored (cropped) texels over all maps.
+    pub stored_texels: u64,
+}
+
+/// A stable hash of everything in the scene that the bake depends on (geometry, UVs, materials,
+/// lightmap size; not the lights).
+pub fn scene_hash(scene: &Scene) -> String {
+    let mut h = Sha256::new();
+    let m = &scene.mesh;
+    for p in &m.positions_m {
+        for c in p.to_array() {
+            h.update(c.to_le_bytes());
+        }
+    }
+    for uv in &m.uvs {
+        h.update(uv.x.to_le_bytes());
+        h.update(uv.y.to_le_bytes());
+    }
+    for n in &m.normals {
+        for c in n.to_array() {
+            h.update(c.to_le_bytes());
+        }
+    }
+    for t in &m.triangles {
+        for k in 0..3 {
+            h.update(t.position[k].to_le_bytes());
+            h.update(t.uv[k].to_le_bytes());
+            h.update(t.normal[k].to_le_bytes());
+        }
+        h.update(t.material.to_le_bytes());
+    }
+    h.update(format!("{:?}", scene.materials).as_bytes());
+    h.update(format!("{}", scene.allow_uv_overlap).as_bytes());
+    h.finalize().iter().map(|b| format!("{b:02x}")).collect()
+}
+
+/// Receivers (texel indices) used to estimate transference: every covered texel, or an evenly
+/// strided subset of at most `max` of them.
+pub fn selection_receivers(grid: &TexelGrid, max: usize) -> Vec<u32> {
+    let n = grid.texels.len();
+    let stride = n.div_ceil(max.max(1)).max(1);
+    (0..n as u32).step_by(stride).collect()
+}
+
+/// Transference of `offset`: max (or mean) over `receivers` of the largest channel of
+/// `|R(t, t + Δt)|` (0 where the sender is uncovered).
+pub fn transference(
+    transport: &Transport,
+    grid: &TexelGrid,
+    receivers: &[u32],
+    offset: IVec2,
+    metric: ImportanceMetric,
+) -> f64 {
+    let values = receivers.iter().filter_map(|&i| {
+        let t = &grid.texels[i as usize];
+        let j = grid.at(t.x as i32 + offset.x, t.y as i32 + offset.y)?;
+        let r = transport.r(i, j);
+        Some(r[0].abs().max(r[1].abs()).max(r[2].abs()) as f64)
+    });
+    match metric {
+        ImportanceMetric::Max => values.fold(0.0, f64::max),
+        ImportanceMetric::Average => values.sum::<f64>() / receivers.len().max(1) as f64,
+    }
+}
+
+/// The values of one transfer map over the full lightmap (see the module docs) and its
+/// importance (largest channel of `|R|` over the map).
+pub fn compute_map_values(
+    transport: &Transport,
+    grid: &TexelGrid,
+    offset: IVec2,
+    tva: &[f32],
+    contains_origin: bool,
+) -> (Lightmap, f64) {
+    let (w, h) = (grid.width, grid.height);
+    let rows: Vec<(Vec<[f32; 3]>, f64)> = (0..h)
+        .into_par_iter()
+        .map(|y| {
+            let mut row = vec![[0.0f32; 3]; w as usize];
+            let mut imp = 0.0f64;
+            for x in 0..w {
+                let Some(i) = grid.at(x as i32, y as i32) else {
+                    continue;
+                };
+                let Some(j) = grid.at(x as i32 + offset.x, y as i32 + offset.y) else {
+                    continue;
+                };
+                let mut r = Vec3::from_array(transport.r(i, j));
+                imp = imp.max(r.abs().max_element() as f64);
+                let delta = if i == j && transport.is_translucent(i) {
+                    1.0
+                } else {
+                    0.0
+                };
+                r += Vec3::splat(delta);
+                let a_j = transport.patches[j as usize].area_m2;
+                let mut v = r / a_j * tva[(y * w + x) as usize];
+                if contains_origin {
+                    v -= Vec3::splat(delta);
+                }
+                row[x as usize] = v.to_array();
+            }
+            (row, imp)
+        })
+        .collect();
+    assemble_rows(w, h, rows)
+}
+
+/// Joins per-row values and importances (computed in parallel) into a map and its importance.
+fn assemble_rows(w: u32, h: u32, rows: Vec<(Vec<[f32; 3]>, f64)>) -> (Lightmap, f64) {
+    let mut map = Lightmap::new(w, h);
+    let mut importance = 0.0f64;
+    for (y, (row, imp)) in rows.into_iter().enumerate() {
+        let start = y * w as usize;
+        map.data[start..start + w as usize].copy_from_slice(&row);
+        importance = importance.max(imp);
+    }
+    (map, importance)
+}
+
+/// Cells with at most this many integer offsets are integrated exactly (see [`MapPlan::map`]).
+pub const EXACT_CELL_MAX: usize = 48;
+
+/// The values of one transfer map integrated exactly over its Voronoi cell:
+/// `Σ_{v ∈ V(Δt)} R(t, t + v)` for every receiver `t` whose sender `t + Δt` is covered. Exact
+/// for any cell (it includes the subsurface point mass and the near-singular self term), at a
+/// cost of one `R` evaluation per cell member and receiver.
+pub fn compute_map_values_exact(
+    transport: &Transport,
+    grid: &TexelGrid,
+    offset: IVec2,
+    runs: &[offsets::RowRun],
+) -> (Lightmap, f64) {
+    let (w, h) = (grid.width, grid.height);
+    let rows: Vec<(Vec<[f32; 3]>, f64)> = (0..h)
+        .into_par_iter()
+        .map(|y| {
+            let mut row = vec![[0.0f32; 3]; w as usize];
+            let mut imp = 0.0f64;
+            for x in 0..w {
+                let Some(i) = grid.at(x as i32, y as i32) else {
+                    continue;
+                };
+                if grid.at(x as i32 + offset.x, y as i32 + offset.y).is_none() {
+                    continue;
+                }
+                let mut sum = [0.0f64; 3];
+                for run in runs {
+                    for dx in run.dx_start..=run.dx_end_inclusive {
+                        let Some(j) = grid.at(x as i32 + dx, y as i32 + run.dy) else {
+                            continue;
+                        };
+                        let r = transport.r(i, j);
+                        if dx == offset.x && run.dy == offset.y {
+                            imp = imp.max(r[0].abs().max(r[1].abs()).max(r[2].abs()) as f64);
+                        }
+                        for c in 0..3 {
+                            sum[c] += r[c] as f64;
+                        }
+                    }
+                }
+                row[x as usize] = [sum[0] as f32, sum[1] as f32, sum[2] as f32];
+            }
+            (row, imp)
+        })
+        .collect();
+    assemble_rows(w, h, rows)
+}
+
+/// Offsets chosen by a selection, with the data needed for the report.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct SelectionRecord {
+    /// Bake key the selection belongs to.
+    pub bake_key: String,
+    /// Selected offsets `(dx, dy)`.
+    pub offsets: Vec<[i32; 2]>,
+    /// Evaluated data points `(dx, dy, transference)` of the importance density.
+    pub data_points: Vec<[f64; 3]>,
+}
+
+impl SelectionRecord {
+    /// Whether a saved selection can be reused for `count` offsets of a `w×h` lightmap: that
+    /// many distinct offsets, each inside `(−w, w) × (−h, h)`, and finite data points. A file
+    /// that fails is ignored (the bake selects again, which gives the same offsets for a seed).
+    pub fn is_plausible(&self, count: usize, w: u32, h: u32) -> bool {
+        let (w, h) = (i64::from(w), i64::from(h));
+        let inside = |o: &[i32; 2]| i64::from(o[0]).abs() < w && i64::from(o[1]).abs() < h;
+        let distinct = self
+            .offsets
+            .iter()
+            .collect::<std::collections::HashSet<_>>()
+            .len();
+        self.offsets.len() == count
+            && distinct == count
+            && self.offsets.iter().all(inside)
+            && self.data_points.iter().flatten().all(|v| v.is_finite())
+    }
+}
+
+/// Chooses the offsets (importance-sampled or jittered grid).
+pub fn select_offsets(
+    transport: &Transport,
+    grid: &TexelGrid,
+    settings: &BakeSettings,
+    events: &(dyn Fn(BakeEvent) + Sync),
+) -> Result<(Vec<IVec2>, Vec<[f64; 3]>), BakeError> {
+    let (w, h) = (grid.width, grid.height);
+    match settings.selector {
+        Selector::JitteredGrid => Ok((
+            offsets::select_jittered_grid(w, h, settings.offsets, settings.seed)?,
+            Vec::new(),
+        )),
+        Selector::Importance => {
+            let receivers = selection_receivers(grid, settings.selection_receivers);
+            let sel = SelectionSettings {
+                seed_grid: settings.seed_grid,
+                refinement_iterations: settings.refinement_iterations,
+                rebuild_every: settings.rebuild_every,
+                final_count: settings.offsets,
+                metric: settings.metric,
+                seed: settings.seed,
+            };
+            let total =
+                (settings.seed_grid as u64).pow(2) + 1 + settings.refinement_iterations as u64;
+            events(BakeEvent::Phase {
+                name: "selecting offsets",
+                total,
+            });
+            let selection = offsets::select_importance(
+                &sel,
+                w,
+                h,
+                |batch| {
+                    let v: Vec<f64> = batch
+                        .par_iter()
+                        .map(|&o| transference(transport, grid, &receivers, o, settings.metric))
+                        .collect();
+                    events(BakeEvent::Advance(batch.len() as u64));
+                    v
+                },
+                |_, _, _| {},
+            )?;
+            let points = selection
+                .data_points
+                .iter()
+                .map(|(p, v)| [p.x, p.y, *v])
+                .collect();
+            Ok((selection.offsets, points))
+        }
+    }
+}
+
+/// Computes the transfer maps of `offsets` in memory (no files) with the cell rule `rule`: the
+/// core of the bake, used directly by tests. `events` receives the integration phase's progress
+/// and one `Advance` per map.
+pub fn bake_maps(
+    transport: &Transport,
+    grid: &TexelGrid,
+    offset_list: &[IVec2],
+    rule: CellRule,
+    events: &(dyn Fn(BakeEvent) + Sync),
+) -> Result<Vec<TransferMap>, BakeError> {
+    let mut plan = MapPlan::new(grid, offset_list, rule)?;
+    plan.prepare(transport, grid, events);
+    (0..offset_list.len())
+        .map(|k| {
+            let m = plan.map(transport, grid, k)?;
+            events(BakeEvent::Advance(1));
+            Ok(m)
+        })
+        .collect()
+}
+
+/// Voronoi cells and areas of a set of offsets, ready to generate maps one by one.
+pub struct MapPlan {
+    offsets: Vec<IVec2>,
+    cells: offsets::DiscreteCells,
+    areas: Vec<f64>,
+    area_map: Vec<f32>,
+    rule: CellRule,
+    integrated: Option<crate::bake::cells::CellValues>,
+}
+
+impl MapPlan {
+    /// Computes the clipped Voronoi cells (areas) and the discrete cells (for TVA).
+    pub fn new(grid: &TexelGrid, offset_list: &[IVec2], rule: CellRule) -> Result<Self, BakeError> {
+        let (w, h) = (grid.width, grid.height);
+        let polys = offsets::clipped_cell_polygons(offset_list, w, h)?;
+        Ok(Self {
+            offsets: offset_list.to_vec(),
+            cells: offsets::discrete_cells(offset_list, w, h)?,
+            areas: polys.real_areas(),
+            area_map: grid.area_map(),
+            rule,
+            integrated: None,
+        })
+    }
+
+    /// For [`CellRule::Integrated`], integrates every cell at once (receiver-major, see
+    /// [`crate::bake::cells`]); a phase of `height` steps. Nothing to do for
+    /// [`CellRule::Sampled`], whose maps are computed one by one.
+    pub fn prepare(
+        &mut self,
+        transport: &Transport,
+        grid: &TexelGrid,
+        events: &(dyn Fn(BakeEvent) + Sync),
+    ) {
+        if self.rule != CellRule::Integrated || self.integrated.is_some() {
+            return;
+        }
+        events(BakeEvent::Phase {
+            name: "integrating cells",
+            total: grid.texels.len() as u64,
+        });
+        let t0 = std::time::Instant::now();
+        let iv =
+            crate::bake::cells::integrate(transport, grid, &self.offsets, &self.cells, &|n| {
+                events(BakeEvent::Advance(n))
+            });
+        let st = &iv.stats;
+        events(BakeEvent::Message(format!(
+            "cells integrated in {:.2} s: {} near cluster pairs ({} texel pairs, {} of them \
+             counted at a nearer site), {} far windows in one cell, {} split, {} counted at a \
+             nearer site, {} receiver cells with an uncovered site moved to the receiver's cell",
+            t0.elapsed().as_secs_f64(),
+            st.near_cluster_pairs,
+            st.near_texel_pairs,
+            st.rehomed,
+            st.uniform_windows,
+            st.split_windows,
+            st.rehomed_far,
+            st.moved_uncovered
+        )));
+        self.integrated = Some(iv);
+    }
+
+    /// The `k`-th map.
+    ///
+    /// [`CellRule::Integrated`]: from [`MapPlan::prepare`]'s integration (run here, without
+    /// progress events, if it has not been).
+    /// [`CellRule::Sampled`]: small cells (at most [`EXACT_CELL_MAX`] integer offsets) and the
+    /// cell holding the zero offset are summed exactly ([`compute_map_values_exact`]) — near
+    /// `Δt = 0` the transfer is far from coherent in `Δt` (the subsurface profile and the form
+    /// factors of neighbouring texels peak there and the texel's own term is a point mass) — and
+    /// larger cells use Eq. 10 as in the paper.
+    pub fn map(
+        &mut self,
+        transport: &Transport,
+        grid: &TexelGrid,
+        k: usize,
+    ) -> Result<TransferMap, BakeError> {
+        self.prepare(transport, grid, &|_| {});
+        self.map_prepared(transport, grid, k)
+    }
+
+    /// The `k`-th map, without preparing: for [`CellRule::Integrated`], [`MapPlan::prepare`] must
+    /// have run (else the map is computed by the sampled rule's code path, which is an error).
+    ///
+    /// # Errors
+    /// [`BakeError::Settings`] when the integrated rule was not prepared.
+    pub fn map_prepared(
+        &self,
+        transport: &Transport,
+        grid: &TexelGrid,
+        k: usize,
+    ) -> Result<TransferMap, BakeError> {
+        if self.rule == CellRule::Integrated && self.integrated.is_none() {
+            return Err(BakeError::Settings(
+                "internal: MapPlan::map_prepared before MapPlan::prepare".into(),
+            ));
+        }
+        let (values, importance) = match &self.integrated {
+            Some(iv) => (iv.map(k), iv.peak[k]),
+            None => {
+                let runs = &self.cells.real[k];
+                let contains_origin = runs
+                    .iter()
+                    .any(|r| r.dy == 0 && r.dx_start <= 0 && 0 <= r.dx_end_inclusive);
+                let members: usize = runs.iter().map(|r| r.len()).sum();
+                if contains_origin || members <= EXACT_CELL_MAX {
+                    compute_map_values_exact(transport, grid, self.offsets[k], runs)
+                } else {
+                    let tva = offsets::tva_map(&self.area_map, grid.width, grid.height, runs)?;
+                    compute_map_values(transport, grid, self.offsets[k], &tva, false)
+                }
+            }
+        };
+        Ok(TransferMap::from_full(
+            self.offsets[k],
+            self.areas[k],
+            importance,
+            &values,
+        )?)
+    }
+}
+
+/// Writes `value` as pretty JSON through the maps' atomic writer (temporary file, fsync, rename).
+fn write_json_atomic<T: Serialize>(path: &Path, value: &T) -> Result<(), BakeError> {
+    let text = serde_json::to_vec_pretty(value).map_err(|e| BakeError::Io {
+        path: path.to_owned(),
+        source: std::io::Error::other(e),
+    })?;
+    Ok(crate::maps::exr_io::write_atomic(path, &text)?)
+}
+
+/// Bakes `scene` into `dir` (resumable; see the module docs). `cancel` is polled between maps.
+pub fn bake(
+    scene: &Scene,
+    settings: &BakeSettings,
+    dir: &Path,
+    events: &(dyn Fn(BakeEvent) + Sync),
+    cancel: &AtomicBool,
+) -> Result<BakeSummary, BakeError> {
+    if settings.offsets == 0 {
+        return Err(BakeError::Settings("--offsets must be at least 1".into()));
+    }
+    let (w, h) = settings.size;
+    let t0 = std::time::Instant::now();
+    std::fs::create_dir_all(dir).map_err(|source| BakeError::Io {
+        path: dir.to_owned(),
+        source,
+    })?;
+    crate::io::limits::check_bake_request(w, h, settings.offsets)
+        .map_err(|e| BakeError::Settings(e.to_string()))?;
+    let grid = TexelGrid::build_with_size(scene, w, h)?;
+    crate::io::limits::check_bake_memory_for_grid(&grid, settings.coarse_block)
+        .map_err(|e| BakeError::Settings(e.to_string()))?;
+    let hash = scene_hash(scene);
+    let settings_json = serde_json::to_value(settings).expect("settings serialise");
+    let key = BakeKey::new(&hash, &settings_json);
+    events(BakeEvent::Message(format!(
+        "{} covered texels at {w}x{h}; building the transport (BVH, coarse solve, {}² texel clusters)",
+        grid.texels.len(),
+        settings.coarse_block
+    )));
+    let transport = Transport::new(scene, &grid, settings.effects, settings.coarse_block);
+    let t_transport = t0.elapsed().as_secs_f64();
+
+    // Offsets: reuse a saved selection of the same bake.
+    let sel_path = dir.join("selection.json");
+    let saved: Option<SelectionRecord> =
+        crate::io::limits::read_bounded(&sel_path, crate::io::limits::MAX_JSON_BYTES, "MAX_JSON_BYTES")
+            .ok()
+            .and_then(|b| serde_json::from_slice(&b).ok())
+            .filter(|s: &SelectionRecord| {
+                s.bake_key == key.as_str() && s.is_plausible(settings.offsets, w, h)
+            });
+    let (offset_list, points) = match saved {
+        Some(s) => {
+            events(BakeEvent::Message(
+                "reusing the saved offset selection".into(),
+            ));
+            (
+                s.offsets.iter().map(|o| IVec2::from_array(*o)).collect(),
+                s.data_points,
+            )
+        }
+        None => {
+            let (o, p) = select_offsets(&transport, &grid, settings, events)?;
+            write_json_atomic(
+                &sel_path,
+                &SelectionRecord {
+                    bake_key: key.as_str().to_owned(),
+                    offsets: o.iter().map(|v| v.to_array()).collect(),
+                    data_points: p.clone(),
+                },
+            )?;
+            (o, p)
+        }
+    };
+    let t_select = t0.elapsed().as_secs_f64() - t_transport;
+
+    let mut plan = MapPlan::new(&grid, &offset_list, settings.cell_rule)?;
+    let scan = maps::scan_finished_maps(dir, &key, w, h)?;
+    for p in &scan.stale_temp {
+        let _ = std::fs::remove_file(p);
+    }
+    let total = offset_list.len();
+    let is_finished = |k: usize, offset: IVec2| {
+        scan.finished
+            .get(&(k as u32))
+            .is_some_and(|e| e.offset == offset.to_array())
+    };
+    if offset_list
+        .iter()
+        .enumerate()
+        .any(|(k, &o)| !is_finished(k, o))
+    {
+        if cancel.load(Ordering::Relaxed) {
+            return Err(BakeError::Interrupted { done: 0, total });
+        }
+        plan.prepare(&transport, &grid, events);
+    }
+    events(BakeEvent::Phase {
+        name: "writing transfer maps",
+        total: total as u64,
+    });
+    // Maps are independent: crop, encode (ZIP) and write them in parallel. Each file is written
+    // atomically, so an interruption leaves only whole maps behind, whatever the order.
+    let written = std::sync::atomic::AtomicUsize::new(0);
+    let results: Vec<Result<(maps::MapEntry, bool, u64), BakeError>> = offset_list
+        .par_iter()
+        .enumerate()
+        .map(|(k, &offset)| {
+            if let Some(e) = scan.finished.get(&(k as u32))
+                && e.offset == offset.to_array()
+            {
+                let stored = e.rects.iter().map(|r| r.area()).sum::<u64>();
+                events(BakeEvent::Advance(1));
+                return Ok((e.clone(), true, stored));
+            }
+            if cancel.load(Ordering::Relaxed) {
+                return Err(BakeError::Interrupted {
+                    done: written.load(Ordering::Relaxed),
+                    total,
+                });
+            }
+            let map = plan.map_prepared(&transport, &grid, k)?;
+            let entry = maps::write_map_file(dir, k as u32, &map, &key)?;
+            written.fetch_add(1, Ordering::Relaxed);
+            events(BakeEvent::Advance(1));
+            Ok((entry, false, map.stored_texels()))
+        })
+        .collect();
+    let mut entries = Vec::with_capacity(total);
+    let mut reused = 0;
+    let mut stored = 0u64;
+    let mut interrupted = None;
+    for r in results {
+        match r {
+            Ok((e, was_reused, texels)) => {
+                reused += usize::from(was_reused);
+                stored += texels;
+                entries.push(e);
+            }
+            Err(BakeError::Interrupted { .. }) => {
+                interrupted = Some(BakeError::Interrupted {
+                    done: written.load(Ordering::Relaxed),
+                    total,
+                });
+            }
+            Err(e) => return Err(e),
+        }
+    }
+    if let Some(e) = interrupted {
+        return Err(e);
+    }
+    let importance: Vec<f64> = entries.iter().map(|e| e.importance).collect();
+    let index = BakeIndex::new(
+        LightmapSize {
+            width: w,
+            height: h,
+        },
+        hash,
+        settings_json,
+        entries,
+    );
+    crate::bake::report::write_bake_report(dir, &grid, &offset_list, &importance, &points).map_err(
+        |e| BakeError::Io {
+            path: dir.join("report"),
+            source: std::io::Error::other(e.to_string()),
+        },
+    )?;
+    index.write(dir)?;
+    Ok(BakeSummary {
+        maps: total,
+        reused,
+        seconds: [
+            t_transport,
+            t_select,
+            t0.elapsed().as_secs_f64() - t_transport - t_select,
+        ],
+        texels: grid.texels.len(),
+        stored_texels: stored,
+    })
+}

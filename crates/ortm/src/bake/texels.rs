@@ -1,0 +1,424 @@
+//! The lightmap's texels as surface patches: for a `W×H` lightmap, every *covered* texel with
+//! its world position (metres), normal, area (m²), albedo, material and chart.
+//!
+//! # Coverage rule
+//! A texel is covered when its centre lies inside a UV triangle — the rule of the GPU
+//! rasterizer, which the first-order pass uses to render the same lightmap. Texel `(x, y)`'s
+//! centre is at texel-space point `(x + 0.5, y + 0.5)` where texel space is `(u·W, (1 − v)·H)`
+//! (row 0 is `v = 1`, as in image files). A centre exactly on an edge shared by two triangles
+//! belongs to one of them by the top-left rule (as in Direct3D and Vulkan rasterizers), so
+//! adjacent triangles never both cover a texel.
+//!
+//! # Patch attributes
+//! Position and shading normal are interpolated barycentrically at the texel centre. The area is
+//! the covering triangle's world area per texel-space area (its Jacobian), i.e. the surface area
+//! the texel stands for. Albedo is the material's (a texture is sampled at the texel's UV); for
+//! subsurface materials it is the profile's total diffuse reflectance (the effective albedo that
+//! first-order lighting `B_o = ρ·E` uses).
+//!
+//! # Validation
+//! Overlapping UVs (a texel centre inside two triangles) are an error naming the overlapping area,
+//! unless the scene opts out (`allow_uv_overlap`); then the triangle drawn last wins, as on the
+//! GPU. A small number of overlapping texels (≤ 0.1% of covered texels, typical of seams in
+//! scanned meshes) is tolerated with a warning.
+
+use std::collections::HashMap;
+
+use glam::{Vec2, Vec3};
+use thiserror::Error;
+
+use crate::lightmap::uv_to_texel_space;
+use crate::scene::{Albedo, AlbedoTexture, Scene};
+use crate::bake::transport::dipole::Profile;
+
+/// Marker for an uncovered lightmap slot.
+pub const NO_TEXEL: u32 = u32::MAX;
+
+/// Fraction of covered texels that may overlap without an error.
+pub const OVERLAP_TOLERANCE: f64 = 0.001;
+
+/// One covered texel as a surface patch.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Texel {
+    /// Column.
+    pub x: u32,
+    /// Row (row 0 is v = 1).
+    pub y: u32,
+    /// Surface point at the texel centre, metres.
+    pub position_m: Vec3,
+    /// Unit shading normal (interpolated).
+    pub normal: Vec3,
+    /// Unit geometric normal of the covering triangle.
+    pub face_normal: Vec3,
+    /// Surface area the texel represents, m².
+    pub area_m2: f32,
+    /// Effective diffuse albedo ρ (RGB).
+    pub albedo: Vec3,
+    /// Material index.
+    pub material: u32,
+    /// Chart (connected UV island) index.
+    pub chart: u32,
+    /// Covering triangle index.
+    pub triangle: u32,
+}
+
+/// Problems found while rasterizing the UV layout.
+#[derive(Debug, Error)]
+pub enum TexelError {
+    /// Two or more triangles cover the same texel centres.
+    #[error(
+        "scene '{scene}': lightmap UVs overlap: {texels} texel(s) at {width}x{height} \
+         ({fraction:.3}% of the covered texels, e.g. triangles {tri_a} and {tri_b} both cover \
+         texel ({x}, {y})). Lightmap UVs must not overlap: give every face its own UV area \
+         (e.g. re-unwrap with a lightmap UV tool), or set `allow_uv_overlap = true` in the scene \
+         file to accept it (the last triangle wins)"
+    )]
+    Overlap {
+        /// Scene name.
+        scene: String,
+        /// Overlapping texels.
+        texels: usize,
+        /// Percentage of covered texels.
+        fraction: f64,
+        /// Lightmap width.
+        width: u32,
+        /// Lightmap height.
+        height: u32,
+        /// A triangle involved.
+        tri_a: u32,
+        /// Another triangle involved.
+        tri_b: u32,
+        /// Example texel column.
+        x: u32,
+        /// Example texel row.
+        y: u32,
+    },
+    /// No texel is covered.
+    #[error(
+        "scene '{scene}': no lightmap texel centre lies inside any UV triangle at {width}x{height}; \
+         use a larger lightmap size or check the UVs"
+    )]
+    Empty {
+        /// Scene name.
+        scene: String,
+        /// Lightmap width.
+        width: u32,
+        /// Lightmap height.
+        height: u32,
+    },
+}
+
+/// Statistics of the rasterization.
+#[derive(Clone, Debug, Default)]
+pub struct CoverageStats {
+    /// Covered texels.
+    pub covered: usize,
+    /// Texels inside two or more triangles.
+    pub overlapping: usize,
+    /// Number of charts (UV islands).
+    pub charts: usize,
+    /// Triangles that cover no texel centre (too small at this resolution).
+    pub triangles_without_texels: usize,
+    /// Total surface area, m² (sum of texel areas).
+    pub area_m2: f64,
+    /// Warnings (e.g. tolerated overlaps).
+    pub warnings: Vec<String>,
+}
+
+/// All covered texels of a `width × height` lightmap.
+#[derive(Clone, Debug)]
+pub struct TexelGrid {
+    /// Lightmap width.
+    pub width: u32,
+    /// Lightmap height.
+    pub height: u32,
+    /// Covered texels in row-major order.
+    pub texels: Vec<Texel>,
+    /// For each lightmap slot (`y*width + x`), the index into `texels` or [`NO_TEXEL`].
+    pub slot: Vec<u32>,
+    /// Chart index of every triangle.
+    pub triangle_chart: Vec<u32>,
+    /// Statistics.
+    pub stats: CoverageStats,
+}
+
+/// Top-left rule for an edge `a → b` of a triangle with positive (counter-clockwise in a
+/// y-down frame ⇒ we normalise orientation first) orientation.
+#[inline]
+fn is_top_left(a: (f64, f64), b: (f64, f64)) -> bool {
+    let (dx, dy) = (b.0 - a.0, b.1 - a.1);
+    // With edge functions E = (b−a)×(p−a) > 0 inside (clockwise on screen, y down):
+    // a "top" edge is horizontal with the interior below it, a "left" edge goes upwards.
+    (dy == 0.0 && dx > 0.0) || dy < 0.0
+}
+
+fn sample_texture(t: &AlbedoTexture, uv: Vec2) -> Vec3 {
+    let fx = (uv.x * t.width as f32 - 0.5).clamp(0.0, t.width as f32 - 1.0);
+    let fy = ((1.0 - uv.y) * t.height as f32 - 0.5).clamp(0.0, t.height as f32 - 1.0);
+    let (x0, y0) = (fx.floor() as u32, fy.floor() as u32);
+    let (x1, y1) = ((x0 + 1).min(t.width - 1), (y0 + 1).min(t.height - 1));
+    let (ax, ay) = (fx - x0 as f32, fy - y0 as f32);
+    let px = |x: u32, y: u32| t.data[(y * t.width + x) as usize];
+    let top = px(x0, y0) * (1.0 - ax) + px(x1, y0) * ax;
+    let bot = px(x0, y1) * (1.0 - ax) + px(x1, y1) * ax;
+    top * (1.0 - ay) + bot * ay
+}
+
+/// Connected UV islands: triangles sharing an edge with the same positions and UVs.
+fn charts(scene: &Scene) -> (Vec<u32>, usize) {
+    let tris = &scene.mesh.triangles;
+    let mut parent: Vec<u32> = (0..tris.len() as u32).collect();
+    fn find(p: &mut [u32], mut i: u32) -> u32 {
+        while p[i as usize] != i {
+            p[i as usize] = p[p[i as usize] as usize];
+            i = p[i as usize];
+        }
+        i
+    }
+    let key = |t: usize, k: usize| {
+        let tri = &tris[t];
+        let uv = scene.mesh.uvs[tri.uv[k] as usize];
+        (tri.position[k], uv.x.to_bits(), uv.y.to_bits())
+    };
+    // An edge end point: (position index, UV bits); an edge: its two sorted end points.
+    type EdgeEnd = (u32, u32, u32);
+    let mut edges: HashMap<(EdgeEnd, EdgeEnd), u32> = HashMap::new();
+    for t in 0..tris.len() {
+        for k in 0..3 {
+            let (a, b) = (key(t, k), key(t, (k + 1) % 3));
+            let e = if a < b { (a, b) } else { (b, a) };
+            if let Some(&other) = edges.get(&e) {
+                let (ra, rb) = (find(&mut parent, t as u32), find(&mut parent, other));
+                if ra != rb {
+                    parent[ra as usize] = rb;
+                }
+            } else {
+                edges.insert(e, t as u32);
+            }
+        }
+    }
+    let mut ids = HashMap::new();
+    let mut out = vec![0u32; tris.len()];
+    for (t, o) in out.iter_mut().enumerate() {
+        let r = find(&mut parent, t as u32);
+        let n = ids.len() as u32;
+        *o = *ids.entry(r).or_insert(n);
+    }
+    (out, ids.len())
+}
+
+impl TexelGrid {
+    /// Rasterizes `scene`'s UV layout at the scene's lightmap size.
+    pub fn build(scene: &Scene) -> Result<Self, TexelError> {
+        let (w, h) = scene.lightmap_size;
+        Self::build_with_size(scene, w, h)
+    }
+
+    /// Rasterizes `scene`'s UV layout at `width × height`.
+    pub fn build_with_size(scene: &Scene, width: u32, height: u32) -> Result<Self, TexelError> {
+        let mesh = &scene.mesh;
+        let n_slots = width as usize * height as usize;
+        // Per slot: (triangle, barycentrics) of the last covering triangle, and a cover count.
+        let mut cover: Vec<(u32, [f32; 3])> = vec![(NO_TEXEL, [0.0; 3]); n_slots];
+        let mut count = vec![0u8; n_slots];
+        let mut first_overlap: Option<(u32, u32, u32, u32)> = None;
+        let mut tris_without = 0usize;
+        for (ti, tri) in mesh.triangles.iter().enumerate() {
+            let p: [(f64, f64); 3] = std::array::from_fn(|k| {
+                let q = uv_to_texel_space(mesh.uvs[tri.uv[k] as usize], width, height);
+                (q.x as f64, q.y as f64)
+            });
+            // Orientation: make E = (b−a)×(p−a) positive inside.
+            let area2 =
+                (p[1].0 - p[0].0) * (p[2].1 - p[0].1) - (p[1].1 - p[0].1) * (p[2].0 - p[0].0);
+            if area2 == 0.0 || !area2.is_finite() {
+                tris_without += 1;
+                continue;
+            }
+            let order = if area2 > 0.0 { [0, 1, 2] } else { [0, 2, 1] };
+            let v = [p[order[0]], p[order[1]], p[order[2]]];
+            let area2 = area2.abs();
+            let min_x = v.iter().map(|q| q.0).fold(f64::INFINITY, f64::min);
+            let max_x = v.iter().map(|q| q.0).fold(f64::NEG_INFINITY, f64::max);
+            let min_y = v.iter().map(|q| q.1).fold(f64::INFINITY, f64::min);
+            let max_y = v.iter().map(|q| q.1).fold(f64::NEG_INFINITY, f64::max);
+            let x0 = ((min_x - 0.5).ceil().max(0.0)) as i64;
+            let x1 = ((max_x - 0.5).floor().min(width as f64 - 1.0)) as i64;
+            let y0 = ((min_y - 0.5).ceil().max(0.0)) as i64;
+            let y1 = ((max_y - 0.5).floor().min(height as f64 - 1.0)) as i64;
+            let tl = [
+                is_top_left(v[0], v[1]),
+                is_top_left(v[1], v[2]),
+                is_top_left(v[2], v[0]),
+            ];
+            let mut any = false;
+            for y in y0..=y1 {
+                for x in x0..=x1 {
+                    let c = (x as f64 + 0.5, y as f64 + 0.5);
+                    let e = |a: (f64, f64), b: (f64, f64)| {
+                        (b.0 - a.0) * (c.1 - a.1) - (b.1 - a.1) * (c.0 - a.0)
+                    };
+                    let e0 = e(v[0], v[1]); // opposite v2
+                    let e1 = e(v[1], v[2]); // opposite v0
+                    let e2 = e(v[2], v[0]); // opposite v1
+                    let inside = |ev: f64, top_left: bool| ev > 0.0 || (ev == 0.0 && top_left);
+                    if !(inside(e0, tl[0]) && inside(e1, tl[1]) && inside(e2, tl[2])) {
+                        continue;
+                    }
+                    any = true;
+                    // Barycentrics in the original vertex order.
+                    let mut b = [0.0f32; 3];
+                    b[order[0]] = (e1 / area2) as f32;
+                    b[order[1]] = (e2 / area2) as f32;
+                    b[order[2]] = (e0 / area2) as f32;
+                    let s = y as usize * width as usize + x as usize;
+                    if count[s] > 0 && first_overlap.is_none() {
+                        first_overlap = Some((cover[s].0, ti as u32, x as u32, y as u32));
+                    }
+                    count[s] = count[s].saturating_add(1);
+                    cover[s] = (ti as u32, b);
+                }
+            }
+            if !any {
+                tris_without += 1;
+            }
+        }
+
+        let (triangle_chart, n_charts) = charts(scene);
+        let profiles: Vec<Option<Profile>> = scene
+            .materials
+            .iter()
+            .map(|m| m.subsurface.as_ref().map(Profile::new))
+            .collect();
+
+        let mut texels = Vec::new();
+        let mut slot = vec![NO_TEXEL; n_slots];
+        let mut overlapping = 0usize;
+        let mut area_total = 0.0f64;
+        for y in 0..height {
+            for x in 0..width {
+                let s = y as usize * width as usize + x as usize;
+                let (ti, b) = cover[s];
+                if ti == NO_TEXEL {
+                    continue;
+                }
+                if count[s] > 1 {
+                    overlapping += 1;
+                }
+                let tri = &mesh.triangles[ti as usize];
+                let pos: [Vec3; 3] =
+                    std::array::from_fn(|k| mesh.positions_m[tri.position[k] as usize]);
+                let uvs: [Vec2; 3] = std::array::from_fn(|k| mesh.uvs[tri.uv[k] as usize]);
+                let nrm: [Vec3; 3] = std::array::from_fn(|k| mesh.normals[tri.normal[k] as usize]);
+                let position_m = pos[0] * b[0] + pos[1] * b[1] + pos[2] * b[2];
+                let cross = (pos[1] - pos[0]).cross(pos[2] - pos[0]);
+                let world_area = 0.5 * cross.length();
+                let face_normal = cross.normalize_or_zero();
+                let normal = (nrm[0] * b[0] + nrm[1] * b[1] + nrm[2] * b[2])
+                    .try_normalize()
+                    .unwrap_or(face_normal);
+                let t: [Vec2; 3] =
+                    std::array::from_fn(|k| uv_to_texel_space(uvs[k], width, height));
+                let texel_area = 0.5 * ((t[1] - t[0]).perp_dot(t[2] - t[0])).abs();
+                let area_m2 = world_area / texel_area;
+                let uv = uvs[0] * b[0] + uvs[1] * b[1] + uvs[2] * b[2];
+                let material = tri.material;
+                let mat = &scene.materials[material as usize];
+                let albedo = match &profiles[material as usize] {
+                    Some(p) => p.total_reflectance(),
+                    None => match &mat.albedo {
+                        Albedo::Constant(c) => *c,
+                        Albedo::Texture(tex) => sample_texture(tex, uv),
+                    },
+                };
+                area_total += area_m2 as f64;
+                slot[s] = texels.len() as u32;
+                texels.push(Texel {
+                    x,
+                    y,
+                    position_m,
+                    normal,
+                    face_normal,
+                    area_m2,
+                    albedo,
+                    material,
+                    chart: triangle_chart[ti as usize],
+                    triangle: ti,
+                });
+            }
+        }
+        if texels.is_empty() {
+            return Err(TexelError::Empty {
+                scene: scene.name.clone(),
+                width,
+                height,
+            });
+        }
+        let mut warnings = Vec::new();
+        if overlapping > 0 {
+            let fraction = overlapping as f64 / texels.len() as f64;
+            let (tri_a, tri_b, x, y) = first_overlap.unwrap_or_default();
+            if fraction > OVERLAP_TOLERANCE && !scene.allow_uv_overlap {
+                return Err(TexelError::Overlap {
+                    scene: scene.name.clone(),
+                    texels: overlapping,
+                    fraction: fraction * 100.0,
+                    width,
+                    height,
+                    tri_a,
+                    tri_b,
+                    x,
+                    y,
+                });
+            }
+            warnings.push(format!(
+                "{overlapping} overlapping texel(s) ({:.3}% of covered) at {width}x{height}; \
+                 the last triangle wins",
+                fraction * 100.0
+            ));
+        }
+        Ok(Self {
+            width,
+            height,
+            stats: CoverageStats {
+                covered: texels.len(),
+                overlapping,
+                charts: n_charts,
+                triangles_without_texels: tris_without,
+                area_m2: area_total,
+                warnings,
+            },
+            texels,
+            slot,
+            triangle_chart,
+        })
+    }
+
+    /// Index of the texel at `(x, y)`, if covered (coordinates may be out of range).
+    #[inline]
+    pub fn at(&self, x: i32, y: i32) -> Option<u32> {
+        if x < 0 || y < 0 || x >= self.width as i32 || y >= self.height as i32 {
+            return None;
+        }
+        let s = self.slot[y as usize * self.width as usize + x as usize];
+        (s != NO_TEXEL).then_some(s)
+    }
+
+    /// Per-slot texel areas in m² (0 where uncovered), row-major `width × height`.
+    pub fn area_map(&self) -> Vec<f32> {
+        let mut a = vec![0.0; self.slot.len()];
+        for t in &self.texels {
+            a[(t.y * self.width + t.x) as usize] = t.area_m2;
+        }
+        a
+    }
+
+    /// Per-slot albedo (0 where uncovered).
+    pub fn albedo_map(&self) -> crate::Lightmap {
+        let mut m = crate::Lightmap::new(self.width, self.height);
+        for t in &self.texels {
+            m.set(t.x, t.y, t.albedo.to_array());
+        }
+        m
+    }
+}

@@ -1,0 +1,134 @@
+//! The coarse level of the transport: texels grouped into clusters (one per `block × block`
+//! tile of the lightmap, chart and material), the dense solve over the clusters, and the smooth
+//! higher-order remainder `R_rem = R − R_fine` spread back to texel pairs by area.
+//!
+//! A cluster's centroid and normal are the area-weighted means of its texels; its area is their
+//! sum; its albedo the area-weighted mean. `R_rem(i, j) ≈ R_rem(I, J)·A_j / A_J` for texels `i ∈ I`,
+//! `j ∈ J` (piecewise constant per cluster pair, proportional to the sender's area share).
+
+use std::collections::HashMap;
+
+use glam::Vec3;
+
+use super::dense::DenseTransport;
+use super::{Kernels, Patch};
+use crate::bake::texels::TexelGrid;
+
+/// The higher-order remainder at the coarse level.
+pub struct Remainder {
+    /// Cluster of every texel (grid texel order).
+    pub cluster_of: Vec<u32>,
+    /// Cluster patches.
+    pub clusters: Vec<Patch>,
+    /// `R_rem(I, J)` per channel, row-major `n_c × n_c`.
+    pub rem: [Vec<f32>; 3],
+    /// The whole cluster transfer `R(I, J)` (fine + remainder) per channel, row-major
+    /// `n_c × n_c`: the far field of the cell integration ([`crate::bake::cells`]).
+    pub full: [Vec<f32>; 3],
+    /// Block size in texels.
+    pub block: u32,
+}
+
+/// Groups texels into clusters: one per (tile of `block × block` texels, chart, material).
+pub fn cluster_texels(grid: &TexelGrid, patches: &[Patch], block: u32) -> (Vec<u32>, Vec<Patch>) {
+    let block = block.max(1);
+    let mut ids: HashMap<(u32, u32, u32, u32), u32> = HashMap::new();
+    let mut cluster_of = Vec::with_capacity(grid.texels.len());
+    let mut acc: Vec<(f64, Vec3, Vec3, Vec3, Vec3, u32)> = Vec::new();
+    for (t, p) in grid.texels.iter().zip(patches) {
+        let key = (t.x / block, t.y / block, t.chart, t.material);
+        let n = ids.len() as u32;
+        let id = *ids.entry(key).or_insert_with(|| {
+            acc.push((
+                0.0,
+                Vec3::ZERO,
+                Vec3::ZERO,
+                Vec3::ZERO,
+                Vec3::ZERO,
+                t.material,
+            ));
+            n
+        });
+        cluster_of.push(id);
+        let a = &mut acc[id as usize];
+        let w = p.area_m2;
+        a.0 += w as f64;
+        a.1 += p.position_m * w;
+        a.2 += p.normal * w;
+        a.3 += p.lift_normal * w;
+        a.4 += p.rho * w;
+    }
+    let clusters = acc
+        .into_iter()
+        .map(|(area, pos, nrm, lift, rho, material)| {
+            let a = area as f32;
+            Patch {
+                position_m: pos / a,
+                normal: nrm.try_normalize().unwrap_or(Vec3::Z),
+                lift_normal: lift.try_normalize().unwrap_or(Vec3::Z),
+                area_m2: a,
+                rho: rho / a,
+                material,
+            }
+        })
+        .collect();
+    (cluster_of, clusters)
+}
+
+impl Remainder {
+    /// Clusters the texels, solves the cluster system densely and keeps `R − R_fine`.
+    pub fn new(grid: &TexelGrid, patches: &[Patch], kernels: &Kernels, block: u32) -> Self {
+        let (cluster_of, clusters) = cluster_texels(grid, patches, block);
+        let n = clusters.len();
+        let dense = DenseTransport::new(&clusters, kernels);
+        let full = dense.transfer();
+        let rem = std::array::from_fn(|ch| {
+            let mut v = vec![0.0f32; n * n];
+            for i in 0..n {
+                for j in 0..n {
+                    let fine = if dense.rho[j][ch] > 0.0 {
+                        kernels.r_fine(&clusters[i], &clusters[j], i == j)[ch]
+                    } else {
+                        0.0
+                    };
+                    v[i * n + j] = (full[ch][(i, j)] - fine) as f32;
+                }
+            }
+            v
+        });
+        let full = std::array::from_fn(|ch| {
+            let m = &full[ch];
+            let mut v = vec![0.0f32; n * n];
+            for i in 0..n {
+                for j in 0..n {
+                    v[i * n + j] = m[(i, j)] as f32;
+                }
+            }
+            v
+        });
+        Self {
+            cluster_of,
+            clusters,
+            rem,
+            full,
+            block,
+        }
+    }
+
+    /// `R_rem(i, j)` per channel for texels `i`, `j` with the sender's area `area_j_m2`.
+    #[inline]
+    pub fn r(&self, i: u32, j: u32, area_j_m2: f32) -> [f32; 3] {
+        let n = self.clusters.len();
+        let (ci, cj) = (
+            self.cluster_of[i as usize] as usize,
+            self.cluster_of[j as usize] as usize,
+        );
+        let share = area_j_m2 / self.clusters[cj].area_m2;
+        let k = ci * n + cj;
+        [
+            self.rem[0][k] * share,
+            self.rem[1][k] * share,
+            self.rem[2][k] * share,
+        ]
+    }
+}

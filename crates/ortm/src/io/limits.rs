@@ -1,0 +1,416 @@
+//! Every limit ortm applies to what it reads and what it is asked to allocate, in one place
+//! (documented in `docs/limits.md`).
+//!
+//! Scene files, meshes, bake directories and atlas directories come from users and other
+//! machines: sizes declared inside a file are checked against these limits *before* anything of
+//! that size is allocated, and files are checked against a byte limit before they are read.
+//! Settings that would need more memory than the machine has (a bake's coarse transport solve)
+//! are refused up front with the number of bytes they would need. Every error built here names
+//! the limit, the value found and the value it would need.
+//!
+//! | limit | value | applies to |
+//! |---|---|---|
+//! | [`MAX_TEXELS`] | 2²⁸ texels | lightmaps, map files' display windows, atlases |
+//! | [`MAX_LIGHTMAP_SIDE`] | 8192 texels | scene files' `[lightmap]`, `--size` |
+//! | [`MAX_SCENE_BYTES`] | 16 MiB | scene TOML files |
+//! | [`MAX_OBJ_BYTES`] | 512 MiB | OBJ meshes |
+//! | [`MAX_TEXTURE_SIDE`], [`MAX_TEXTURE_DECODE_BYTES`] | 8192 px, 512 MiB | albedo PNG textures |
+//! | [`MAX_JSON_BYTES`] | 256 MiB | `index.json`, `atlases.json`, `selection.json` |
+//! | [`MAX_EXR_BYTES`] | 4 GiB | map and atlas OpenEXR files |
+//! | [`MAX_EXR_EXPANSION`] | 1100 | decoded pixel bytes per byte of an OpenEXR file |
+//! | [`MAX_OFFSETS`] | 65,536 | offsets (transfer maps) of a bake |
+//! | memory | physical memory, or `ORTM_MEMORY_LIMIT_BYTES` | a bake's transport ([`bake_memory_bytes`]), `ortm bin`'s atlases ([`atlas_memory_bytes`]) |
+
+use std::fs;
+use std::io::Read;
+use std::path::Path;
+
+/// Largest lightmap, map or atlas, in texels (`width·height`). At 12 bytes per texel (RGB f32)
+/// one such image is 3 GiB; the limit also keeps texel indices and counts inside `u32`.
+pub const MAX_TEXELS: u64 = 1 << 28;
+
+/// Largest lightmap side a scene file or `--size` may ask for, texels.
+pub const MAX_LIGHTMAP_SIDE: u32 = 8192;
+
+/// Largest scene file (TOML), bytes.
+pub const MAX_SCENE_BYTES: u64 = 16 * 1024 * 1024;
+
+/// Largest OBJ mesh file, bytes (the 17,684-triangle head is 2.7 MB).
+pub const MAX_OBJ_BYTES: u64 = 512 * 1024 * 1024;
+
+/// Largest albedo texture side, pixels (checked by the PNG decoder before it allocates).
+pub const MAX_TEXTURE_SIDE: u32 = 8192;
+
+/// Most bytes the PNG decoder may allocate for one albedo texture (an 8192² RGBA16 image).
+pub const MAX_TEXTURE_DECODE_BYTES: u64 = 8192 * 8192 * 8;
+
+/// Largest JSON file of a bake or atlas directory (`index.json`, `atlases.json`,
+/// `selection.json`), bytes. An index entry takes about 300 bytes, so this is far above any
+/// index of [`MAX_OFFSETS`] maps.
+pub const MAX_JSON_BYTES: u64 = 256 * 1024 * 1024;
+
+/// Largest map or atlas OpenEXR file, bytes: one uncompressed image of [`MAX_TEXELS`] RGB f32
+/// texels (3 GiB) plus headers and offset tables fits.
+pub const MAX_EXR_BYTES: u64 = 4 * 1024 * 1024 * 1024;
+
+/// Largest ratio of decoded pixel bytes (12 per texel, RGB f32) to the size of the OpenEXR file
+/// that declares them. The files ortm writes use ZIP (deflate), whose expansion is at most
+/// 1032:1, so no valid file comes near this; a small corrupt file that declares a huge data
+/// window is refused before its pixels are allocated.
+pub const MAX_EXR_EXPANSION: u64 = 1100;
+
+/// Most offsets (transfer maps) in one bake.
+pub const MAX_OFFSETS: usize = 65_536;
+
+/// Environment variable that lowers (or raises) the memory a bake may plan to use, in bytes;
+/// without it the limit is the machine's physical memory (`MemTotal` of `/proc/meminfo`).
+pub const MEMORY_LIMIT_ENV: &str = "ORTM_MEMORY_LIMIT_BYTES";
+
+/// A limit that an input or a setting exceeds.
+#[derive(Debug, thiserror::Error, Clone, PartialEq, Eq)]
+#[error("{what}: {found} exceeds the limit {limit_name} = {limit}{fix}")]
+pub struct LimitError {
+    /// What was checked (file and field, or setting).
+    pub what: String,
+    /// The value found or needed, with its unit.
+    pub found: String,
+    /// Name of the limit ([`MAX_TEXELS`], …).
+    pub limit_name: &'static str,
+    /// The limit, with its unit.
+    pub limit: String,
+    /// How to fix it (starts with "; ", or empty).
+    pub fix: String,
+}
+
+/// Reads a whole file of at most `limit` bytes: refuses anything that is not a regular file
+/// (a FIFO, a device such as `/dev/zero`, a directory) and files larger than `limit`, before
+/// reading; a file that grows while being read is cut at `limit + 1` bytes and refused.
+///
+/// # Errors
+/// The `std::io::Error` of opening or reading; a file over the limit or not a regular file
+/// gives an error of kind `InvalidData` whose message names the limit (`limit_name`).
+pub fn read_bounded(path: &Path, limit: u64, limit_name: &str) -> std::io::Result<Vec<u8>> {
+    let file = fs::File::open(path)?;
+    let meta = file.metadata()?;
+    if !meta.is_file() {
+        return Err(std::io::Error::new(
+            std::io::ErrorKind::InvalidData,
+            "not a regular file",
+        ));
+    }
+    let too_large = |size: u64| {
+        std::io::Error::new(
+            std::io::ErrorKind::InvalidData,
+            format!("{size} bytes exceeds the limit {limit_name} = {limit} bytes"),
+        )
+    };
+    if meta.len() > limit {
+        return Err(too_large(meta.len()));
+    }
+    let mut bytes = Vec::with_capacity(meta.len() as usize);
+    file.take(limit + 1).read_to_end(&mut bytes)?;
+    if bytes.len() as u64 > limit {
+        return Err(too_large(bytes.len() as u64));
+    }
+    Ok(bytes)
+}
+
+/// Checks that the pixels an OpenEXR file declares (`texels`, each 12 bytes) are plausible for
+/// a file of `file_bytes` bytes ([`MAX_EXR_EXPANSION`]) and at most [`MAX_TEXELS`].
+///
+/// # Errors
+/// A [`LimitError`] naming `what`.
+pub fn check_exr_pixels(what: &str, texels: u64, file_bytes: u64) -> Result<(), LimitError> {
+    if texels > MAX_TEXELS {
+        return Err(LimitError {
+            what: what.to_owned(),
+            found: format!("{texels} texels"),
+            limit_name: "MAX_TEXELS",
+            limit: format!("{MAX_TEXELS} texels"),
+            fix: String::new(),
+        });
+    }
+    let decoded = texels.saturating_mul(12);
+    let allowed = file_bytes
+        .saturating_mul(MAX_EXR_EXPANSION)
+        .saturating_add(4096);
+    if decoded > allowed {
+        return Err(LimitError {
+            what: what.to_owned(),
+            found: format!(
+                "{decoded} bytes of pixels declared by a {file_bytes}-byte file (expansion {:.0}:1)",
+                decoded as f64 / file_bytes.max(1) as f64
+            ),
+            limit_name: "MAX_EXR_EXPANSION",
+            limit: format!("{MAX_EXR_EXPANSION}:1"),
+            fix: "; the file is corrupt or not written by ortm: re-run the command that wrote it"
+                .into(),
+        });
+    }
+    Ok(())
+}
+
+/// Checks a bake's lightmap size and offset count before anything is allocated: sides in
+/// `1..=`[`MAX_LIGHTMAP_SIDE`], at most [`MAX_OFFSETS`] offsets, and no more offsets than the
+/// `(2W−1)(2H−1)` distinct integer offsets a `W×H` lightmap has.
+///
+/// # Errors
+/// A [`LimitError`] with the number the request would need.
+pub fn check_bake_request(width: u32, height: u32, offsets: usize) -> Result<(), LimitError> {
+    for (name, side) in [("width", width), ("height", height)] {
+        if !(1..=MAX_LIGHTMAP_SIDE).contains(&side) {
+            return Err(LimitError {
+                what: format!("lightmap {name}"),
+                found: format!("{side} texels"),
+                limit_name: "MAX_LIGHTMAP_SIDE",
+                limit: format!("1..={MAX_LIGHTMAP_SIDE} texels"),
+                fix: "; choose --size between 1 and 8192 (e.g. 256 or 512)".into(),
+            });
+        }
+    }
+    if offsets > MAX_OFFSETS {
+        return Err(LimitError {
+            what: "--offsets".into(),
+            found: format!("{offsets} offsets"),
+            limit_name: "MAX_OFFSETS",
+            limit: format!("{MAX_OFFSETS}"),
+            fix: "; the paper uses 50–400 offsets".into(),
+        });
+    }
+    let distinct = (2 * u64::from(width) - 1) * (2 * u64::from(height) - 1);
+    if offsets as u64 > distinct {
+        return Err(LimitError {
+            what: "--offsets".into(),
+            found: format!("{offsets} offsets"),
+            limit_name: "the number of distinct offsets (2W−1)(2H−1) of the lightmap",
+            limit: format!("{distinct} for {width}×{height}"),
+            fix: "; ask for fewer offsets or a larger lightmap".into(),
+        });
+    }
+    Ok(())
+}
+
+/// Bytes the bake's transport needs for `clusters` clusters of the coarse higher-order solve
+/// (`src/transport/coarse.rs`): per pair of clusters an f64 form factor, an f64 system matrix
+/// and its LU factors, three f64 transfer channels and three f32 remainders (`8+8+8+24+12 = 60`
+/// bytes), plus `per_texel` bytes for each covered texel (patches, BVH, grid).
+pub fn bake_memory_bytes(clusters: u64, covered_texels: u64) -> u64 {
+    const PER_CLUSTER_PAIR: u64 = 60;
+    const PER_TEXEL: u64 = 512;
+    clusters
+        .saturating_mul(clusters)
+        .saturating_mul(PER_CLUSTER_PAIR)
+        .saturating_add(covered_texels.saturating_mul(PER_TEXEL))
+}
+
+/// The memory a bake may plan to use, bytes: `$ORTM_MEMORY_LIMIT_BYTES` if set, else the
+/// machine's physical memory from `/proc/meminfo`, else `None` (no check).
+///
+/// # Errors
+/// A malformed `ORTM_MEMORY_LIMIT_BYTES` (not a decimal byte count).
+pub fn memory_limit_bytes() -> Result<Option<u64>, LimitError> {
+    if let Ok(v) = std::env::var(MEMORY_LIMIT_ENV) {
+        return v.trim().parse().map(Some).map_err(|_| LimitError {
+            what: MEMORY_LIMIT_ENV.into(),
+            found: format!("{v:?}"),
+            limit_name: "a decimal byte count",
+            limit: "e.g. 8000000000".into(),
+            fix: String::new(),
+        });
+    }
+    let info = fs::read_to_string("/proc/meminfo").ok();
+    Ok(info.as_deref().and_then(|t| {
+        t.lines()
+            .find_map(|l| l.strip_prefix("MemTotal:"))
+            .and_then(|v| v.trim().strip_suffix("kB"))
+            .and_then(|kb| kb.trim().parse::<u64>().ok())
+            .map(|kb| kb * 1024)
+    }))
+}
+
+/// Refuses a bake whose transport would need more memory than [`memory_limit_bytes`], naming
+/// the bytes it would need ([`bake_memory_bytes`]).
+///
+/// # Errors
+/// A [`LimitError`] with the bytes needed and the limit.
+pub fn check_bake_memory(
+    clusters: u64,
+    covered_texels: u64,
+    coarse_block: u32,
+) -> Result<(), LimitError> {
+    let need = bake_memory_bytes(clusters, covered_texels);
+    match memory_limit_bytes()? {
+        Some(limit) if need > limit => Err(LimitError {
+            what: format!(
+                "bake transport ({covered_texels} covered texels in {clusters} clusters of \
+                 {coarse_block}×{coarse_block})"
+            ),
+            found: format!("{need} bytes ({:.2} GiB) needed", gib(need)),
+            limit_name: "memory (physical memory or ORTM_MEMORY_LIMIT_BYTES)",
+            limit: format!("{limit} bytes ({:.2} GiB)", gib(limit)),
+            fix: "; use a smaller lightmap (--size) or larger clusters (--coarse-block)".into(),
+        }),
+        _ => Ok(()),
+    }
+}
+
+/// Why a file name from an index does not resolve to a regular file inside its directory.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Unresolved {
+    /// The file does not exist (or cannot be inspected).
+    Missing,
+    /// The name resolves (through a symbolic link) to this path outside the directory.
+    Escapes(std::path::PathBuf),
+    /// The name resolves to something that is not a regular file (directory, device, pipe).
+    NotRegular,
+}
+
+/// Resolves the plain file `name` (already checked: one normal path component) inside `dir`,
+/// following symbolic links, and refuses anything whose real path is not a regular file inside
+/// the real path of `dir`. Returns `dir.join(name)` (the path to open) and its size in bytes.
+///
+/// # Errors
+/// [`Unresolved`] saying why.
+pub fn resolve_in_dir(dir: &Path, name: &str) -> Result<(std::path::PathBuf, u64), Unresolved> {
+    let path = dir.join(name);
+    let real = fs::canonicalize(&path).map_err(|_| Unresolved::Missing)?;
+    let real_dir = fs::canonicalize(dir).map_err(|_| Unresolved::Missing)?;
+    if real == real_dir || !real.starts_with(&real_dir) {
+        return Err(Unresolved::Escapes(real));
+    }
+    let meta = fs::metadata(&real).map_err(|_| Unresolved::Missing)?;
+    if !meta.is_file() {
+        return Err(Unresolved::NotRegular);
+    }
+    Ok((path, meta.len()))
+}
+
+/// Bytes `ortm bin` needs to pack `stored_texels` map texels into `aw×ah` atlases: the maps
+/// (12 bytes per stored texel) plus `⌈stored / (aw·ah)⌉` atlases (at least one) of 12 bytes per
+/// texel (RGB f32).
+pub fn atlas_memory_bytes(aw: u32, ah: u32, stored_texels: u64) -> u64 {
+    let per_atlas = u64::from(aw) * u64::from(ah);
+    let atlases = stored_texels.div_ceil(per_atlas.max(1)).max(1);
+    atlases
+        .saturating_mul(per_atlas)
+        .saturating_add(stored_texels)
+        .saturating_mul(12)
+}
+
+/// Refuses an atlas size whose atlases would not fit in memory ([`atlas_memory_bytes`] against
+/// [`memory_limit_bytes`]) or exceed [`MAX_TEXELS`] per atlas, naming the bytes needed.
+///
+/// # Errors
+/// A [`LimitError`] with the number needed and the limit.
+pub fn check_atlas_request(aw: u32, ah: u32, stored_texels: u64) -> Result<(), LimitError> {
+    let texels = u64::from(aw) * u64::from(ah);
+    if texels > MAX_TEXELS {
+        return Err(LimitError {
+            what: format!("--atlas {aw}x{ah}"),
+            found: format!("{texels} texels per atlas"),
+            limit_name: "MAX_TEXELS",
+            limit: format!("{MAX_TEXELS} texels"),
+            fix: "; use a smaller atlas, e.g. --atlas 4096".into(),
+        });
+    }
+    let need = atlas_memory_bytes(aw, ah, stored_texels);
+    match memory_limit_bytes()? {
+        Some(limit) if need > limit => Err(LimitError {
+            what: format!("--atlas {aw}x{ah} for {stored_texels} stored map texels"),
+            found: format!("{need} bytes ({:.2} GiB) needed", gib(need)),
+            limit_name: "memory (physical memory or ORTM_MEMORY_LIMIT_BYTES)",
+            limit: format!("{limit} bytes ({:.2} GiB)", gib(limit)),
+            fix: "; use a smaller atlas size (--atlas)".into(),
+        }),
+        _ => Ok(()),
+    }
+}
+
+/// [`check_bake_memory`] for a rasterized lightmap: counts the clusters the coarse solve will
+/// form (one per `block×block` tile, chart and material, as `transport::coarse` does).
+///
+/// # Errors
+/// A [`LimitError`] with the bytes needed and the limit.
+pub fn check_bake_memory_for_grid(
+    grid: &crate::bake::texels::TexelGrid,
+    coarse_block: u32,
+) -> Result<(), LimitError> {
+    let b = coarse_block.max(1);
+    let clusters = grid
+        .texels
+        .iter()
+        .map(|t| (t.x / b, t.y / b, t.chart, t.material))
+        .collect::<std::collections::HashSet<_>>()
+        .len();
+    check_bake_memory(clusters as u64, grid.texels.len() as u64, b)
+}
+
+fn gib(bytes: u64) -> f64 {
+    bytes as f64 / (1024.0 * 1024.0 * 1024.0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn read_bounded_refuses_large_and_special_files() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("f");
+        fs::write(&p, vec![7u8; 100]).unwrap();
+        assert_eq!(read_bounded(&p, 100, "L").unwrap().len(), 100);
+        let e = read_bounded(&p, 99, "L").unwrap_err();
+        assert!(
+            e.to_string().contains("100 bytes exceeds the limit L = 99"),
+            "{e}"
+        );
+        // A directory and a device are not regular files (and /dev/zero would never end).
+        assert!(read_bounded(dir.path(), 1 << 20, "L").is_err());
+        if Path::new("/dev/zero").exists() {
+            let e = read_bounded(Path::new("/dev/zero"), 1 << 20, "L").unwrap_err();
+            assert!(e.to_string().contains("not a regular file"), "{e}");
+        }
+    }
+
+    #[test]
+    fn exr_pixel_bound_follows_the_deflate_ratio() {
+        // 1000 bytes may declare up to 1000·1100 + 4096 bytes of pixels.
+        let max_texels = (1000 * MAX_EXR_EXPANSION + 4096) / 12;
+        check_exr_pixels("f", max_texels, 1000).unwrap();
+        let e = check_exr_pixels("f", max_texels + 1, 1000).unwrap_err();
+        assert_eq!(e.limit_name, "MAX_EXR_EXPANSION");
+        let e = check_exr_pixels("f", MAX_TEXELS + 1, u64::MAX).unwrap_err();
+        assert_eq!(e.limit_name, "MAX_TEXELS");
+    }
+
+    #[test]
+    fn bake_request_limits_name_the_needed_value() {
+        check_bake_request(32, 32, 8).unwrap();
+        // A 2×2 lightmap has 3·3 = 9 distinct offsets.
+        check_bake_request(2, 2, 9).unwrap();
+        let e = check_bake_request(2, 2, 10).unwrap_err();
+        assert!(e.to_string().contains("9 for 2×2"), "{e}");
+        assert!(check_bake_request(0, 4, 1).is_err());
+        let e = check_bake_request(8193, 8, 1).unwrap_err();
+        assert!(e.to_string().contains("8193 texels"), "{e}");
+        let e = check_bake_request(4096, 4096, MAX_OFFSETS + 1).unwrap_err();
+        assert_eq!(e.limit_name, "MAX_OFFSETS");
+    }
+
+    #[test]
+    fn atlas_memory_counts_whole_atlases() {
+        // 100 texels in 8×8 atlases: 2 atlases of 64 texels + the maps, 12 bytes each.
+        assert_eq!(atlas_memory_bytes(8, 8, 100), (128 + 100) * 12);
+        // An empty bake still allocates one atlas.
+        assert_eq!(atlas_memory_bytes(4, 4, 0), 16 * 12);
+        let e = check_atlas_request(65536, 8192, 1).unwrap_err();
+        assert_eq!(e.limit_name, "MAX_TEXELS");
+    }
+
+    #[test]
+    fn bake_memory_is_quadratic_in_clusters() {
+        assert_eq!(bake_memory_bytes(1000, 0), 60_000_000);
+        assert_eq!(bake_memory_bytes(0, 10), 5120);
+        assert_eq!(bake_memory_bytes(u64::MAX, 1), u64::MAX);
+    }
+}

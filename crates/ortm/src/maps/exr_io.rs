@@ -1,0 +1,746 @@
+//! OpenEXR files for transfer maps: one file per map, one *part* per crop rectangle
+//! (paper Sec. 5.1: "written to disk as separate OpenEXR files").
+//!
+//! # Layout
+//! - **Multi-part scan-line file** (OpenEXR 2.0+; `exrheader`, `exrinfo` and every OpenEXR ≥ 2
+//!   reader accept it). Every part has the same display window `(0,0)–(W−1,H−1)`, the full
+//!   lightmap, and its own data window = its crop rectangle in lightmap coordinates (row 0 is the
+//!   top image row, `v = 1`, as in the lightmap convention). Part `i` is named `rect<i>`, in the
+//!   order of [`TransferMap::crops`]. Empty space between rectangles is not stored. (A single part
+//!   whose data window is the bounding box would store that space.)
+//! - Channels `B`, `G`, `R` (alphabetical, as OpenEXR requires), **32-bit float**, no
+//!   subsampling, ZIP compression (16 scan lines per block, lossless).
+//! - A map with no non-zero texel has no rectangles, but an OpenEXR file needs at least one part:
+//!   it gets a single placeholder part named `ortm-empty`, 1×1 at `(0,0)`, value 0, and
+//!   `ortmRectCount = 0`.
+//! - Metadata, in ONE custom text attribute `ortmMeta` of the first part, as `name=value` lines in
+//!   this fixed order: `ortmFormat` (`ortm-transfer-map`), `ortmVersion` (1), `ortmMapIndex`,
+//!   `ortmOffset` (`dx,dy` in texels, +dy down), `ortmVoronoiArea` and `ortmImportance` (the
+//!   f64's bit pattern as `0x` + 16 hex digits: exact), `ortmRectCount`, `ortmBakeKey` (see
+//!   [`BakeKey`]) and `ortmContentSha256` (SHA-256 of the map content, see below). One attribute,
+//!   because the `exr` crate writes custom attributes in hash-map order: with several, two
+//!   identical maps would not be byte-identical files. This makes each file self-describing,
+//!   which the resumable bake ([`crate::maps::scan_finished_maps`]) relies on.
+//!
+//! # Why f32 and not f16
+//! Transfer values span ≈1e-6…1. Half floats have a relative rounding error of 2⁻¹¹ ≈ 4.9e-4 in
+//! their normal range and lose precision below 6.1e-5 (subnormals: a value of 1e-6 keeps only
+//! ≈4 significant bits, ≈3 % error), exactly where the many small far-offset contributions live.
+//! The final lightmap sums hundreds of maps, so those errors add up (and the small-value
+//! truncation is biased, not random). f32 keeps the file bit-identical to the in-memory map, so
+//! the CPU reference computed from disk equals the one computed in memory. The price is twice
+//! the size, partly recovered by lossless ZIP; a renderer may still convert to f16 on upload.
+//!
+//! # Integrity
+//! `ortmContentSha256` hashes a canonical byte string of the whole map (tag
+//! `"ortm-transfer-map-v1\0"`, map index, bake key, lightmap size, offset, area and importance
+//! bits, the rectangles and all values, little-endian). Decoding recomputes it, so any corruption of pixel
+//! data or metadata is detected even when the decompressor does not notice it. The index also
+//! stores the SHA-256 of the whole file.
+//!
+//! # Robustness
+//! Files are written atomically (temporary name in the same directory, `fsync`, rename). The
+//! reader first parses and validates the headers (magic number, display window ≤
+//! [`MAX_TEXELS`](super::MAX_TEXELS), parts, channels, data windows inside the display window)
+//! before it decodes (allocates) any pixels; truncated or corrupt files give
+//! [`MapsError::Exr`] or [`MapsError::BadMapFile`], never a panic.
+
+use std::collections::HashMap;
+use std::fs;
+use std::io::{Cursor, Write};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use exr::image::read::read;
+use exr::image::{AnyChannel, AnyChannels, Blocks, Encoding, FlatSamples, Image, Layer};
+use exr::math::Vec2;
+use exr::meta::attribute::{AttributeValue, IntegerBounds, SampleType, Text};
+use exr::meta::header::{Header, ImageAttributes, LayerAttributes};
+use exr::meta::{BlockDescription, MetaData};
+use exr::prelude::traits::{ReadChannels, ReadLayers, WritableImage};
+use exr::prelude::{Compression, LineOrder, SmallVec};
+use glam::IVec2;
+use sha2::{Digest, Sha256};
+
+use super::MapsError;
+use super::index::{BakeKey, MapEntry, map_file_name};
+use super::transfer_map::{Crop, TransferMap, check_size};
+
+/// Value of the `ortmFormat` attribute.
+const FILE_FORMAT: &str = "ortm-transfer-map";
+/// Value of the `ortmVersion` attribute.
+const FILE_VERSION: i32 = 1;
+/// Name of the placeholder part of an empty map.
+const EMPTY_PART: &str = "ortm-empty";
+
+/// The single custom attribute holding every metadata field below as `name=value` lines.
+pub(crate) const A_META: &str = "ortmMeta";
+const A_FORMAT: &str = "ortmFormat";
+const A_VERSION: &str = "ortmVersion";
+const A_INDEX: &str = "ortmMapIndex";
+const A_OFFSET: &str = "ortmOffset";
+const A_AREA: &str = "ortmVoronoiArea";
+const A_IMPORTANCE: &str = "ortmImportance";
+const A_RECTS: &str = "ortmRectCount";
+const A_KEY: &str = "ortmBakeKey";
+const A_HASH: &str = "ortmContentSha256";
+
+/// A decoded transfer-map file.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MapFile {
+    /// The map's index in the bake (from `ortmMapIndex`).
+    pub index: u32,
+    /// The bake key the file was stamped with (from `ortmBakeKey`).
+    pub bake_key: String,
+    /// The map itself.
+    pub map: TransferMap,
+}
+
+/// Lower-case hex SHA-256 of `bytes`.
+pub(crate) fn sha256_hex(bytes: &[u8]) -> String {
+    hex(&Sha256::digest(bytes))
+}
+
+fn hex(digest: &[u8]) -> String {
+    use std::fmt::Write as _;
+    digest.iter().fold(String::with_capacity(64), |mut s, b| {
+        let _ = write!(s, "{b:02x}");
+        s
+    })
+}
+
+/// SHA-256 of the canonical content of map `index` (see the module doc).
+pub(crate) fn content_hash(index: u32, bake_key: &str, map: &TransferMap) -> String {
+    let mut h = Sha256::new();
+    h.update(b"ortm-transfer-map-v1\0");
+    h.update(index.to_le_bytes());
+    h.update((bake_key.len() as u64).to_le_bytes());
+    h.update(bake_key.as_bytes());
+    h.update(map.width().to_le_bytes());
+    h.update(map.height().to_le_bytes());
+    h.update(map.offset.x.to_le_bytes());
+    h.update(map.offset.y.to_le_bytes());
+    h.update(map.voronoi_area.to_bits().to_le_bytes());
+    h.update(map.importance.to_bits().to_le_bytes());
+    h.update((map.crops().len() as u64).to_le_bytes());
+    let mut buf = Vec::new();
+    for c in map.crops() {
+        for v in [c.rect.x, c.rect.y, c.rect.w, c.rect.h] {
+            h.update(v.to_le_bytes());
+        }
+        buf.clear();
+        buf.extend(
+            c.data
+                .iter()
+                .flat_map(|t| t.iter().flat_map(|x| x.to_le_bytes())),
+        );
+        h.update(&buf);
+    }
+    hex(&h.finalize())
+}
+
+/// Text attribute value; the caller guarantees ASCII.
+pub(crate) fn text(s: &str) -> Text {
+    Text::from_slice_unchecked(s.as_bytes())
+}
+
+/// Encodes map `index` as an OpenEXR file in memory (layout in the module doc).
+///
+/// # Errors
+/// [`MapsError::Exr`] if the encoder fails (not expected for a valid map).
+pub fn encode_map(index: u32, map: &TransferMap, key: &BakeKey) -> Result<Vec<u8>, MapsError> {
+    let path = PathBuf::from(map_file_name(index, map.offset));
+    let encoding = Encoding {
+        compression: Compression::ZIP16,
+        blocks: Blocks::ScanLines,
+        line_order: LineOrder::Increasing,
+    };
+    let channels = |data: &[[f32; 3]]| {
+        let chan = |c: usize| FlatSamples::F32(data.iter().map(|v| v[c]).collect());
+        AnyChannels::sort(SmallVec::from_vec(vec![
+            AnyChannel::new("R", chan(0)),
+            AnyChannel::new("G", chan(1)),
+            AnyChannel::new("B", chan(2)),
+        ]))
+    };
+    let mut layers: Vec<Layer<AnyChannels<FlatSamples>>> = if map.crops().is_empty() {
+        vec![Layer::new(
+            Vec2(1, 1),
+            LayerAttributes::named(EMPTY_PART),
+            encoding,
+            channels(&[[0.0; 3]]),
+        )]
+    } else {
+        map.crops()
+            .iter()
+            .enumerate()
+            .map(|(i, c)| {
+                let attrs = LayerAttributes::named(text(&format!("rect{i}")))
+                    .with_position(Vec2(c.rect.x as i32, c.rect.y as i32));
+                Layer::new(
+                    Vec2(c.rect.w as usize, c.rect.h as usize),
+                    attrs,
+                    encoding,
+                    channels(&c.data),
+                )
+            })
+            .collect()
+    };
+    // All metadata goes into ONE text attribute (see `meta_attribute`).
+    let meta = meta_attribute(&[
+        (A_FORMAT, FILE_FORMAT.to_owned()),
+        (A_VERSION, FILE_VERSION.to_string()),
+        (A_INDEX, index.to_string()),
+        (A_OFFSET, format!("{},{}", map.offset.x, map.offset.y)),
+        (A_AREA, format!("0x{:016x}", map.voronoi_area.to_bits())),
+        (A_IMPORTANCE, format!("0x{:016x}", map.importance.to_bits())),
+        (A_RECTS, map.crops().len().to_string()),
+        (A_KEY, key.as_str().to_owned()),
+        (A_HASH, content_hash(index, key.as_str(), map)),
+    ]);
+    layers[0].attributes.other.insert(text(A_META), meta);
+
+    let display = IntegerBounds::from_dimensions(Vec2(map.width() as usize, map.height() as usize));
+    let image = Image::from_layers(ImageAttributes::new(display), layers);
+    let mut bytes = Vec::new();
+    image
+        .write()
+        .non_parallel()
+        .to_buffered(Cursor::new(&mut bytes))
+        .map_err(|source| MapsError::Exr {
+            op: "encode",
+            path,
+            source,
+        })?;
+    Ok(bytes)
+}
+
+/// Monotonic counter that keeps temporary names unique within the process.
+static TMP_COUNTER: AtomicU64 = AtomicU64::new(0);
+
+/// Writes `bytes` to `path` atomically: a temporary `.<name>.<pid>-<n>.tmp` in the same
+/// directory, `fsync`, then rename. On failure the temporary file is removed.
+pub(crate) fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), MapsError> {
+    let dir = path.parent().unwrap_or(Path::new("."));
+    let name = path.file_name().map_or_else(
+        || "unnamed".to_owned(),
+        |n| n.to_string_lossy().into_owned(),
+    );
+    let n = TMP_COUNTER.fetch_add(1, Ordering::Relaxed);
+    let tmp = dir.join(format!(".{name}.{}-{n}.tmp", std::process::id()));
+    let result = (|| {
+        let mut f = fs::File::create(&tmp)?;
+        f.write_all(bytes)?;
+        f.sync_all()?;
+        drop(f);
+        fs::rename(&tmp, path)
+    })();
+    result.map_err(|source| {
+        let _ = fs::remove_file(&tmp);
+        MapsError::Io {
+            op: "cannot write",
+            path: path.to_owned(),
+            source,
+        }
+    })
+}
+
+/// Encodes map `index` and writes it atomically to `dir/`[`map_file_name`]`(index, offset)`
+/// (creating `dir` if needed). Returns the index entry (file name, byte size, SHA-256) for
+/// [`crate::maps::BakeIndex`].
+///
+/// # Errors
+/// [`MapsError::Io`] if the directory or file cannot be written, [`MapsError::Exr`] if encoding
+/// fails.
+pub fn write_map_file(
+    dir: &Path,
+    index: u32,
+    map: &TransferMap,
+    key: &BakeKey,
+) -> Result<MapEntry, MapsError> {
+    fs::create_dir_all(dir).map_err(|source| MapsError::Io {
+        op: "cannot create directory",
+        path: dir.to_owned(),
+        source,
+    })?;
+    let bytes = encode_map(index, map, key)?;
+    let file = map_file_name(index, map.offset);
+    write_atomic(&dir.join(&file), &bytes)?;
+    Ok(MapEntry::new(
+        index,
+        map,
+        file,
+        bytes.len() as u64,
+        sha256_hex(&bytes),
+    ))
+}
+
+/// Reads and fully validates one map file. If `expected_size` is given, the lightmap size
+/// stored in the file must equal it.
+///
+/// # Errors
+/// [`MapsError::Io`], [`MapsError::NotExr`], [`MapsError::Exr`], [`MapsError::BadMapFile`],
+/// [`MapsError::SizeMismatch`] (see [`decode_map`]).
+pub fn read_map_file(path: &Path, expected_size: Option<(u32, u32)>) -> Result<MapFile, MapsError> {
+    let bytes = crate::io::limits::read_bounded(path, crate::io::limits::MAX_EXR_BYTES, "MAX_EXR_BYTES")
+        .map_err(|source| MapsError::Io {
+            op: "cannot read",
+            path: path.to_owned(),
+            source,
+        })?;
+    decode_map(path, &bytes, expected_size)
+}
+
+/// Decodes and validates a map file held in memory; `path` is only used in error messages.
+///
+/// Checks: OpenEXR magic number; headers parse (pedantic); display window at the origin, non-
+/// empty, ≤ [`MAX_TEXELS`](super::MAX_TEXELS), the same in every part and equal to
+/// `expected_size` if given; scan-line, non-deep parts named `rect0, rect1, …` (or the single
+/// `ortm-empty` placeholder) with exactly `B, G, R` f32 channels; data windows inside the display
+/// window and disjoint; all `ortm*` attributes present with the right types; finite values; and
+/// finally the content hash.
+///
+/// # Errors
+/// [`MapsError::NotExr`], [`MapsError::Exr`] (decoder failure: truncated/corrupt),
+/// [`MapsError::BadMapFile`] (anything else listed above), [`MapsError::SizeMismatch`].
+pub fn decode_map(
+    path: &Path,
+    bytes: &[u8],
+    expected_size: Option<(u32, u32)>,
+) -> Result<MapFile, MapsError> {
+    const MAGIC: [u8; 4] = [0x76, 0x2f, 0x31, 0x01];
+    if bytes.len() < 4 || bytes[..4] != MAGIC {
+        return Err(MapsError::NotExr {
+            path: path.to_owned(),
+        });
+    }
+    let exr_err = |source| MapsError::Exr {
+        op: "decode",
+        path: path.to_owned(),
+        source,
+    };
+    let bad = |reason: String| MapsError::BadMapFile {
+        path: path.to_owned(),
+        reason,
+    };
+
+    // Phase 1: headers only, validated before any pixel allocation.
+    let meta = MetaData::read_from_buffered(Cursor::new(bytes), true).map_err(exr_err)?;
+    MetaData::validate(&meta.headers, true).map_err(exr_err)?;
+    let headers = &meta.headers;
+    let first = headers
+        .first()
+        .ok_or_else(|| bad("the file has no parts".into()))?;
+    let display = first.shared_attributes.display_window;
+    let (width, height) = (
+        u32::try_from(display.size.0).unwrap_or(u32::MAX),
+        u32::try_from(display.size.1).unwrap_or(u32::MAX),
+    );
+    if display.position != Vec2(0, 0) {
+        return Err(bad(format!(
+            "display window starts at {:?}, expected (0, 0)",
+            display.position
+        )));
+    }
+    check_size(&path.display().to_string(), width, height)?;
+    if let Some((ew, eh)) = expected_size
+        && (ew, eh) != (width, height)
+    {
+        return Err(MapsError::SizeMismatch {
+            what: format!("lightmap size of {}", path.display()),
+            expected: (ew, eh),
+            found: (width, height),
+        });
+    }
+    let attrs = &parse_meta(&first.own_attributes.other).map_err(&bad)?;
+    let format = get_text(attrs, A_FORMAT).map_err(&bad)?;
+    if format != FILE_FORMAT {
+        return Err(bad(format!(
+            "{A_FORMAT} is {format:?}, expected {FILE_FORMAT:?}"
+        )));
+    }
+    let version = get_i32(attrs, A_VERSION).map_err(&bad)?;
+    if version != FILE_VERSION {
+        return Err(bad(format!(
+            "file version {version} is not supported, this build reads version {FILE_VERSION}"
+        )));
+    }
+    let index = u32::try_from(get_i32(attrs, A_INDEX).map_err(&bad)?)
+        .map_err(|_| bad(format!("{A_INDEX} is negative")))?;
+    let offset = get_offset(attrs, A_OFFSET).map_err(&bad)?;
+    let area = get_f64(attrs, A_AREA).map_err(&bad)?;
+    let importance = get_f64(attrs, A_IMPORTANCE).map_err(&bad)?;
+    let rect_count = usize::try_from(get_i32(attrs, A_RECTS).map_err(&bad)?)
+        .map_err(|_| bad(format!("{A_RECTS} is negative")))?;
+    let bake_key = get_text(attrs, A_KEY).map_err(&bad)?;
+    let stored_hash = get_text(attrs, A_HASH).map_err(&bad)?;
+
+    let expected_parts = rect_count.max(1);
+    if headers.len() != expected_parts {
+        return Err(bad(format!(
+            "{} parts but {A_RECTS} = {rect_count}",
+            headers.len()
+        )));
+    }
+    for (i, h) in headers.iter().enumerate() {
+        check_header(h, i, rect_count, display).map_err(&bad)?;
+    }
+    // Declared pixels against the file size, before any pixel is allocated.
+    let declared: u64 = headers.iter().map(|h| h.layer_size.area() as u64).sum();
+    crate::io::limits::check_exr_pixels(
+        &format!("{} (sum of the parts' data windows)", path.display()),
+        declared,
+        bytes.len() as u64,
+    )
+    .map_err(|e| bad(e.to_string()))?;
+
+    // Phase 2: pixels.
+    let image = read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .all_channels()
+        .all_layers()
+        .all_attributes()
+        .pedantic()
+        .non_parallel()
+        .from_buffered(Cursor::new(bytes))
+        .map_err(exr_err)?;
+    let mut crops = Vec::with_capacity(rect_count);
+    if rect_count > 0 {
+        for (i, layer) in image.layer_data.iter().enumerate() {
+            let (w, h) = (layer.size.0, layer.size.1);
+            let pos = layer.attributes.layer_position;
+            let list = &layer.channel_data.list;
+            let samples = |c: usize| match list.get(c).map(|ch| &ch.sample_data) {
+                Some(FlatSamples::F32(v)) if v.len() == w * h => Ok(v),
+                _ => Err(bad(format!(
+                    "part {i}: channel data is not {w}×{h} f32 samples"
+                ))),
+            };
+            let (b, g, r) = (samples(0)?, samples(1)?, samples(2)?);
+            let data = (0..w * h).map(|k| [r[k], g[k], b[k]]).collect();
+            crops.push(Crop {
+                rect: super::CropRect {
+                    x: pos.0 as u32,
+                    y: pos.1 as u32,
+                    w: w as u32,
+                    h: h as u32,
+                },
+                data,
+            });
+        }
+    }
+    let map = TransferMap::from_crops(
+        &path.display().to_string(),
+        offset,
+        area,
+        importance,
+        width,
+        height,
+        crops,
+    )
+    .map_err(|e| bad(e.to_string()))?;
+    let hash = content_hash(index, &bake_key, &map);
+    if hash != stored_hash {
+        return Err(bad(format!(
+            "content SHA-256 is {hash} but {A_HASH} says {stored_hash} (data or metadata corrupted)"
+        )));
+    }
+    Ok(MapFile {
+        index,
+        bake_key,
+        map,
+    })
+}
+
+/// Validates part `i`'s header against the layout (name, channels, blocks, data window).
+fn check_header(
+    h: &Header,
+    i: usize,
+    rect_count: usize,
+    display: IntegerBounds,
+) -> Result<(), String> {
+    let name = h
+        .own_attributes
+        .layer_name
+        .as_ref()
+        .map(ToString::to_string);
+    let want = if rect_count == 0 {
+        EMPTY_PART.to_owned()
+    } else {
+        format!("rect{i}")
+    };
+    if name.as_deref() != Some(want.as_str()) {
+        return Err(format!("part {i} is named {name:?}, expected {want:?}"));
+    }
+    if h.deep || !matches!(h.blocks, BlockDescription::ScanLines) {
+        return Err(format!("part {i} is not a flat scan-line image"));
+    }
+    check_compression(h.compression).map_err(|e| format!("part {i}: {e}"))?;
+    if h.shared_attributes.display_window != display {
+        return Err(format!("part {i} has a different display window"));
+    }
+    let names: Vec<String> = h.channels.list.iter().map(|c| c.name.to_string()).collect();
+    if names != ["B", "G", "R"] {
+        return Err(format!(
+            "part {i} has channels {names:?}, expected [\"B\", \"G\", \"R\"]"
+        ));
+    }
+    for c in &h.channels.list {
+        if c.sample_type != SampleType::F32 || c.sampling != Vec2(1, 1) {
+            return Err(format!(
+                "part {i} channel {} is {:?} with sampling {:?}, expected F32 without subsampling",
+                c.name, c.sample_type, c.sampling
+            ));
+        }
+    }
+    let pos = h.own_attributes.layer_position;
+    let size = h.layer_size;
+    let fits = pos.0 >= 0
+        && pos.1 >= 0
+        && size.0 >= 1
+        && size.1 >= 1
+        && pos.0 as u64 + size.0 as u64 <= display.size.0 as u64
+        && pos.1 as u64 + size.1 as u64 <= display.size.1 as u64;
+    if !fits {
+        return Err(format!(
+            "part {i} data window at {pos:?} size {size:?} is outside the {}×{} lightmap",
+            display.size.0, display.size.1
+        ));
+    }
+    Ok(())
+}
+
+/// Accepts the lossless compressions whose expansion is bounded by deflate's (`ZIP`, `ZIPS`,
+/// `RLE`, none), so [`crate::io::limits::check_exr_pixels`] bounds the decoded size. ortm writes ZIP.
+pub(crate) fn check_compression(c: Compression) -> Result<(), String> {
+    match c {
+        Compression::Uncompressed | Compression::RLE | Compression::ZIP1 | Compression::ZIP16 => {
+            Ok(())
+        }
+        other => Err(format!(
+            "compression {other:?} is not supported (ortm reads ZIP, RLE or uncompressed files)"
+        )),
+    }
+}
+
+/// The metadata fields of the `ortmMeta` attribute.
+pub(crate) type Meta = std::collections::BTreeMap<String, String>;
+
+/// The `ortmMeta` attribute value: one `name=value` line per field, in the given order. Map and
+/// atlas files keep all their metadata in this one attribute because the `exr` crate writes
+/// custom attributes in hash-map order (several would make identical files differ).
+pub(crate) fn meta_attribute(fields: &[(&str, String)]) -> AttributeValue {
+    let lines: String = fields.iter().map(|(k, v)| format!("{k}={v}\n")).collect();
+    AttributeValue::Text(text(&lines))
+}
+
+/// Parses the `ortmMeta` attribute of a part (see [`meta_attribute`]).
+pub(crate) fn parse_meta(attrs: &HashMap<Text, AttributeValue>) -> Result<Meta, String> {
+    let Some(AttributeValue::Text(t)) = attrs.get(A_META.as_bytes()) else {
+        return Err(format!("attribute {A_META} (string) is missing"));
+    };
+    let mut meta = Meta::new();
+    for line in t.to_string().lines() {
+        let (k, v) = line
+            .split_once('=')
+            .ok_or_else(|| format!("{A_META}: line {line:?} is not name=value"))?;
+        meta.insert(k.to_owned(), v.to_owned());
+    }
+    Ok(meta)
+}
+
+fn get_text(meta: &Meta, name: &str) -> Result<String, String> {
+    meta.get(name)
+        .cloned()
+        .ok_or_else(|| format!("field {name} of {A_META} is missing"))
+}
+
+fn get_i32(meta: &Meta, name: &str) -> Result<i32, String> {
+    get_text(meta, name)?
+        .parse()
+        .map_err(|_| format!("field {name} of {A_META} is not an integer"))
+}
+
+fn get_f64(meta: &Meta, name: &str) -> Result<f64, String> {
+    let v = get_text(meta, name)?;
+    v.strip_prefix("0x")
+        .and_then(|h| u64::from_str_radix(h, 16).ok())
+        .map(f64::from_bits)
+        .ok_or_else(|| format!("field {name} of {A_META} is not a 0x-prefixed f64 bit pattern"))
+}
+
+fn get_offset(meta: &Meta, name: &str) -> Result<IVec2, String> {
+    let v = get_text(meta, name)?;
+    let (x, y) = v
+        .split_once(',')
+        .ok_or_else(|| format!("field {name} of {A_META} is not dx,dy"))?;
+    match (x.parse(), y.parse()) {
+        (Ok(x), Ok(y)) => Ok(IVec2::new(x, y)),
+        _ => Err(format!("field {name} of {A_META} is not dx,dy")),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::Lightmap;
+    use rand::{RngExt, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
+
+    fn key() -> BakeKey {
+        BakeKey::new("scene-abc", &serde_json::json!({"maps": 3}))
+    }
+
+    fn sample_map(seed: u64) -> TransferMap {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let (w, h) = (40, 24);
+        let mut full = Lightmap::new(w, h);
+        // Two blobs far apart, so the map has two crops.
+        for (x0, y0) in [(2, 3), (30, 15)] {
+            for y in y0..y0 + 5 {
+                for x in x0..x0 + 6 {
+                    full.set(
+                        x,
+                        y,
+                        [rng.random(), rng.random_range(1e-7..1e-5), rng.random()],
+                    );
+                }
+            }
+        }
+        TransferMap::from_full(IVec2::new(-5, 7), 0.0123, 4.5, &full).unwrap()
+    }
+
+    #[test]
+    fn round_trip_is_bit_exact() {
+        let map = sample_map(1);
+        assert_eq!(map.crops().len(), 2);
+        let bytes = encode_map(17, &map, &key()).unwrap();
+        let f = decode_map(Path::new("mem.exr"), &bytes, Some((40, 24))).unwrap();
+        assert_eq!(f.index, 17);
+        assert_eq!(f.bake_key, key().as_str());
+        assert_eq!(f.map.offset, map.offset);
+        assert_eq!(f.map.voronoi_area.to_bits(), map.voronoi_area.to_bits());
+        assert_eq!(f.map.importance.to_bits(), map.importance.to_bits());
+        assert_eq!(f.map.rects(), map.rects());
+        for (a, b) in f.map.crops().iter().zip(map.crops()) {
+            let bits = |c: &Crop| -> Vec<[u32; 3]> {
+                c.data.iter().map(|v| v.map(f32::to_bits)).collect()
+            };
+            assert_eq!(bits(a), bits(b));
+        }
+        // The file is a genuine multi-part file: the exr crate's metadata sees one part per
+        // rect with data windows at the rect positions.
+        let meta = MetaData::read_from_buffered(Cursor::new(&bytes), true).unwrap();
+        let windows: Vec<_> = meta
+            .headers
+            .iter()
+            .map(|h| (h.own_attributes.layer_position, h.layer_size))
+            .collect();
+        let rects = map.rects();
+        assert_eq!(
+            windows,
+            rects
+                .iter()
+                .map(|r| (
+                    Vec2(r.x as i32, r.y as i32),
+                    Vec2(r.w as usize, r.h as usize)
+                ))
+                .collect::<Vec<_>>()
+        );
+        // Stored pixels: only the crops, not the bounding box.
+        let stored: usize = meta.headers.iter().map(|h| h.layer_size.area()).sum();
+        assert_eq!(stored as u64, map.stored_texels());
+        assert!(map.stored_texels() < 29 * 18);
+    }
+
+    #[test]
+    fn empty_map_round_trips() {
+        let map = TransferMap::from_full(IVec2::new(1, 0), 0.5, 0.0, &Lightmap::new(8, 8)).unwrap();
+        let bytes = encode_map(0, &map, &key()).unwrap();
+        let f = decode_map(Path::new("e.exr"), &bytes, None).unwrap();
+        assert!(f.map.crops().is_empty());
+        assert_eq!((f.map.width(), f.map.height()), (8, 8));
+    }
+
+    #[test]
+    fn size_mismatch_is_reported() {
+        let bytes = encode_map(0, &sample_map(2), &key()).unwrap();
+        let e = decode_map(Path::new("m.exr"), &bytes, Some((41, 24))).unwrap_err();
+        assert!(matches!(e, MapsError::SizeMismatch { .. }), "{e}");
+    }
+
+    #[test]
+    fn not_exr_truncated_and_corrupt_files_are_errors() {
+        let bytes = encode_map(3, &sample_map(3), &key()).unwrap();
+        let p = Path::new("m.exr");
+        assert!(matches!(
+            decode_map(p, b"P6\n1 1\n255\n...", None),
+            Err(MapsError::NotExr { .. })
+        ));
+        assert!(matches!(
+            decode_map(p, &[], None),
+            Err(MapsError::NotExr { .. })
+        ));
+        // Every truncation must fail (header truncations and pixel truncations alike).
+        let step = (bytes.len() / 97).max(1);
+        for len in (4..bytes.len()).step_by(step).chain([bytes.len() - 1]) {
+            let e = decode_map(p, &bytes[..len], None);
+            assert!(
+                e.is_err(),
+                "truncated to {len} of {} bytes decoded",
+                bytes.len()
+            );
+        }
+        // Every single-byte flip must fail or decode to exactly the original map; a flip in a
+        // byte that carries content must never be accepted silently.
+        let original = decode_map(p, &bytes, None).unwrap();
+        let mut accepted = 0;
+        for i in (4..bytes.len()).step_by(3) {
+            let mut b = bytes.clone();
+            b[i] ^= 0x5a;
+            if let Ok(f) = decode_map(p, &b, None) {
+                assert_eq!(f, original, "flip at byte {i} changed the map silently");
+                accepted += 1;
+            }
+        }
+        // Only header fields this format does not use (screen window, pixel aspect, ...) may
+        // be ignorable; most flips must be detected (≈8 % are ignorable for this file).
+        assert!(accepted * 4 < bytes.len() / 3, "{accepted} flips accepted");
+    }
+
+    #[test]
+    fn write_is_atomic_and_named_deterministically() {
+        let dir = tempfile::tempdir().unwrap();
+        let map = sample_map(4);
+        let e = write_map_file(dir.path(), 5, &map, &key()).unwrap();
+        assert_eq!(e.file, "map_00005_-5_+7.exr");
+        let bytes = fs::read(dir.path().join(&e.file)).unwrap();
+        assert_eq!(e.bytes, bytes.len() as u64);
+        assert_eq!(e.sha256, sha256_hex(&bytes));
+        // Only the final file remains (no temporary files).
+        let names: Vec<_> = fs::read_dir(dir.path())
+            .unwrap()
+            .map(|d| d.unwrap().file_name().into_string().unwrap())
+            .collect();
+        assert_eq!(names, vec![e.file.clone()]);
+        let f = read_map_file(&dir.path().join(&e.file), Some((40, 24))).unwrap();
+        assert_eq!(f.map, map);
+        // Writing into a path whose parent is a file fails cleanly.
+        let blocker = dir.path().join("blocker");
+        fs::write(&blocker, b"x").unwrap();
+        assert!(matches!(
+            write_map_file(&blocker, 0, &map, &key()),
+            Err(MapsError::Io { .. })
+        ));
+    }
+
+    #[test]
+    fn sha256_matches_known_vector() {
+        // FIPS 180-2 test vector.
+        assert_eq!(
+            sha256_hex(b"abc"),
+            "ba7816bf8f01cfea414140de5dae2223b00361a396177a9cb410ff61f20015ad"
+        );
+    }
+}

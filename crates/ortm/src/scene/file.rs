@@ -1,0 +1,869 @@
+//! The TOML scene file: scene file → [`Scene`] (mesh in metres, materials, lights).
+//!
+//! The format is specified, with annotated examples, in `docs/scene-format.md`. In short:
+//!
+//! ```toml
+//! mesh = "head.obj"            # OBJ, relative to this file's folder
+//! metres_per_unit = 0.34       # required, > 0
+//! [lightmap]
+//! width = 512                  # default 256, 1..=8192 (powers of two not required)
+//! height = 512
+//! [[material]]
+//! name = "skin"                # matched to the OBJ's `usemtl` names
+//! albedo = [0.8, 0.6, 0.5]     # or albedo_texture = "albedo.png" (sRGB PNG)
+//! subsurface = { preset = "skin1" }
+//! [[light]]
+//! type = "point"               # point | spot | directional
+//! position = [0.0, 0.3, 0.6]   # METRES, world space (after metres_per_unit scaling)
+//! intensity = 0.5              # W/sr
+//! ```
+//!
+//! # Data flow
+//! TOML text → `Raw*` structs (serde, `deny_unknown_fields`: a misspelt key is an error
+//! naming the key and the line) → validation (every error names the scene file, the line of
+//! the enclosing table where known, and the dotted field, e.g. `material[1].albedo`) →
+//! [`load_obj_with`] for the mesh → `usemtl` names mapped to materials → [`Scene`].
+//!
+//! # Material assignment
+//! A face's `usemtl NAME` is matched to the `[[material]]` with that exact `name`. Faces whose
+//! name has no match (and faces before any `usemtl`) use the material named `default` when
+//! there is one, else the first `[[material]]`. Unmatched non-empty names produce a warning.
+//!
+//! # Units and conventions
+//! `metres_per_unit` scales OBJ coordinates to metres. Light positions are in **metres in
+//! world space** (the scaled mesh's frame), not in model units. Intensities are W/sr,
+//! directional irradiance W/m² on a surface facing the light; `direction` of a directional
+//! light is the direction the light *travels*, of a spot light the direction it *points*.
+//! Subsurface coefficients are in mm⁻¹. Albedo textures are sRGB PNGs, converted to linear.
+//!
+//! # Warnings
+//! Non-fatal findings (missing MTL file, unmatched `usemtl`, skipped degenerate faces) are
+//! returned by [`load_scene_with_warnings`]; [`load_scene`] prints them to stderr.
+
+use std::ops::Range;
+use std::path::Path;
+use std::sync::Arc;
+
+use glam::Vec3;
+use serde::Deserialize;
+use toml::Spanned;
+
+use super::obj::{ObjOptions, load_obj_with};
+use super::presets::{PRESET_NAMES, subsurface_preset};
+use super::{
+    Albedo, AlbedoTexture, Light, Material, Scene, SceneError, Subsurface, SubsurfaceModel,
+    read_text_bounded,
+};
+
+/// Largest scene file accepted, in bytes ([`crate::io::limits::MAX_SCENE_BYTES`]).
+pub const MAX_SCENE_BYTES: u64 = crate::io::limits::MAX_SCENE_BYTES;
+/// Default lightmap width and height, in texels.
+pub const DEFAULT_LIGHTMAP_SIZE: u32 = 256;
+/// Largest lightmap width or height, in texels ([`crate::io::limits::MAX_LIGHTMAP_SIDE`]).
+pub const MAX_LIGHTMAP_SIZE: u32 = crate::io::limits::MAX_LIGHTMAP_SIDE;
+/// Accepted range of the relative index of refraction η.
+pub const ETA_RANGE: (f32, f32) = (1.0, 3.0);
+
+/// Top level of the scene file.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawScene {
+    name: Option<String>,
+    mesh: Spanned<String>,
+    metres_per_unit: Spanned<f64>,
+    #[serde(default)]
+    allow_uv_overlap: bool,
+    #[serde(default)]
+    skip_degenerate_faces: bool,
+    lightmap: Option<Spanned<RawLightmap>>,
+    #[serde(default)]
+    material: Vec<Spanned<RawMaterial>>,
+    #[serde(default)]
+    light: Vec<Spanned<RawLight>>,
+}
+
+/// `[lightmap]`.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawLightmap {
+    width: Option<u32>,
+    height: Option<u32>,
+}
+
+/// `[[material]]`.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawMaterial {
+    name: String,
+    albedo: Option<[f32; 3]>,
+    albedo_texture: Option<String>,
+    subsurface: Option<RawSubsurface>,
+}
+
+/// `subsurface = { ... }`.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawSubsurface {
+    preset: Option<String>,
+    sigma_a: Option<[f32; 3]>,
+    sigma_s_prime: Option<[f32; 3]>,
+    eta: Option<f32>,
+    model: Option<RawModel>,
+}
+
+/// `model = "dipole" | "exponential"`.
+#[derive(Deserialize, Clone, Copy)]
+#[serde(rename_all = "lowercase")]
+enum RawModel {
+    Dipole,
+    Exponential,
+}
+
+/// `type = "point" | "spot" | "directional"`.
+#[derive(Deserialize, Clone, Copy, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+enum RawLightKind {
+    Point,
+    Spot,
+    Directional,
+}
+
+/// `[[light]]` (one flat table; which keys are allowed depends on `type`).
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawLight {
+    #[serde(rename = "type")]
+    kind: RawLightKind,
+    position: Option<[f32; 3]>,
+    direction: Option<[f32; 3]>,
+    color: Option<[f32; 3]>,
+    intensity: Option<f32>,
+    irradiance: Option<f32>,
+    inner_deg: Option<f32>,
+    outer_deg: Option<f32>,
+}
+
+/// A light set-up alone: a scene-file fragment holding only `[[light]]` tables (what
+/// `ortm view` saves and loads).
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawLightsFragment {
+    #[serde(default)]
+    light: Vec<Spanned<RawLight>>,
+}
+
+/// Reads a scene-file fragment that holds only `[[light]]` tables (same keys, units and
+/// validation as in a scene file; errors name the file, the line and the field).
+pub fn load_lights_fragment(path: &Path) -> Result<Vec<Light>, SceneError> {
+    let text = read_text_bounded(path, "light set-up file", MAX_SCENE_BYTES)?;
+    parse_lights_fragment(&text, path)
+}
+
+/// Parses the text of a `[[light]]`-only fragment; `path` is only used in error messages.
+pub fn parse_lights_fragment(text: &str, path: &Path) -> Result<Vec<Light>, SceneError> {
+    let raw: RawLightsFragment = toml::from_str(text).map_err(|e| SceneError::SceneSyntax {
+        path: path.to_path_buf(),
+        line: e.span().map(|s| line_of(text, s.start)),
+        message: e.message().trim_end_matches('\n').to_string(),
+    })?;
+    let ctx = Ctx { path, text };
+    raw.light
+        .iter()
+        .enumerate()
+        .map(|(i, l)| ctx.light(i, l))
+        .collect()
+}
+
+/// Writes lights as `[[light]]` tables of a scene file (metres, W/sr, W/m²), readable by
+/// [`parse_lights_fragment`] and pasteable into a scene file.
+pub fn lights_to_toml(lights: &[Light]) -> String {
+    let v = |a: Vec3| format!("[{}, {}, {}]", a.x, a.y, a.z);
+    let mut out = String::new();
+    for l in lights {
+        out.push_str("[[light]]\n");
+        match *l {
+            Light::Point {
+                position_m,
+                color,
+                intensity_w_sr,
+            } => {
+                out.push_str("type = \"point\"\n");
+                out.push_str(&format!("position = {}   # metres\n", v(position_m)));
+                out.push_str(&format!("color = {}\n", v(color)));
+                out.push_str(&format!("intensity = {intensity_w_sr}   # W/sr\n"));
+            }
+            Light::Spot {
+                position_m,
+                direction,
+                color,
+                intensity_w_sr,
+                inner_deg,
+                outer_deg,
+            } => {
+                out.push_str("type = \"spot\"\n");
+                out.push_str(&format!("position = {}   # metres\n", v(position_m)));
+                out.push_str(&format!("direction = {}\n", v(direction)));
+                out.push_str(&format!("color = {}\n", v(color)));
+                out.push_str(&format!("intensity = {intensity_w_sr}   # W/sr\n"));
+                out.push_str(&format!("inner_deg = {inner_deg}\n"));
+                out.push_str(&format!("outer_deg = {outer_deg}\n"));
+            }
+            Light::Directional {
+                direction,
+                color,
+                irradiance_w_m2,
+            } => {
+                out.push_str("type = \"directional\"\n");
+                out.push_str(&format!("direction = {}\n", v(direction)));
+                out.push_str(&format!("color = {}\n", v(color)));
+                out.push_str(&format!("irradiance = {irradiance_w_m2}   # W/m²\n"));
+            }
+        }
+        out.push('\n');
+    }
+    out
+}
+
+/// Reads, validates and loads a scene file; warnings are printed to stderr.
+///
+/// See [`load_scene_with_warnings`] and `docs/scene-format.md`.
+pub fn load_scene(path: &Path) -> Result<Scene, SceneError> {
+    let (scene, warnings) = load_scene_with_warnings(path)?;
+    for w in warnings {
+        eprintln!("warning: {w}");
+    }
+    Ok(scene)
+}
+
+/// Reads, validates and loads a scene file and its mesh and textures, returning the scene
+/// and the non-fatal warnings.
+pub fn load_scene_with_warnings(path: &Path) -> Result<(Scene, Vec<String>), SceneError> {
+    let text = read_text_bounded(path, "scene file", MAX_SCENE_BYTES)?;
+    let raw: RawScene = toml::from_str(&text).map_err(|e| SceneError::SceneSyntax {
+        path: path.to_path_buf(),
+        line: e.span().map(|s| line_of(&text, s.start)),
+        message: e.message().trim_end_matches('\n').to_string(),
+    })?;
+    let ctx = Ctx { path, text: &text };
+    let dir = path.parent().unwrap_or(Path::new(""));
+
+    // Top-level values.
+    let mpu = *raw.metres_per_unit.get_ref();
+    if !(mpu.is_finite() && mpu > 0.0) {
+        return Err(ctx.err(
+            Some(raw.metres_per_unit.span()),
+            "metres_per_unit",
+            format!("is {mpu}, but must be a finite number > 0"),
+            "give the size of one model unit in metres, e.g. 0.01 for centimetres",
+        ));
+    }
+    let lightmap_size = match &raw.lightmap {
+        None => (DEFAULT_LIGHTMAP_SIZE, DEFAULT_LIGHTMAP_SIZE),
+        Some(lm) => {
+            let mut size = [0u32; 2];
+            for (k, (key, value)) in [
+                ("width", lm.get_ref().width),
+                ("height", lm.get_ref().height),
+            ]
+            .into_iter()
+            .enumerate()
+            {
+                let v = value.unwrap_or(DEFAULT_LIGHTMAP_SIZE);
+                if !(1..=MAX_LIGHTMAP_SIZE).contains(&v) {
+                    return Err(ctx.err(
+                        Some(lm.span()),
+                        &format!("lightmap.{key}"),
+                        format!("is {v}, outside 1..={MAX_LIGHTMAP_SIZE}"),
+                        "choose a lightmap size between 1 and 8192 texels (e.g. 256 or 512)",
+                    ));
+                }
+                size[k] = v;
+            }
+            (size[0], size[1])
+        }
+    };
+
+    // Materials.
+    if raw.material.is_empty() {
+        return Err(ctx.err(
+            None,
+            "material",
+            "is missing: the scene has no [[material]]".into(),
+            "add at least one [[material]] table with a `name` and an `albedo`",
+        ));
+    }
+    let mut materials: Vec<Material> = Vec::with_capacity(raw.material.len());
+    for (i, m) in raw.material.iter().enumerate() {
+        let material = ctx.material(i, m, dir)?;
+        if materials.iter().any(|x| x.name == material.name) {
+            return Err(ctx.err(
+                Some(m.span()),
+                &format!("material[{i}].name"),
+                format!("`{}` is used by two materials", material.name),
+                "give every [[material]] a different name",
+            ));
+        }
+        materials.push(material);
+    }
+
+    // Lights.
+    let lights = raw
+        .light
+        .iter()
+        .enumerate()
+        .map(|(i, l)| ctx.light(i, l))
+        .collect::<Result<Vec<_>, _>>()?;
+
+    // Mesh.
+    let mesh_rel = raw.mesh.get_ref();
+    if mesh_rel.trim().is_empty() {
+        return Err(ctx.err(
+            Some(raw.mesh.span()),
+            "mesh",
+            "is empty".into(),
+            "give the OBJ file's path, relative to the scene file's folder",
+        ));
+    }
+    let mesh_path = dir.join(mesh_rel);
+    if !mesh_path.is_file() {
+        return Err(ctx.err(
+            Some(raw.mesh.span()),
+            "mesh",
+            format!("names {}, which does not exist", mesh_path.display()),
+            "correct the path (it is relative to the scene file's folder)",
+        ));
+    }
+    let options = ObjOptions {
+        skip_degenerate_faces: raw.skip_degenerate_faces,
+    };
+    let (mut mesh, obj_names, mut warnings) = load_obj_with(&mesh_path, mpu, &options)?;
+
+    // usemtl names → scene materials.
+    let fallback = materials
+        .iter()
+        .position(|m| m.name == "default")
+        .unwrap_or(0);
+    let map: Vec<u32> = obj_names
+        .iter()
+        .map(
+            |name| match materials.iter().position(|m| m.name == *name) {
+                Some(i) => i as u32,
+                None => {
+                    if !name.is_empty() {
+                        warnings.push(format!(
+                            "{}: `usemtl {name}` in {} has no [[material]] of that name; those \
+                         faces use material `{}`",
+                            path.display(),
+                            mesh_path.display(),
+                            materials[fallback].name
+                        ));
+                    }
+                    fallback as u32
+                }
+            },
+        )
+        .collect();
+    for t in &mut mesh.triangles {
+        t.material = map
+            .get(t.material as usize)
+            .copied()
+            .unwrap_or(fallback as u32);
+    }
+
+    let name = raw.name.unwrap_or_else(|| {
+        path.file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_else(|| "scene".into())
+    });
+    let scene = Scene {
+        name,
+        mesh,
+        materials,
+        lights,
+        lightmap_size,
+        allow_uv_overlap: raw.allow_uv_overlap,
+    };
+    Ok((scene, warnings))
+}
+
+/// 1-based line of byte offset `offset` in `text`.
+fn line_of(text: &str, offset: usize) -> usize {
+    let end = offset.min(text.len());
+    1 + text.as_bytes()[..end]
+        .iter()
+        .filter(|&&b| b == b'\n')
+        .count()
+}
+
+/// Validation context: the scene file and its text (for line numbers).
+struct Ctx<'a> {
+    path: &'a Path,
+    text: &'a str,
+}
+
+impl Ctx<'_> {
+    /// An [`SceneError::InvalidField`] at the start of `span`.
+    fn err(
+        &self,
+        span: Option<Range<usize>>,
+        field: &str,
+        problem: String,
+        fix: &str,
+    ) -> SceneError {
+        SceneError::InvalidField {
+            path: self.path.to_path_buf(),
+            line: span.map(|s| line_of(self.text, s.start)),
+            field: field.to_string(),
+            problem,
+            fix: fix.to_string(),
+        }
+    }
+
+    /// Checks an RGB triple: finite, within `[lo, hi]`.
+    fn rgb(
+        &self,
+        span: &Range<usize>,
+        field: &str,
+        v: [f32; 3],
+        (lo, hi): (f32, f32),
+        fix: &str,
+    ) -> Result<Vec3, SceneError> {
+        if v.iter().all(|x| x.is_finite() && (lo..=hi).contains(x)) {
+            Ok(Vec3::from_array(v))
+        } else {
+            Err(self.err(
+                Some(span.clone()),
+                field,
+                format!("is {v:?}, but every component must be a finite number in [{lo}, {hi}]"),
+                fix,
+            ))
+        }
+    }
+
+    /// Validates one `[[material]]`.
+    fn material(
+        &self,
+        i: usize,
+        m: &Spanned<RawMaterial>,
+        dir: &Path,
+    ) -> Result<Material, SceneError> {
+        let span = m.span();
+        let raw = m.get_ref();
+        let f = |key: &str| format!("material[{i}].{key}");
+        if raw.name.trim().is_empty() {
+            return Err(self.err(
+                Some(span),
+                &f("name"),
+                "is empty".into(),
+                "name the material as in the OBJ's `usemtl` (or `default`)",
+            ));
+        }
+        let subsurface = match &raw.subsurface {
+            None => None,
+            Some(s) => Some(self.subsurface(i, &span, s)?),
+        };
+        let albedo = match (&raw.albedo, &raw.albedo_texture) {
+            (Some(_), Some(_)) => {
+                return Err(self.err(
+                    Some(span),
+                    &f("albedo_texture"),
+                    "is given together with `albedo`".into(),
+                    "keep only one of `albedo = [r, g, b]` and `albedo_texture = \"file.png\"`",
+                ));
+            }
+            (Some(rgb), None) => Albedo::Constant(self.rgb(
+                &span,
+                &f("albedo"),
+                *rgb,
+                (0.0, 1.0),
+                "give linear-RGB reflectances between 0 and 1, e.g. [0.73, 0.73, 0.73]",
+            )?),
+            (None, Some(file)) => Albedo::Texture(Arc::new(self.texture(
+                &span,
+                &f("albedo_texture"),
+                &dir.join(file),
+            )?)),
+            (None, None) if subsurface.is_some() => Albedo::Constant(Vec3::ONE),
+            (None, None) => {
+                return Err(self.err(
+                    Some(span),
+                    &f("albedo"),
+                    "is missing".into(),
+                    "add `albedo = [r, g, b]` (linear, 0..1) or `albedo_texture = \"file.png\"`",
+                ));
+            }
+        };
+        Ok(Material {
+            name: raw.name.clone(),
+            albedo,
+            subsurface,
+        })
+    }
+
+    /// Validates a `subsurface = { ... }` table.
+    fn subsurface(
+        &self,
+        i: usize,
+        span: &Range<usize>,
+        s: &RawSubsurface,
+    ) -> Result<Subsurface, SceneError> {
+        let f = |key: &str| format!("material[{i}].subsurface.{key}");
+        let mut out = match (&s.preset, s.sigma_a, s.sigma_s_prime) {
+            (Some(name), None, None) => subsurface_preset(name).ok_or_else(|| {
+                self.err(
+                    Some(span.clone()),
+                    &f("preset"),
+                    format!("`{name}` is not a known preset"),
+                    &format!("use one of: {}", PRESET_NAMES.join(", ")),
+                )
+            })?,
+            (Some(_), _, _) => {
+                return Err(self.err(
+                    Some(span.clone()),
+                    &f("preset"),
+                    "is given together with sigma_a/sigma_s_prime".into(),
+                    "give either `preset` or both `sigma_a` and `sigma_s_prime`",
+                ));
+            }
+            (None, Some(a), Some(s_prime)) => {
+                let fix = "give three finite coefficients > 0 in mm⁻¹ (R, G, B)";
+                let a = self.rgb(span, &f("sigma_a"), a, (0.0, f32::MAX), fix)?;
+                let sp = self.rgb(span, &f("sigma_s_prime"), s_prime, (0.0, f32::MAX), fix)?;
+                for (key, v) in [("sigma_a", a), ("sigma_s_prime", sp)] {
+                    if v.min_element() <= 0.0 {
+                        return Err(self.err(
+                            Some(span.clone()),
+                            &f(key),
+                            format!("is {:?}, but every component must be > 0", v.to_array()),
+                            fix,
+                        ));
+                    }
+                }
+                Subsurface {
+                    sigma_a_per_mm: a,
+                    sigma_s_prime_per_mm: sp,
+                    eta: super::presets::PRESET_ETA,
+                    model: SubsurfaceModel::Dipole,
+                }
+            }
+            (None, _, _) => {
+                return Err(self.err(
+                    Some(span.clone()),
+                    &f(if s.sigma_a.is_none() {
+                        "sigma_a"
+                    } else {
+                        "sigma_s_prime"
+                    }),
+                    "is missing".into(),
+                    &format!(
+                        "give `preset` (one of: {}) or both `sigma_a` and `sigma_s_prime` in mm⁻¹",
+                        PRESET_NAMES.join(", ")
+                    ),
+                ));
+            }
+        };
+        if let Some(eta) = s.eta {
+            if !(eta.is_finite() && (ETA_RANGE.0..=ETA_RANGE.1).contains(&eta)) {
+                return Err(self.err(
+                    Some(span.clone()),
+                    &f("eta"),
+                    format!("is {eta}, outside [{}, {}]", ETA_RANGE.0, ETA_RANGE.1),
+                    "give the relative index of refraction, e.g. 1.3 for skin",
+                ));
+            }
+            out.eta = eta;
+        }
+        if let Some(model) = s.model {
+            out.model = match model {
+                RawModel::Dipole => SubsurfaceModel::Dipole,
+                RawModel::Exponential => SubsurfaceModel::Exponential,
+            };
+        }
+        Ok(out)
+    }
+
+    /// Loads an sRGB PNG as linear RGB.
+    fn texture(
+        &self,
+        span: &Range<usize>,
+        field: &str,
+        file: &Path,
+    ) -> Result<AlbedoTexture, SceneError> {
+        if !file.is_file() {
+            return Err(self.err(
+                Some(span.clone()),
+                field,
+                format!("names {}, which does not exist", file.display()),
+                "correct the path (it is relative to the scene file's folder)",
+            ));
+        }
+        let mut reader = image::ImageReader::open(file)
+            .map_err(|source| SceneError::Io {
+                what: "albedo texture",
+                path: file.to_path_buf(),
+                source,
+            })?
+            .with_guessed_format()
+            .map_err(|source| SceneError::Io {
+                what: "albedo texture",
+                path: file.to_path_buf(),
+                source,
+            })?;
+        // The declared image size is checked against the limits before pixels are allocated.
+        let mut limits = image::Limits::default();
+        limits.max_image_width = Some(crate::io::limits::MAX_TEXTURE_SIDE);
+        limits.max_image_height = Some(crate::io::limits::MAX_TEXTURE_SIDE);
+        limits.max_alloc = Some(crate::io::limits::MAX_TEXTURE_DECODE_BYTES);
+        reader.limits(limits);
+        let decoded = reader.decode().map_err(|source| SceneError::Texture {
+            path: file.to_path_buf(),
+            source,
+        })?;
+        let rgb = decoded.to_rgb32f();
+        let data = rgb
+            .pixels()
+            .map(|p| {
+                Vec3::new(
+                    srgb_to_linear(p[0]),
+                    srgb_to_linear(p[1]),
+                    srgb_to_linear(p[2]),
+                )
+            })
+            .collect();
+        Ok(AlbedoTexture {
+            path: file.to_path_buf(),
+            width: rgb.width(),
+            height: rgb.height(),
+            data,
+        })
+    }
+
+    /// Validates one `[[light]]`.
+    fn light(&self, i: usize, l: &Spanned<RawLight>) -> Result<Light, SceneError> {
+        let span = l.span();
+        let raw = l.get_ref();
+        let f = |key: &str| format!("light[{i}].{key}");
+        let type_name = match raw.kind {
+            RawLightKind::Point => "point",
+            RawLightKind::Spot => "spot",
+            RawLightKind::Directional => "directional",
+        };
+        let color = match raw.color {
+            None => Vec3::ONE,
+            Some(c) => self.rgb(
+                &span,
+                &f("color"),
+                c,
+                (0.0, f32::MAX),
+                "give a linear-RGB tint with components ≥ 0, e.g. [1, 1, 1]",
+            )?,
+        };
+        let allowed: &[&str] = match raw.kind {
+            RawLightKind::Point => &["position", "intensity"],
+            RawLightKind::Spot => &[
+                "position",
+                "direction",
+                "intensity",
+                "inner_deg",
+                "outer_deg",
+            ],
+            RawLightKind::Directional => &["direction", "irradiance"],
+        };
+        let present = [
+            ("position", raw.position.is_some()),
+            ("direction", raw.direction.is_some()),
+            ("intensity", raw.intensity.is_some()),
+            ("irradiance", raw.irradiance.is_some()),
+            ("inner_deg", raw.inner_deg.is_some()),
+            ("outer_deg", raw.outer_deg.is_some()),
+        ];
+        // Keys that do not belong to this type first (a misplaced key explains a missing one).
+        for (key, is_present) in present {
+            if is_present && !allowed.contains(&key) {
+                return Err(self.err(
+                    Some(span.clone()),
+                    &f(key),
+                    format!("is not used by a {type_name} light"),
+                    &format!(
+                        "remove it; a {type_name} light takes {}",
+                        allowed.join(", ")
+                    ),
+                ));
+            }
+        }
+        for (key, is_present) in present {
+            if !is_present && allowed.contains(&key) {
+                return Err(self.err(
+                    Some(span.clone()),
+                    &f(key),
+                    format!("is missing (required for a {type_name} light)"),
+                    &format!("a {type_name} light takes {}", allowed.join(", ")),
+                ));
+            }
+        }
+        let position = |p: [f32; 3]| {
+            self.rgb(
+                &span,
+                &f("position"),
+                p,
+                (f32::MIN, f32::MAX),
+                "give a finite position in metres (world space, after metres_per_unit)",
+            )
+        };
+        let direction = |d: [f32; 3]| {
+            let v = Vec3::from_array(d);
+            v.try_normalize().filter(|_| v.is_finite()).ok_or_else(|| {
+                self.err(
+                    Some(span.clone()),
+                    &f("direction"),
+                    format!("is {d:?}, which has no direction"),
+                    "give a finite non-zero vector (it is normalised)",
+                )
+            })
+        };
+        let non_negative = |key: &str, v: f32, unit: &str| {
+            if v.is_finite() && v >= 0.0 {
+                Ok(v)
+            } else {
+                Err(self.err(
+                    Some(span.clone()),
+                    &f(key),
+                    format!("is {v}, but must be a finite number ≥ 0 ({unit})"),
+                    &format!("give the {key} in {unit}"),
+                ))
+            }
+        };
+        Ok(match raw.kind {
+            RawLightKind::Point => Light::Point {
+                position_m: position(raw.position.unwrap_or_default())?,
+                color,
+                intensity_w_sr: non_negative("intensity", raw.intensity.unwrap_or(0.0), "W/sr")?,
+            },
+            RawLightKind::Spot => {
+                let inner = raw.inner_deg.unwrap_or(0.0);
+                let outer = raw.outer_deg.unwrap_or(0.0);
+                let ok = inner.is_finite()
+                    && outer.is_finite()
+                    && 0.0 <= inner
+                    && inner <= outer
+                    && 0.0 < outer
+                    && outer <= 90.0;
+                if !ok {
+                    return Err(self.err(
+                        Some(span.clone()),
+                        &f("outer_deg"),
+                        format!("inner_deg = {inner}, outer_deg = {outer} are not a valid cone"),
+                        "give half-angles in degrees with 0 ≤ inner_deg ≤ outer_deg ≤ 90 and \
+                         outer_deg > 0",
+                    ));
+                }
+                Light::Spot {
+                    position_m: position(raw.position.unwrap_or_default())?,
+                    direction: direction(raw.direction.unwrap_or_default())?,
+                    color,
+                    intensity_w_sr: non_negative(
+                        "intensity",
+                        raw.intensity.unwrap_or(0.0),
+                        "W/sr",
+                    )?,
+                    inner_deg: inner,
+                    outer_deg: outer,
+                }
+            }
+            RawLightKind::Directional => Light::Directional {
+                direction: direction(raw.direction.unwrap_or_default())?,
+                color,
+                irradiance_w_m2: non_negative("irradiance", raw.irradiance.unwrap_or(0.0), "W/m²")?,
+            },
+        })
+    }
+}
+
+/// The sRGB transfer function inverse (electro-optical): encoded `c` in [0, 1] → linear.
+pub fn srgb_to_linear(c: f32) -> f32 {
+    if c <= 0.04045 {
+        c / 12.92
+    } else {
+        ((c + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn srgb_decode_matches_definition_at_known_points() {
+        assert_eq!(srgb_to_linear(0.0), 0.0);
+        assert!((srgb_to_linear(1.0) - 1.0).abs() < 1e-6);
+        // Continuity at the breakpoint of the piecewise definition.
+        let lo = 0.04045 / 12.92;
+        let hi = ((0.04045f32 + 0.055) / 1.055).powf(2.4);
+        assert!((lo - hi).abs() < 1e-6);
+        // Monotone.
+        let mut prev = -1.0;
+        for i in 0..=255 {
+            let v = srgb_to_linear(i as f32 / 255.0);
+            assert!(v > prev);
+            prev = v;
+        }
+    }
+
+    #[test]
+    fn line_of_counts_newlines() {
+        let t = "a\nbb\n\nc";
+        assert_eq!(line_of(t, 0), 1);
+        assert_eq!(line_of(t, 2), 2);
+        assert_eq!(line_of(t, 5), 3);
+        assert_eq!(line_of(t, 6), 4);
+        assert_eq!(line_of(t, 100), 4);
+    }
+
+    #[test]
+    fn light_fragments_round_trip_and_report_bad_fields() {
+        let lights = vec![
+            Light::Point {
+                position_m: Vec3::new(0.1, -0.25, 3.5),
+                color: Vec3::new(1.0, 0.5, 0.25),
+                intensity_w_sr: 0.125,
+            },
+            Light::Spot {
+                position_m: Vec3::new(0.0, 1.0, 0.0),
+                direction: Vec3::new(0.0, -1.0, 0.0),
+                color: Vec3::ONE,
+                intensity_w_sr: 2.0,
+                inner_deg: 10.0,
+                outer_deg: 25.5,
+            },
+            Light::Directional {
+                direction: Vec3::new(0.6, -0.8, 0.0),
+                color: Vec3::new(0.9, 0.9, 1.0),
+                irradiance_w_m2: 7.0,
+            },
+        ];
+        let text = lights_to_toml(&lights);
+        let back = parse_lights_fragment(&text, Path::new("lights.toml")).unwrap();
+        assert_eq!(back, lights);
+        assert!(
+            parse_lights_fragment("", Path::new("x.toml"))
+                .unwrap()
+                .is_empty()
+        );
+        // A spot field on a point light: error names the file, line and field.
+        let bad = "[[light]]\ntype = \"point\"\nposition = [0, 0, 0]\nintensity = 1.0\n\n\
+                   [[light]]\ntype = \"point\"\nposition = [0, 0, 0]\nintensity = 1.0\n\
+                   outer_deg = 3.0\n";
+        let e = parse_lights_fragment(bad, Path::new("lights.toml"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("lights.toml:6") && e.contains("light[1].outer_deg"),
+            "{e}"
+        );
+        // Scene keys are not allowed in a light set-up.
+        let e = parse_lights_fragment("mesh = \"a.obj\"\n", Path::new("l.toml"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("mesh"), "{e}");
+    }
+}

@@ -1,0 +1,678 @@
+//! Wavefront OBJ loading and validation: OBJ file → [`Mesh`] in metres.
+//!
+//! # Data flow
+//! 1. The file is read whole (refused up front when larger than [`MAX_OBJ_BYTES`]) and must
+//!    be UTF-8.
+//! 2. `tobj` parses it (`triangulate: true`, `single_index: false` so positions and UVs keep
+//!    separate indices: per-corner UVs such as the head scan's survive; points and lines are
+//!    ignored). A syntax error is reported with the line the parser stopped on.
+//! 3. A light line scan of the same text finds what `tobj` does not report: NaN/infinite
+//!    numbers in `v`/`vt`/`vn` (with the line), face corners without a UV, indices out of
+//!    range (with the line), `usemtl` names and `mtllib` files. `tobj` triangulates faces in
+//!    file order (a quad `a b c d` becomes `a b c` + `a c d`, larger polygons a fan from the
+//!    first corner), so the scan also knows each triangle's OBJ face, line and `usemtl` name.
+//! 4. The `tobj` models (one per `o`/`g`/`usemtl` run) are merged into one [`Mesh`]:
+//!    positions are welded by bit-identical coordinates (this undoes `tobj`'s per-group
+//!    duplication, so the head's 8,844 positions stay 8,844 and smooth normals do not break
+//!    at group borders), UVs and normals are concatenated.
+//! 5. Validation: every UV must lie in `[0, 1]` (within 1e-6, then clamped). Triangles whose
+//!    world area is at most 1e-10 × (bounding-box diagonal)² are *degenerate*: an error
+//!    listing the count and the first faces, or, with [`ObjOptions::skip_degenerate_faces`],
+//!    dropped with a warning. Triangles with (near-)zero UV area (≤ 1e-12; the head scan has
+//!    16, collapsed by its 5-decimal UVs) are kept with a warning: they still occlude light,
+//!    but cover no texel centre, so the lightmap holds nothing for them.
+//! 6. Normals: the file's `vn` normals (normalised) when every face corner has one; otherwise
+//!    smooth area-weighted normals per (welded) position, computed from the triangles.
+//!
+//! # Conventions and units
+//! Positions are multiplied by `metres_per_unit` (→ metres). Faces are counter-clockwise
+//! seen from the front (the OBJ convention). UVs are used as written (`v = 1` is the top row
+//! of the lightmap image). Material indices in [`MeshTriangle::material`] index the returned
+//! list of `usemtl` names (order of first use); faces before any `usemtl` get the name `""`.
+//! The scene loader maps these names to scene-file materials. MTL files are not read (their
+//! contents are not used); a `mtllib` file that does not exist is only a warning.
+//!
+//! # Limits
+//! Free-form geometry (curves, surfaces) is ignored. Polylines (`l`) with more than two
+//! vertices are rejected. Face numbers in messages are 1-based counts of `f` statements.
+
+use std::collections::HashMap;
+use std::io::{BufRead, Read};
+use std::path::Path;
+
+use glam::{DVec3, Vec2, Vec3};
+
+use super::{Mesh, MeshTriangle, SceneError, read_text_bounded};
+
+/// Largest OBJ file accepted, in bytes, checked before reading ([`crate::io::limits::MAX_OBJ_BYTES`]).
+pub const MAX_OBJ_BYTES: u64 = crate::io::limits::MAX_OBJ_BYTES;
+/// How far outside `[0, 1]` a UV may lie and still be accepted (it is then clamped).
+pub const UV_TOLERANCE: f32 = 1e-6;
+/// A triangle whose world area is at most this × (bounding-box diagonal)² is degenerate.
+pub const DEGENERATE_RELATIVE_AREA: f64 = 1e-10;
+/// A triangle whose UV area (unit square = 1) is at most this gets a warning (no texels).
+pub const DEGENERATE_UV_AREA: f64 = 1e-12;
+/// How many faces a degenerate-face message or warning lists.
+const LIST_FIRST: usize = 5;
+
+/// Options for [`load_obj_with`].
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ObjOptions {
+    /// Drop triangles with zero world area with a warning instead of failing.
+    pub skip_degenerate_faces: bool,
+}
+
+/// Loads and validates an OBJ mesh with default [`ObjOptions`] (degenerate faces are errors).
+///
+/// Returns the mesh in metres, the `usemtl` names indexed by [`MeshTriangle::material`], and
+/// warnings (missing MTL file, ignored normals, ...). See the module docs for the checks.
+pub fn load_obj(
+    path: &Path,
+    metres_per_unit: f64,
+) -> Result<(Mesh, Vec<String>, Vec<String>), SceneError> {
+    load_obj_with(path, metres_per_unit, &ObjOptions::default())
+}
+
+/// Loads and validates an OBJ mesh; like [`load_obj`] with explicit options.
+pub fn load_obj_with(
+    path: &Path,
+    metres_per_unit: f64,
+    options: &ObjOptions,
+) -> Result<(Mesh, Vec<String>, Vec<String>), SceneError> {
+    if !(metres_per_unit.is_finite() && metres_per_unit > 0.0) {
+        return Err(SceneError::InvalidField {
+            path: path.to_path_buf(),
+            line: None,
+            field: "metres_per_unit".into(),
+            problem: format!("is {metres_per_unit}, but must be a finite number > 0"),
+            fix: "give the size of one model unit in metres, e.g. 0.01 for centimetres".into(),
+        });
+    }
+    let text = read_text_bounded(path, "OBJ mesh", MAX_OBJ_BYTES)?;
+    let models = parse_with_tobj(path, &text)?;
+    let scan = scan(path, &text)?;
+    let mut warnings = Vec::new();
+    for lib in &scan.mtllibs {
+        let mtl = path.parent().unwrap_or(Path::new("")).join(lib);
+        if !mtl.is_file() {
+            warnings.push(format!(
+                "{}: material library `{lib}` ({}) not found; ignored (materials come from the \
+                 scene file, matched by `usemtl` name)",
+                path.display(),
+                mtl.display()
+            ));
+        }
+    }
+    build_mesh(path, metres_per_unit, options, &models, &scan, warnings)
+}
+
+/// A `BufRead` over a byte slice that knows how far the consumer has read, so a parser
+/// error can be attributed to a line.
+struct CountingReader<'a> {
+    data: &'a [u8],
+    pos: usize,
+}
+
+impl CountingReader<'_> {
+    /// The 1-based line of the last byte consumed (the line being parsed).
+    fn current_line(&self) -> usize {
+        let consumed = &self.data[..self.pos.min(self.data.len())];
+        let newlines = consumed.iter().filter(|&&b| b == b'\n').count();
+        if consumed.last() == Some(&b'\n') {
+            newlines.max(1)
+        } else {
+            newlines + 1
+        }
+    }
+}
+
+impl Read for CountingReader<'_> {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        let rest = &self.data[self.pos.min(self.data.len())..];
+        let n = rest.len().min(buf.len());
+        buf[..n].copy_from_slice(&rest[..n]);
+        self.pos += n;
+        Ok(n)
+    }
+}
+
+impl BufRead for CountingReader<'_> {
+    fn fill_buf(&mut self) -> std::io::Result<&[u8]> {
+        Ok(&self.data[self.pos.min(self.data.len())..])
+    }
+
+    fn consume(&mut self, amt: usize) {
+        self.pos = (self.pos + amt).min(self.data.len());
+    }
+}
+
+/// Parses with `tobj`; on error, names the line (for errors `tobj` only detects at the end
+/// of a group, the line scan finds the exact statement).
+fn parse_with_tobj(path: &Path, text: &str) -> Result<Vec<tobj::Model>, SceneError> {
+    let options = tobj::LoadOptions {
+        single_index: false,
+        triangulate: true,
+        ignore_points: true,
+        ignore_lines: true,
+    };
+    let mut reader = CountingReader {
+        data: text.as_bytes(),
+        pos: 0,
+    };
+    // MTL contents are not used: materials come from the scene file.
+    match tobj::load_obj_buf(&mut reader, &options, |_| {
+        Ok((Vec::new(), Default::default()))
+    }) {
+        Ok((models, _)) => Ok(models),
+        Err(e) => {
+            use tobj::LoadError as E;
+            let deferred = matches!(
+                e,
+                E::FaceVertexOutOfBounds
+                    | E::FaceTexCoordOutOfBounds
+                    | E::FaceNormalOutOfBounds
+                    | E::FaceColorOutOfBounds
+                    | E::InvalidPolygon
+            );
+            if deferred {
+                // Reported when a group ends, not at the face: find the face.
+                scan(path, text)?;
+            }
+            let problem = match e {
+                E::PositionParseError => "a `v` statement needs three numbers `v x y z`".into(),
+                E::TexcoordParseError => "a `vt` statement needs two numbers `vt u v`".into(),
+                E::NormalParseError => "a `vn` statement needs three numbers `vn x y z`".into(),
+                E::FaceParseError => "a face corner must be `v`, `v/vt`, `v//vn` or `v/vt/vn` \
+                                      with non-zero integer indices"
+                    .into(),
+                E::ScalingByZeroError => "a `v` statement has the weight w = 0".into(),
+                E::ColorParseError => {
+                    "a `v` statement has the wrong number of values (3, 4 or 6 expected)".into()
+                }
+                E::MaterialParseError => "`usemtl` needs a material name".into(),
+                other => other.to_string(),
+            };
+            Err(SceneError::ObjSyntax {
+                path: path.to_path_buf(),
+                line: (!deferred).then(|| reader.current_line()),
+                problem,
+            })
+        }
+    }
+}
+
+/// One `f` statement with three or more corners.
+#[derive(Clone, Copy, Debug)]
+struct FaceRecord {
+    /// 1-based line.
+    line: usize,
+    /// 1-based face number (counting every `f` statement).
+    face: usize,
+    /// Triangles it becomes (corners − 2).
+    triangles: usize,
+    /// Index into [`Scan::material_names`].
+    material: u32,
+}
+
+/// What the line scan learns about the file.
+#[derive(Debug, Default)]
+struct Scan {
+    /// Faces with ≥ 3 corners, in file order.
+    faces: Vec<FaceRecord>,
+    /// `usemtl` names in order of first use by a face (`""` = before any `usemtl`).
+    material_names: Vec<String>,
+    /// Number of `vt` statements.
+    vt_count: usize,
+    /// Whether every corner of every face has a normal index.
+    all_corners_have_normals: bool,
+    /// `mtllib` file names.
+    mtllibs: Vec<String>,
+}
+
+/// Shortens a line for a message.
+fn excerpt(line: &str) -> String {
+    let t = line.trim();
+    match t.char_indices().nth(80) {
+        Some((i, _)) => format!("{}…", &t[..i]),
+        None => t.to_string(),
+    }
+}
+
+/// Resolves an OBJ index (1-based, or negative = relative to `count`) to 0-based.
+fn resolve_index(index: i64, count: usize) -> Option<usize> {
+    let count = i64::try_from(count).ok()?;
+    let zero_based = if index > 0 { index - 1 } else { count + index };
+    (index != 0 && (0..count).contains(&zero_based)).then_some(zero_based as usize)
+}
+
+/// Scans the text for non-finite numbers, bad indices, missing UVs, materials and faces.
+fn scan(path: &Path, text: &str) -> Result<Scan, SceneError> {
+    let mut s = Scan {
+        all_corners_have_normals: true,
+        ..Scan::default()
+    };
+    let (mut v_count, mut vn_count, mut face_no) = (0usize, 0usize, 0usize);
+    let mut current_material: Option<String> = None;
+    let mut first_missing_uv: Option<(usize, usize)> = None;
+    for (i, line) in text.lines().enumerate() {
+        let line_no = i + 1;
+        let mut words = line.split_whitespace();
+        let Some(keyword) = words.next() else {
+            continue;
+        };
+        match keyword {
+            "v" | "vt" | "vn" => {
+                let statement = match keyword {
+                    "v" => {
+                        v_count += 1;
+                        "v"
+                    }
+                    "vt" => {
+                        s.vt_count += 1;
+                        "vt"
+                    }
+                    _ => {
+                        vn_count += 1;
+                        "vn"
+                    }
+                };
+                let non_finite = words
+                    .filter_map(|w| w.parse::<f32>().ok())
+                    .any(|x| !x.is_finite());
+                if non_finite {
+                    return Err(SceneError::ObjNonFinite {
+                        path: path.to_path_buf(),
+                        line: line_no,
+                        statement,
+                        text: excerpt(line),
+                    });
+                }
+            }
+            "f" | "l" => {
+                let corners: Vec<&str> = words.collect();
+                if keyword == "l" {
+                    if corners.len() > 2 {
+                        return Err(SceneError::ObjSyntax {
+                            path: path.to_path_buf(),
+                            line: Some(line_no),
+                            problem: "polylines (`l`) with more than two vertices are not \
+                                      supported; remove the statement"
+                                .into(),
+                        });
+                    }
+                    continue;
+                }
+                face_no += 1;
+                if corners.is_empty() {
+                    return Err(SceneError::ObjSyntax {
+                        path: path.to_path_buf(),
+                        line: Some(line_no),
+                        problem: "a face (`f`) without corners".into(),
+                    });
+                }
+                for corner in &corners {
+                    let mut parts = corner.split('/');
+                    let slots = [
+                        ("position", v_count, parts.next()),
+                        ("texture coordinate", s.vt_count, parts.next()),
+                        ("normal", vn_count, parts.next()),
+                    ];
+                    for (slot, (kind, count, part)) in slots.into_iter().enumerate() {
+                        let part = part.filter(|p| !p.is_empty());
+                        match (slot, part) {
+                            (1, None) => {
+                                first_missing_uv.get_or_insert((line_no, face_no));
+                            }
+                            (2, None) => s.all_corners_have_normals = false,
+                            _ => {}
+                        }
+                        let Some(part) = part else { continue };
+                        // Unparseable indices were already rejected by tobj.
+                        let Ok(index) = part.parse::<i64>() else {
+                            continue;
+                        };
+                        if resolve_index(index, count).is_none() {
+                            return Err(SceneError::ObjIndexOutOfRange {
+                                path: path.to_path_buf(),
+                                line: line_no,
+                                face: face_no,
+                                kind,
+                                index,
+                                count,
+                            });
+                        }
+                    }
+                }
+                if corners.len() >= 3 {
+                    let name = current_material.clone().unwrap_or_default();
+                    let material = match s.material_names.iter().position(|n| *n == name) {
+                        Some(m) => m,
+                        None => {
+                            s.material_names.push(name);
+                            s.material_names.len() - 1
+                        }
+                    };
+                    s.faces.push(FaceRecord {
+                        line: line_no,
+                        face: face_no,
+                        triangles: corners.len() - 2,
+                        material: material as u32,
+                    });
+                }
+            }
+            "usemtl" => {
+                let name = line
+                    .trim()
+                    .split_once(char::is_whitespace)
+                    .map(|x| x.1.trim());
+                current_material = name.map(str::to_string);
+            }
+            "mtllib" => {
+                if let Some((_, lib)) = line.trim().split_once(char::is_whitespace) {
+                    s.mtllibs.push(lib.trim().to_string());
+                }
+            }
+            _ => {}
+        }
+    }
+    if s.vt_count == 0 && !s.faces.is_empty() {
+        return Err(SceneError::ObjNoUvs {
+            path: path.to_path_buf(),
+        });
+    }
+    if let Some((line, face)) = first_missing_uv {
+        return Err(SceneError::ObjMissingUvs {
+            path: path.to_path_buf(),
+            line,
+            face,
+        });
+    }
+    Ok(s)
+}
+
+/// An error for data `tobj` returned inconsistently (should not happen).
+fn internal(path: &Path, what: &str) -> SceneError {
+    SceneError::ObjSyntax {
+        path: path.to_path_buf(),
+        line: None,
+        problem: format!("the OBJ parser returned inconsistent data ({what})"),
+    }
+}
+
+/// Formats up to [`LIST_FIRST`] faces as `face N (line L), ...`.
+fn list_faces(faces: &[FaceRecord]) -> String {
+    let mut out: Vec<String> = faces
+        .iter()
+        .take(LIST_FIRST)
+        .map(|f| format!("face {} (line {})", f.face, f.line))
+        .collect();
+    if faces.len() > LIST_FIRST {
+        out.push("...".into());
+    }
+    out.join(", ")
+}
+
+/// Twice the area of a triangle (f64).
+fn double_area(a: DVec3, b: DVec3, c: DVec3) -> f64 {
+    (b - a).cross(c - a).length()
+}
+
+/// Merges the `tobj` models into one validated [`Mesh`].
+fn build_mesh(
+    path: &Path,
+    metres_per_unit: f64,
+    options: &ObjOptions,
+    models: &[tobj::Model],
+    scan: &Scan,
+    mut warnings: Vec<String>,
+) -> Result<(Mesh, Vec<String>, Vec<String>), SceneError> {
+    let mut weld: HashMap<[u32; 3], u32> = HashMap::new();
+    let mut positions: Vec<Vec3> = Vec::new();
+    let mut uvs: Vec<Vec2> = Vec::new();
+    let mut file_normals: Vec<Vec3> = Vec::new();
+    // Per triangle: position, uv, file-normal indices.
+    let mut tris: Vec<[[u32; 3]; 3]> = Vec::new();
+    let mut use_file_normals = scan.all_corners_have_normals;
+    for model in models {
+        let m = &model.mesh;
+        let pos_map: Vec<u32> = m
+            .positions
+            .chunks_exact(3)
+            .map(|p| {
+                let key = [p[0].to_bits(), p[1].to_bits(), p[2].to_bits()];
+                *weld.entry(key).or_insert_with(|| {
+                    positions.push(Vec3::new(p[0], p[1], p[2]));
+                    (positions.len() - 1) as u32
+                })
+            })
+            .collect();
+        let uv_offset = uvs.len() as u32;
+        uvs.extend(m.texcoords.chunks_exact(2).map(|t| Vec2::new(t[0], t[1])));
+        let n_offset = file_normals.len() as u32;
+        file_normals.extend(
+            m.normals
+                .chunks_exact(3)
+                .map(|n| Vec3::new(n[0], n[1], n[2])),
+        );
+        if m.indices.len() % 3 != 0 || m.texcoord_indices.len() != m.indices.len() {
+            return Err(internal(path, "face corners without UV indices"));
+        }
+        if m.normal_indices.len() != m.indices.len() {
+            use_file_normals = false;
+        }
+        for t in 0..m.indices.len() / 3 {
+            let corners = [3 * t, 3 * t + 1, 3 * t + 2];
+            let mut position = [0u32; 3];
+            for (p, &c) in position.iter_mut().zip(&corners) {
+                *p = *pos_map
+                    .get(m.indices[c] as usize)
+                    .ok_or_else(|| internal(path, "position index"))?;
+            }
+            let uv = corners.map(|c| uv_offset + m.texcoord_indices[c]);
+            let normal = corners.map(|c| n_offset + m.normal_indices.get(c).copied().unwrap_or(0));
+            if uv.iter().any(|&i| i as usize >= uvs.len()) {
+                return Err(internal(path, "UV index"));
+            }
+            tris.push([position, uv, normal]);
+        }
+    }
+    // Material and face of every triangle, from the scan (same order as tobj's output).
+    let mut tri_face: Vec<usize> = Vec::with_capacity(tris.len());
+    for (f, rec) in scan.faces.iter().enumerate() {
+        tri_face.extend(std::iter::repeat_n(f, rec.triangles));
+    }
+    if tri_face.len() != tris.len() {
+        return Err(internal(
+            path,
+            &format!(
+                "{} triangles parsed, {} expected from the face statements",
+                tris.len(),
+                tri_face.len()
+            ),
+        ));
+    }
+    if tris.is_empty() {
+        return Err(SceneError::ObjNoTriangles {
+            path: path.to_path_buf(),
+        });
+    }
+
+    // Scale to metres.
+    let positions_m: Vec<Vec3> = positions
+        .iter()
+        .map(|p| (p.as_dvec3() * metres_per_unit).as_vec3())
+        .collect();
+    if positions_m.iter().any(|p| !p.is_finite()) {
+        return Err(SceneError::InvalidField {
+            path: path.to_path_buf(),
+            line: None,
+            field: "metres_per_unit".into(),
+            problem: format!("({metres_per_unit}) makes some positions overflow to infinity"),
+            fix: "check metres_per_unit and the model's coordinates".into(),
+        });
+    }
+
+    // UVs inside [0, 1].
+    let mut bad_uv: Option<(usize, Vec2)> = None;
+    let mut bad_uv_count = 0usize;
+    for (t, tri) in tris.iter().enumerate() {
+        for &i in &tri[1] {
+            let uv = uvs[i as usize];
+            let outside = uv.min_element() < -UV_TOLERANCE || uv.max_element() > 1.0 + UV_TOLERANCE;
+            if outside {
+                bad_uv_count += 1;
+                bad_uv.get_or_insert((t, uv));
+            }
+        }
+    }
+    if let Some((t, uv)) = bad_uv {
+        let rec = scan.faces[tri_face[t]];
+        return Err(SceneError::ObjUvOutOfRange {
+            path: path.to_path_buf(),
+            line: rec.line,
+            face: rec.face,
+            u: uv.x,
+            v: uv.y,
+            count: bad_uv_count,
+        });
+    }
+    for uv in &mut uvs {
+        *uv = uv.clamp(Vec2::ZERO, Vec2::ONE);
+    }
+
+    // Degenerate triangles.
+    let (lo, hi) = positions_m.iter().fold(
+        (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
+        |(lo, hi), p| (lo.min(*p), hi.max(*p)),
+    );
+    let diag2 = (hi.as_dvec3() - lo.as_dvec3()).length_squared();
+    let world_limit = 2.0 * DEGENERATE_RELATIVE_AREA * diag2;
+    let uv_limit = 2.0 * DEGENERATE_UV_AREA;
+    let mut zero_world: Vec<FaceRecord> = Vec::new();
+    let mut zero_uv: Vec<FaceRecord> = Vec::new();
+    let mut keep = vec![true; tris.len()];
+    for (t, tri) in tris.iter().enumerate() {
+        let p = tri[0].map(|i| positions_m[i as usize].as_dvec3());
+        let q = tri[1].map(|i| uvs[i as usize].as_dvec2().extend(0.0));
+        let rec = scan.faces[tri_face[t]];
+        if double_area(p[0], p[1], p[2]) <= world_limit {
+            zero_world.push(rec);
+            keep[t] = !options.skip_degenerate_faces;
+        } else if double_area(q[0], q[1], q[2]) <= uv_limit {
+            zero_uv.push(rec);
+        }
+    }
+    if !zero_world.is_empty() {
+        if !options.skip_degenerate_faces {
+            return Err(SceneError::ObjDegenerate {
+                path: path.to_path_buf(),
+                count: zero_world.len(),
+                first: list_faces(&zero_world),
+            });
+        }
+        warnings.push(format!(
+            "{}: skipped {} triangles with zero world area ({})",
+            path.display(),
+            zero_world.len(),
+            list_faces(&zero_world)
+        ));
+    }
+    if !zero_uv.is_empty() {
+        warnings.push(format!(
+            "{}: {} triangles have zero UV area ({}); they are kept (they still cast shadows) \
+             but receive no lightmap texels",
+            path.display(),
+            zero_uv.len(),
+            list_faces(&zero_uv)
+        ));
+    }
+
+    // Normals.
+    if use_file_normals
+        && tris
+            .iter()
+            .any(|t| t[2].iter().any(|&i| i as usize >= file_normals.len()))
+    {
+        return Err(internal(path, "normal index"));
+    }
+    if use_file_normals {
+        let bad = file_normals
+            .iter()
+            .any(|n| !n.is_finite() || n.length_squared() < 1e-20);
+        if bad {
+            use_file_normals = false;
+            warnings.push(format!(
+                "{}: some `vn` normals have zero length; computing smooth normals instead",
+                path.display()
+            ));
+        }
+    } else if !file_normals.is_empty() {
+        warnings.push(format!(
+            "{}: not every face corner has a normal; ignoring the `vn` normals and computing \
+             smooth normals",
+            path.display()
+        ));
+    }
+
+    let mut triangles: Vec<MeshTriangle> = Vec::with_capacity(tris.len());
+    for (t, tri) in tris.iter().enumerate() {
+        if !keep[t] {
+            continue;
+        }
+        triangles.push(MeshTriangle {
+            position: tri[0],
+            uv: tri[1],
+            normal: if use_file_normals { tri[2] } else { tri[0] },
+            material: scan.faces[tri_face[t]].material,
+        });
+    }
+    if triangles.is_empty() {
+        return Err(SceneError::ObjNoTriangles {
+            path: path.to_path_buf(),
+        });
+    }
+    let normals = if use_file_normals {
+        file_normals.iter().map(|n| n.normalize()).collect()
+    } else {
+        smooth_normals(&positions_m, &triangles)
+    };
+    let mesh = Mesh {
+        positions_m,
+        uvs,
+        normals,
+        triangles,
+    };
+    Ok((mesh, scan.material_names.clone(), warnings))
+}
+
+/// Smooth area-weighted vertex normals, one per position (indexed like positions).
+///
+/// Each triangle adds its unnormalised face normal `(b−a)×(c−a)` (length = 2·area) to its
+/// three corners. A position whose sum cancels to zero gets the normal of the first triangle
+/// touching it (or +z if it touches none).
+pub fn smooth_normals(positions: &[Vec3], triangles: &[MeshTriangle]) -> Vec<Vec3> {
+    let mut sum = vec![DVec3::ZERO; positions.len()];
+    let mut first = vec![DVec3::ZERO; positions.len()];
+    for tri in triangles {
+        if tri.position.iter().any(|&i| i as usize >= positions.len()) {
+            continue; // invalid triangle: contributes nothing
+        }
+        let [a, b, c] = tri.position.map(|i| positions[i as usize].as_dvec3());
+        let n = (b - a).cross(c - a);
+        for &i in &tri.position {
+            sum[i as usize] += n;
+            if first[i as usize] == DVec3::ZERO {
+                first[i as usize] = n;
+            }
+        }
+    }
+    sum.iter()
+        .zip(&first)
+        .map(|(s, f)| {
+            s.try_normalize()
+                .or_else(|| f.try_normalize())
+                .unwrap_or(DVec3::Z)
+                .as_vec3()
+        })
+        .collect()
+}
