@@ -1,19 +1,21 @@
 //! `ortm bin` end to end on a synthetic bake directory: atlases, index and pictures written and
 //! readable; clear errors for a missing index and a corrupt map file.
 
+mod common;
+
+use std::ffi::OsStr;
 use std::fs;
 use std::path::Path;
-use std::process::Command;
 
+use common::{fails, ortm};
 use glam::IVec2;
 use ortm::Lightmap;
 use ortm::atlas::{apply_atlas_set, read_atlas_set};
-use ortm::maps::{self, BakeIndex, BakeKey, LightmapSize, TransferMap, write_map_file};
+use ortm::maps::{self, BakeIndex, TransferMap};
 
 /// A bake of `n` maps of a 40×24 lightmap, each a few rectangles of distinct values.
 fn write_bake(dir: &Path, n: u32) -> Vec<TransferMap> {
     let (w, h) = (40, 24);
-    let key = BakeKey::new("cli-scene", &serde_json::json!({}));
     let maps: Vec<TransferMap> = (0..n)
         .map(|i| {
             let mut full = Lightmap::new(w, h);
@@ -27,30 +29,8 @@ fn write_bake(dir: &Path, n: u32) -> Vec<TransferMap> {
             TransferMap::from_full(IVec2::new(i as i32 % 5 - 2, 1), 0.1, 1.0, &full).unwrap()
         })
         .collect();
-    let entries = maps
-        .iter()
-        .enumerate()
-        .map(|(i, m)| write_map_file(dir, i as u32, m, &key).unwrap())
-        .collect();
-    BakeIndex::new(
-        LightmapSize {
-            width: w,
-            height: h,
-        },
-        "cli-scene".into(),
-        serde_json::json!({}),
-        entries,
-    )
-    .write(dir)
-    .unwrap();
+    common::write_bake(dir, &maps, (w, h), "cli-scene", serde_json::json!({}));
     maps
-}
-
-fn ortm(args: &[&std::ffi::OsStr]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_ortm"))
-        .args(args)
-        .output()
-        .unwrap()
 }
 
 #[test]
@@ -58,14 +38,17 @@ fn bin_writes_readable_atlases_and_pictures() {
     let bake = tempfile::tempdir().unwrap();
     let maps = write_bake(bake.path(), 9);
     let out = bake.path().join("atlases");
-    let o = ortm(&[
-        "bin".as_ref(),
-        bake.path().as_os_str(),
-        "--atlas".as_ref(),
-        "32x64".as_ref(),
-        "-o".as_ref(),
-        out.as_os_str(),
-    ]);
+    let o = ortm(
+        &[
+            "bin".as_ref(),
+            bake.path().as_os_str(),
+            "--atlas".as_ref(),
+            "32x64".as_ref(),
+            "-o".as_ref(),
+            out.as_os_str(),
+        ],
+        bake.path(),
+    );
     let stdout = String::from_utf8_lossy(&o.stdout);
     assert!(
         o.status.success(),
@@ -104,12 +87,15 @@ fn bin_writes_readable_atlases_and_pictures() {
     );
 
     // Default output is the bake directory itself; there the bake key is checked too.
-    let o = ortm(&[
-        "bin".as_ref(),
-        bake.path().as_os_str(),
-        "--atlas".as_ref(),
-        "64".as_ref(),
-    ]);
+    let o = ortm(
+        &[
+            "bin".as_ref(),
+            bake.path().as_os_str(),
+            "--atlas".as_ref(),
+            "64".as_ref(),
+        ],
+        bake.path(),
+    );
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert_eq!(read_atlas_set(bake.path()).unwrap().atlas_size, (64, 64));
 }
@@ -117,9 +103,10 @@ fn bin_writes_readable_atlases_and_pictures() {
 #[test]
 fn bin_reports_bad_input_clearly() {
     let empty = tempfile::tempdir().unwrap();
-    let o = ortm(&["bin".as_ref(), empty.path().as_os_str()]);
-    assert!(!o.status.success());
-    let err = String::from_utf8_lossy(&o.stderr);
+    let err = fails(ortm(
+        &[OsStr::new("bin"), empty.path().as_os_str()],
+        empty.path(),
+    ));
     assert!(err.contains("index.json"), "{err}");
 
     let bake = tempfile::tempdir().unwrap();
@@ -130,18 +117,20 @@ fn bin_reports_bad_input_clearly() {
     let mid = bytes.len() / 2;
     bytes[mid] ^= 1;
     fs::write(&file, bytes).unwrap();
-    let o = ortm(&["bin".as_ref(), bake.path().as_os_str()]);
-    assert!(!o.status.success());
-    let err = String::from_utf8_lossy(&o.stderr);
+    let err = fails(ortm(
+        &[OsStr::new("bin"), bake.path().as_os_str()],
+        bake.path(),
+    ));
     assert!(err.contains(&index.maps[1].file), "{err}");
 
-    let o = ortm(&[
-        "bin".as_ref(),
-        bake.path().as_os_str(),
-        "--atlas".as_ref(),
-        "1000".as_ref(),
-    ]);
-    assert!(!o.status.success());
-    let err = String::from_utf8_lossy(&o.stderr);
+    let err = fails(ortm(
+        &[
+            "bin".as_ref(),
+            bake.path().as_os_str(),
+            "--atlas".as_ref(),
+            "1000".as_ref(),
+        ],
+        bake.path(),
+    ));
     assert!(err.contains("power of two"), "{err}");
 }

@@ -2,60 +2,20 @@
 //! one piece, the atlas-based Eq. 9 equals `maps::apply`, and the files round-trip and refuse
 //! tampering with a clear error.
 
+mod common;
+
 use std::fs;
 use std::path::Path;
 
-use glam::IVec2;
+use common::{random_lightmap, random_sparse_maps};
 use ortm::Lightmap;
 use ortm::atlas::{
     ATLAS_INDEX_FILE_NAME, AtlasError, AtlasSet, apply_atlas_pieces, apply_atlas_set,
     build_atlas_set, read_atlas_index, read_atlas_set, write_atlas_set,
 };
-use ortm::maps::{self, BakeIndex, BakeKey, LightmapSize, TransferMap, write_map_file};
+use ortm::maps::{self, BakeIndex, BakeKey, TransferMap};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-
-/// Random sparse maps of a `w×h` lightmap: blobs of random values, scattered texels, random
-/// offsets; some maps empty.
-fn random_maps(rng: &mut ChaCha8Rng, w: u32, h: u32, n: usize) -> Vec<TransferMap> {
-    (0..n)
-        .map(|_| {
-            let mut full = Lightmap::new(w, h);
-            for _ in 0..rng.random_range(0..4) {
-                let (bx, by) = (rng.random_range(0..w), rng.random_range(0..h));
-                let bw = rng.random_range(1..=(w - bx).min(20));
-                let bh = rng.random_range(1..=(h - by).min(12));
-                for y in by..by + bh {
-                    for x in bx..bx + bw {
-                        full.set(
-                            x,
-                            y,
-                            [rng.random(), rng.random::<f32>() * 1e-3, rng.random()],
-                        );
-                    }
-                }
-            }
-            for _ in 0..rng.random_range(0..3) {
-                let (x, y) = (rng.random_range(0..w), rng.random_range(0..h));
-                full.set(x, y, [0.0, rng.random_range(1e-7..1.0), 0.0]);
-            }
-            let offset = IVec2::new(rng.random_range(-7..=7), rng.random_range(-7..=7));
-            TransferMap::from_full(offset, rng.random_range(0.0..1.0), 1.0, &full).unwrap()
-        })
-        .collect()
-}
-
-fn random_lightmap(rng: &mut ChaCha8Rng, w: u32, h: u32) -> Lightmap {
-    let mut m = Lightmap::new(w, h);
-    for v in &mut m.data {
-        *v = [
-            rng.random_range(0.0..10.0),
-            rng.random_range(0.0..10.0),
-            rng.random_range(0.0..10.0),
-        ];
-    }
-    m
-}
 
 const ATLAS_SIZES: [(u32, u32); 5] = [(8, 8), (16, 32), (64, 16), (64, 64), (128, 128)];
 
@@ -68,7 +28,7 @@ fn pieces_reconstruct_every_map_bit_exactly() {
     for round in 0..6 {
         let (w, h) = (rng.random_range(20..60), rng.random_range(10..40));
         let n = rng.random_range(1..25);
-        let maps = random_maps(&mut rng, w, h, n);
+        let maps = random_sparse_maps(&mut rng, w, h, n);
         for &(aw, ah) in &ATLAS_SIZES {
             let set = build_atlas_set(&maps, aw, ah).unwrap();
             set.validate().unwrap();
@@ -116,10 +76,11 @@ fn pieces_reconstruct_every_map_bit_exactly() {
                         );
                     }
                 }
-                let bits = |l: &Lightmap| -> Vec<[u32; 3]> {
-                    l.data.iter().map(|v| v.map(f32::to_bits)).collect()
-                };
-                assert_eq!(bits(&rebuilt[mi]), bits(&m.to_full()), "map {mi}");
+                assert_eq!(
+                    common::lightmap_bits(&rebuilt[mi]),
+                    common::lightmap_bits(&m.to_full()),
+                    "map {mi}"
+                );
             }
             // Sorted by atlas, then position.
             assert!(set.pieces.windows(2).all(
@@ -135,7 +96,7 @@ fn apply_atlas_set_equals_maps_apply() {
     for _ in 0..5 {
         let (w, h) = (rng.random_range(16..50), rng.random_range(16..50));
         let n = rng.random_range(1..30);
-        let maps = random_maps(&mut rng, w, h, n);
+        let maps = random_sparse_maps(&mut rng, w, h, n);
         let bo = random_lightmap(&mut rng, w, h);
         let reference = maps::apply(&maps, &bo).unwrap();
         for &(aw, ah) in &ATLAS_SIZES {
@@ -158,7 +119,7 @@ fn apply_atlas_set_equals_maps_apply() {
         }
     }
     // A first-order map of the wrong size is refused.
-    let maps = random_maps(&mut rng, 10, 10, 3);
+    let maps = random_sparse_maps(&mut rng, 10, 10, 3);
     let set = build_atlas_set(&maps, 8, 8).unwrap();
     assert!(matches!(
         apply_atlas_set(&set, &Lightmap::new(10, 11)),
@@ -172,7 +133,7 @@ fn apply_atlas_pieces_of_a_map_subset_equals_maps_apply_of_that_subset() {
     // filtering pieces by map index must equal `maps::apply` of the same maps alone.
     let mut rng = ChaCha8Rng::seed_from_u64(7);
     let (w, h) = (40, 30);
-    let maps = random_maps(&mut rng, w, h, 12);
+    let maps = random_sparse_maps(&mut rng, w, h, 12);
     let bo = random_lightmap(&mut rng, w, h);
     let set = build_atlas_set(&maps, 64, 64).unwrap();
     for keep in [
@@ -205,23 +166,8 @@ fn settings() -> serde_json::Value {
 fn write_bake(dir: &Path, seed: u64) -> (Vec<TransferMap>, BakeIndex) {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let (w, h) = (48, 40);
-    let maps = random_maps(&mut rng, w, h, 12);
-    let key = BakeKey::new("scene", &settings());
-    let entries = maps
-        .iter()
-        .enumerate()
-        .map(|(i, m)| write_map_file(dir, i as u32, m, &key).unwrap())
-        .collect();
-    let index = BakeIndex::new(
-        LightmapSize {
-            width: w,
-            height: h,
-        },
-        "scene".into(),
-        settings(),
-        entries,
-    );
-    index.write(dir).unwrap();
+    let maps = random_sparse_maps(&mut rng, w, h, 12);
+    let index = common::write_bake(dir, &maps, (w, h), "scene", settings());
     (maps, index)
 }
 
@@ -284,11 +230,7 @@ fn write_then_read_round_trips() {
 
 /// Rewrites `atlases.json` after `edit` and returns the read error.
 fn read_after_edit(dir: &Path, edit: impl FnOnce(&mut serde_json::Value)) -> AtlasError {
-    let path = dir.join(ATLAS_INDEX_FILE_NAME);
-    let mut v: serde_json::Value =
-        serde_json::from_str(&fs::read_to_string(&path).unwrap()).unwrap();
-    edit(&mut v);
-    fs::write(&path, serde_json::to_string_pretty(&v).unwrap()).unwrap();
+    common::edit_json(&dir.join(ATLAS_INDEX_FILE_NAME), edit);
     read_atlas_set(dir).unwrap_err()
 }
 
@@ -405,7 +347,7 @@ fn tampered_or_inconsistent_atlases_are_refused() {
 #[test]
 fn write_refuses_inconsistent_sets() {
     let mut rng = ChaCha8Rng::seed_from_u64(1);
-    let maps = random_maps(&mut rng, 20, 20, 6);
+    let maps = random_sparse_maps(&mut rng, 20, 20, 6);
     let set = build_atlas_set(&maps, 16, 16).unwrap();
     let dir = tempfile::tempdir().unwrap();
     let key = BakeKey::new("s", &settings());

@@ -2,6 +2,8 @@
 //! bake, keeping the valid finished maps, and the result is byte-identical (every map file, the
 //! index and the selection) to an uninterrupted bake with the same seed.
 
+mod common;
+
 use std::path::Path;
 use std::sync::atomic::AtomicBool;
 
@@ -23,14 +25,10 @@ type Content = (Vec<ortm::maps::TransferMap>, Vec<(String, Vec<u8>)>);
 
 fn content(dir: &Path) -> Content {
     let index = ortm::maps::BakeIndex::read(dir).unwrap();
-    let mut files: Vec<(String, Vec<u8>)> = std::fs::read_dir(dir)
-        .unwrap()
-        .map(|e| e.unwrap())
-        .map(|e| (e.file_name().into_string().unwrap(), e.path()))
+    let files: Vec<(String, Vec<u8>)> = common::dir_files(dir)
+        .into_iter()
         .filter(|(n, _)| n.ends_with(".exr") || n.ends_with(".json"))
-        .map(|(n, p)| (n, std::fs::read(p).unwrap()))
         .collect();
-    files.sort();
     (index.load_maps(dir).unwrap(), files)
 }
 

@@ -5,12 +5,15 @@
 //! complete, the atlas set is absent or complete), and after the final rerun every output file
 //! is byte-identical to an uninterrupted run with the same seed.
 
+mod common;
+
 use std::fs;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
-const ORTM: &str = env!("CARGO_BIN_EXE_ortm");
+use common::{dir_files, ortm_command};
+
 const BAKE_ARGS: [&str; 10] = [
     "bake",
     "cornell",
@@ -25,7 +28,7 @@ const BAKE_ARGS: [&str; 10] = [
 ];
 
 fn bake_cmd(dir: &Path) -> Command {
-    let mut c = Command::new(ORTM);
+    let mut c = ortm_command();
     c.args(BAKE_ARGS)
         .arg("-o")
         .arg(dir)
@@ -36,7 +39,7 @@ fn bake_cmd(dir: &Path) -> Command {
 }
 
 fn bin_cmd(dir: &Path) -> Command {
-    let mut c = Command::new(ORTM);
+    let mut c = ortm_command();
     c.arg("bin")
         .arg(dir)
         .args(["--atlas", "64"])
@@ -52,22 +55,6 @@ fn run_ok(mut c: Command) {
         "ortm failed: {}",
         String::from_utf8_lossy(&out.stderr)
     );
-}
-
-/// Every file of `dir` (name, bytes), sorted by name.
-fn files(dir: &Path) -> Vec<(String, Vec<u8>)> {
-    let mut v: Vec<(String, Vec<u8>)> = fs::read_dir(dir)
-        .unwrap()
-        .map(|e| e.unwrap())
-        .map(|e| {
-            (
-                e.file_name().into_string().unwrap(),
-                fs::read(e.path()).unwrap(),
-            )
-        })
-        .collect();
-    v.sort();
-    v
 }
 
 fn map_files(dir: &Path) -> Vec<PathBuf> {
@@ -142,7 +129,7 @@ fn killed_bake_and_bin_resume_to_byte_identical_output() {
     let t1 = Instant::now();
     run_ok(bin_cmd(reference.path()));
     let bin_time = t1.elapsed();
-    let expected = files(reference.path());
+    let expected = dir_files(reference.path());
     assert!(expected.iter().any(|(n, _)| n == "atlases.json"));
     let expected_bake: Vec<_> = expected
         .iter()
@@ -167,7 +154,7 @@ fn killed_bake_and_bin_resume_to_byte_identical_output() {
         check_bake_readers(dir.path());
     }
     run_ok(bake_cmd(dir.path()));
-    assert_eq!(files(dir.path()), expected_bake, "resumed bake differs");
+    assert_eq!(dir_files(dir.path()), expected_bake, "resumed bake differs");
     assert!(
         killed >= 2,
         "only {killed} of 3 bake runs were still running when killed"
@@ -188,7 +175,7 @@ fn killed_bake_and_bin_resume_to_byte_identical_output() {
         check_bake_readers(dir.path());
         run_ok(bake_cmd(dir.path()));
         assert_eq!(
-            files(dir.path()),
+            dir_files(dir.path()),
             expected_bake,
             "bake killed at {at:?} differs"
         );
@@ -210,6 +197,10 @@ fn killed_bake_and_bin_resume_to_byte_identical_output() {
         );
         check_atlas_readers(dir.path());
         run_ok(bin_cmd(dir.path()));
-        assert_eq!(files(dir.path()), expected, "bin killed at {at:?} differs");
+        assert_eq!(
+            dir_files(dir.path()),
+            expected,
+            "bin killed at {at:?} differs"
+        );
     }
 }

@@ -5,42 +5,33 @@
 //! written by hand for a limit the fuzzer would take long to reach (each says which in
 //! `tests/data/fuzz/README.md`).
 
+mod common;
+
 use std::fs;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use sha2::{Digest, Sha256};
 
-fn data() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/fuzz")
-}
-
 /// The regression inputs of `target` (at least one).
 fn cases(target: &str) -> Vec<(String, Vec<u8>)> {
-    let mut v: Vec<(String, Vec<u8>)> = fs::read_dir(data().join(target))
-        .unwrap_or_else(|e| panic!("tests/data/fuzz/{target}: {e}"))
-        .map(|e| e.unwrap())
-        .filter(|e| e.file_name() != "README.md")
-        .map(|e| {
-            (
-                e.file_name().into_string().unwrap(),
-                fs::read(e.path()).unwrap(),
-            )
-        })
+    let dir = common::data("fuzz").join(target);
+    assert!(dir.is_dir(), "tests/data/fuzz/{target}: not a folder");
+    let v: Vec<(String, Vec<u8>)> = common::dir_files(&dir)
+        .into_iter()
+        .filter(|(name, _)| name != "README.md")
         .collect();
-    v.sort();
     assert!(!v.is_empty(), "no regression inputs for {target}");
     v
 }
 
 /// A scratch copy of the fixture bake (and `two_quads.obj`), as the fuzz targets use.
 fn scratch() -> tempfile::TempDir {
-    let dir = tempfile::tempdir().unwrap();
-    for e in fs::read_dir(data().join("fixture_bake")).unwrap() {
-        let e = e.unwrap();
-        fs::copy(e.path(), dir.path().join(e.file_name())).unwrap();
-    }
-    let obj = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/scene/two_quads.obj");
-    fs::copy(obj, dir.path().join("two_quads.obj")).unwrap();
+    let dir = common::fixture_bake();
+    fs::copy(
+        common::data("scene/two_quads.obj"),
+        dir.path().join("two_quads.obj"),
+    )
+    .unwrap();
     dir
 }
 
@@ -78,19 +69,14 @@ fn map_exr_regressions() {
 fn atlas_exr_regressions() {
     for (name, bytes) in cases("atlas_exr") {
         let dir = scratch();
-        let mut v: serde_json::Value =
-            serde_json::from_slice(&fs::read(dir.path().join("atlases.json")).unwrap()).unwrap();
-        v["atlases"][0]["bytes"] = bytes.len().into();
         let digest: String = Sha256::digest(&bytes)
             .iter()
             .map(|b| format!("{b:02x}"))
             .collect();
-        v["atlases"][0]["sha256"] = digest.into();
-        fs::write(
-            dir.path().join("atlases.json"),
-            serde_json::to_vec_pretty(&v).unwrap(),
-        )
-        .unwrap();
+        common::edit_json(&dir.path().join("atlases.json"), |v| {
+            v["atlases"][0]["bytes"] = bytes.len().into();
+            v["atlases"][0]["sha256"] = digest.into();
+        });
         fs::write(dir.path().join("atlas_000.exr"), &bytes).unwrap();
         expect_clean(
             &name,

@@ -6,32 +6,19 @@
 //! The fixture `tests/data/fuzz/fixture_bake` is a tiny Cornell bake (`ortm bake cornell --size
 //! 32 --offsets 8`) binned with `ortm bin --atlas 64`.
 
+mod common;
+
 use std::fs;
 use std::path::Path;
-use std::process::Command;
 
 use ortm::atlas::{AtlasError, read_atlas_set};
 use ortm::maps::{BakeIndex, MapsError};
 
-fn fixture() -> tempfile::TempDir {
-    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/fuzz/fixture_bake");
-    let dir = tempfile::tempdir().unwrap();
-    for e in fs::read_dir(src).unwrap() {
-        let e = e.unwrap();
-        fs::copy(e.path(), dir.path().join(e.file_name())).unwrap();
-    }
-    dir
-}
-
-fn edit_json(path: &Path, edit: impl FnOnce(&mut serde_json::Value)) {
-    let mut v: serde_json::Value = serde_json::from_slice(&fs::read(path).unwrap()).unwrap();
-    edit(&mut v);
-    fs::write(path, serde_json::to_vec_pretty(&v).unwrap()).unwrap();
-}
+use common::{edit_json, fails, fixture_bake};
 
 #[test]
 fn fixture_reads_cleanly() {
-    let dir = fixture();
+    let dir = fixture_bake();
     let index = BakeIndex::read(dir.path()).unwrap();
     assert_eq!(index.load_maps(dir.path()).unwrap().len(), 8);
     let set = read_atlas_set(dir.path()).unwrap();
@@ -40,7 +27,7 @@ fn fixture_reads_cleanly() {
 
 #[test]
 fn bake_index_absolute_path_is_refused() {
-    let dir = fixture();
+    let dir = fixture_bake();
     let abs = dir.path().join("map_00000_+0_+0.exr");
     edit_json(&dir.path().join("index.json"), |v| {
         v["maps"][0]["file"] = abs.to_string_lossy().into_owned().into();
@@ -51,7 +38,7 @@ fn bake_index_absolute_path_is_refused() {
 
 #[test]
 fn bake_index_dotdot_is_refused() {
-    let dir = fixture();
+    let dir = fixture_bake();
     edit_json(&dir.path().join("index.json"), |v| {
         v["maps"][0]["file"] = "../map_00000_+0_+0.exr".into();
     });
@@ -61,7 +48,7 @@ fn bake_index_dotdot_is_refused() {
 
 #[test]
 fn bake_index_symlink_escape_is_refused() {
-    let dir = fixture();
+    let dir = fixture_bake();
     // The map file is replaced by a link to an identical file outside the bake directory:
     // same bytes and checksum, but it is not in the directory.
     let outside = tempfile::tempdir().unwrap();
@@ -87,7 +74,7 @@ fn bake_index_symlink_escape_is_refused() {
 
 #[test]
 fn bake_index_naming_a_directory_or_device_is_refused() {
-    let dir = fixture();
+    let dir = fixture_bake();
     fs::create_dir(dir.path().join("sub.exr")).unwrap();
     edit_json(&dir.path().join("index.json"), |v| {
         v["maps"][0]["file"] = "sub.exr".into();
@@ -98,7 +85,7 @@ fn bake_index_naming_a_directory_or_device_is_refused() {
 
 #[test]
 fn atlas_index_absolute_path_is_refused() {
-    let dir = fixture();
+    let dir = fixture_bake();
     let abs = dir.path().join("atlas_000.exr");
     edit_json(&dir.path().join("atlases.json"), |v| {
         v["atlases"][0]["file"] = abs.to_string_lossy().into_owned().into();
@@ -109,7 +96,7 @@ fn atlas_index_absolute_path_is_refused() {
 
 #[test]
 fn atlas_index_dotdot_is_refused() {
-    let dir = fixture();
+    let dir = fixture_bake();
     edit_json(&dir.path().join("atlases.json"), |v| {
         v["atlases"][0]["file"] = "../atlas_000.exr".into();
     });
@@ -119,7 +106,7 @@ fn atlas_index_dotdot_is_refused() {
 
 #[test]
 fn atlas_index_symlink_escape_is_refused() {
-    let dir = fixture();
+    let dir = fixture_bake();
     let outside = tempfile::tempdir().unwrap();
     let target = outside.path().join("atlas_000.exr");
     fs::rename(dir.path().join("atlas_000.exr"), &target).unwrap();
@@ -132,14 +119,14 @@ fn atlas_index_symlink_escape_is_refused() {
 #[test]
 fn atlas_index_that_does_not_match_the_bake_is_refused() {
     // A piece whose offset differs from its map's offset in index.json.
-    let dir = fixture();
+    let dir = fixture_bake();
     edit_json(&dir.path().join("atlases.json"), |v| {
         v["pieces"][0]["offset"] = serde_json::json!([5, 5]);
     });
     let e = read_atlas_set(dir.path()).unwrap_err();
     assert!(matches!(e, AtlasError::BadIndex { .. }), "{e}");
     // A piece naming a map the bake does not have (with a consistent offset in its own index).
-    let dir = fixture();
+    let dir = fixture_bake();
     edit_json(&dir.path().join("index.json"), |v| {
         v["maps"].as_array_mut().unwrap().truncate(1);
     });
@@ -147,7 +134,7 @@ fn atlas_index_that_does_not_match_the_bake_is_refused() {
     assert!(e.to_string().contains("1 maps"), "{e}");
     // An atlas index claiming a far larger atlas than its 17 kB file can hold is refused before
     // any geometry check allocates for it.
-    let dir = fixture();
+    let dir = fixture_bake();
     edit_json(&dir.path().join("atlases.json"), |v| {
         v["atlas_size"] = serde_json::json!({"width": 65536, "height": 4096});
     });
@@ -157,7 +144,7 @@ fn atlas_index_that_does_not_match_the_bake_is_refused() {
 
 #[test]
 fn oversized_json_is_refused_before_reading() {
-    let dir = fixture();
+    let dir = fixture_bake();
     let f = fs::File::create(dir.path().join("index.json")).unwrap();
     f.set_len(ortm::io::limits::MAX_JSON_BYTES + 1).unwrap(); // sparse: no disk used
     let e = BakeIndex::read(dir.path()).unwrap_err();
@@ -182,14 +169,13 @@ fn scene_naming_a_device_as_mesh_is_refused() {
 #[test]
 fn bake_over_the_memory_limit_is_refused_with_the_bytes_needed() {
     let dir = tempfile::tempdir().unwrap();
-    let out = Command::new(env!("CARGO_BIN_EXE_ortm"))
+    let out = common::ortm_command()
         .args(["bake", "cornell", "--size", "64", "--offsets", "4", "-o"])
         .arg(dir.path())
         .env(ortm::io::limits::MEMORY_LIMIT_ENV, "100000")
         .output()
         .unwrap();
-    assert!(!out.status.success());
-    let err = String::from_utf8_lossy(&out.stderr);
+    let err = fails(out);
     assert!(err.contains("bytes") && err.contains("needed"), "{err}");
     assert!(err.contains("100000 bytes"), "{err}");
     // Nothing was baked.
@@ -201,14 +187,13 @@ fn bake_over_the_memory_limit_is_refused_with_the_bytes_needed() {
 fn impossible_offset_counts_and_sizes_are_refused_up_front() {
     let dir = tempfile::tempdir().unwrap();
     let run = |args: &[&str]| {
-        let out = Command::new(env!("CARGO_BIN_EXE_ortm"))
+        let out = common::ortm_command()
             .args(args)
             .arg("-o")
             .arg(dir.path())
             .output()
             .unwrap();
-        assert!(!out.status.success());
-        String::from_utf8_lossy(&out.stderr).into_owned()
+        fails(out)
     };
     // A 32×32 lightmap has 63·63 = 3969 distinct offsets.
     let err = run(&["bake", "cornell", "--size", "32", "--offsets", "4000"]);
@@ -219,17 +204,16 @@ fn impossible_offset_counts_and_sizes_are_refused_up_front() {
 
 #[test]
 fn bin_over_the_memory_limit_is_refused_with_the_bytes_needed() {
-    let dir = fixture();
+    let dir = fixture_bake();
     fs::remove_file(dir.path().join("atlases.json")).unwrap();
-    let out = Command::new(env!("CARGO_BIN_EXE_ortm"))
+    let out = common::ortm_command()
         .arg("bin")
         .arg(dir.path())
         .args(["--atlas", "4096"])
         .env(ortm::io::limits::MEMORY_LIMIT_ENV, "100000000")
         .output()
         .unwrap();
-    assert!(!out.status.success());
-    let err = String::from_utf8_lossy(&out.stderr);
+    let err = fails(out);
     // One 4096² atlas of RGB f32 plus the fixture's 2130 stored texels.
     let need = (4096 * 4096 + 2130) * 12;
     assert!(err.contains(&format!("{need} bytes")), "{err}");
@@ -240,7 +224,7 @@ fn bin_over_the_memory_limit_is_refused_with_the_bytes_needed() {
 fn implausible_saved_selection_is_ignored_and_selected_again() {
     let dir = tempfile::tempdir().unwrap();
     let bake = || {
-        let out = Command::new(env!("CARGO_BIN_EXE_ortm"))
+        let out = common::ortm_command()
             .args(["bake", "cornell", "--size", "32", "--offsets", "4"])
             .args(["--iterations", "50", "-o"])
             .arg(dir.path())

@@ -3,43 +3,18 @@
 //! bit-identical to the result from the in-memory maps (f32 files are lossless), and a resumed
 //! bake must find exactly the maps already written.
 
-use glam::IVec2;
+mod common;
+
 use ortm::Lightmap;
-use ortm::maps::{
-    BakeIndex, BakeKey, LightmapSize, TransferMap, apply, scan_finished_maps, write_map_file,
-};
+use ortm::maps::{BakeIndex, BakeKey, LightmapSize, apply, scan_finished_maps, write_map_file};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-
-fn random_maps(rng: &mut ChaCha8Rng, w: u32, h: u32, n: usize) -> Vec<TransferMap> {
-    (0..n)
-        .map(|i| {
-            let mut full = Lightmap::new(w, h);
-            // A couple of blobs per map, values spanning 1e-7..1.
-            for _ in 0..rng.random_range(0..3) {
-                let (bx, by) = (rng.random_range(0..w), rng.random_range(0..h));
-                let (bw, bh) = (
-                    rng.random_range(1..=(w - bx).min(8)),
-                    rng.random_range(1..=(h - by).min(8)),
-                );
-                for y in by..by + bh {
-                    for x in bx..bx + bw {
-                        let s = 10f32.powf(-rng.random_range(0.0..7.0f32));
-                        full.set(x, y, [s, s * rng.random::<f32>(), s * 0.5]);
-                    }
-                }
-            }
-            let offset = IVec2::new(rng.random_range(-20..20), rng.random_range(-12..12));
-            TransferMap::from_full(offset, 0.01 * (i + 1) as f64, rng.random(), &full).unwrap()
-        })
-        .collect()
-}
 
 #[test]
 fn bake_directory_round_trip_reproduces_apply() {
     let mut rng = ChaCha8Rng::seed_from_u64(2024);
     let (w, h) = (48, 32);
-    let maps = random_maps(&mut rng, w, h, 12);
+    let maps = common::random_log_valued_maps(&mut rng, w, h, 12);
     let mut bo = Lightmap::new(w, h);
     for v in bo.data.iter_mut() {
         *v = [rng.random::<f32>() * 10.0, rng.random(), 0.0];
@@ -83,13 +58,10 @@ fn bake_directory_round_trip_reproduces_apply() {
 
     let from_memory = apply(&maps, &bo).unwrap();
     let from_disk = apply(&loaded, &bo).unwrap();
-    let bits = |m: &Lightmap| {
-        m.data
-            .iter()
-            .map(|v| v.map(f32::to_bits))
-            .collect::<Vec<_>>()
-    };
-    assert_eq!(bits(&from_disk), bits(&from_memory));
+    assert_eq!(
+        common::lightmap_bits(&from_disk),
+        common::lightmap_bits(&from_memory)
+    );
     // The maps add light: the result is never below B_o (all inputs are non-negative).
     for (f, b) in from_disk.data.iter().zip(&bo.data) {
         for c in 0..3 {

@@ -3,34 +3,13 @@
 //! CPU reference of Eq. 9 applied to the written first-order lightmap, and that bad input
 //! gives clear errors. Runs on lavapipe like the other GPU tests.
 
-use std::path::Path;
-use std::process::{Command, Output};
+mod common;
 
+use std::path::Path;
+
+use common::{fails, ok, ortm, tiny_cornell_bake};
 use ortm::maps::{BakeIndex, apply};
 use ortm::render::read_lightmap_exr;
-
-fn ortm(args: &[&str], cwd: &Path) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_ortm"))
-        .args(args)
-        .current_dir(cwd)
-        .output()
-        .expect("the ortm binary runs")
-}
-
-fn ok(out: Output) -> String {
-    let text = format!(
-        "{}{}",
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
-    assert!(out.status.success(), "ortm failed:\n{text}");
-    text
-}
-
-fn fails(out: Output) -> String {
-    assert!(!out.status.success(), "ortm should have failed");
-    String::from_utf8_lossy(&out.stderr).into_owned()
-}
 
 /// `final.exr` must equal `maps::apply(maps, first.exr)`: 1e-3 relative plus 1e-6 of the
 /// map's maximum (the Cornell maps are all non-negative, so the GPU's f32 sums of ≤ 13 terms
@@ -61,21 +40,7 @@ fn check_outputs(dir: &Path) {
 fn render_writes_frame_and_lightmaps_consistent_with_cpu_reference() {
     let tmp = tempfile::tempdir().unwrap();
     let dir = tmp.path();
-    ok(ortm(
-        &[
-            "bake",
-            "cornell",
-            "--size",
-            "32",
-            "--offsets",
-            "12",
-            "--selector",
-            "jittered-grid",
-            "-o",
-            "bake",
-        ],
-        dir,
-    ));
+    tiny_cornell_bake(dir, "bake");
     let render = [
         "render",
         "bake",
@@ -123,10 +88,8 @@ fn render_writes_frame_and_lightmaps_consistent_with_cpu_reference() {
         String::from_utf8_lossy(&out.stderr)
     );
     assert!(dir.join("frame_default_scene.png").exists());
-    let quads = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/tests/data/scene/two_quads.toml"
-    );
+    let quads = common::data("scene/two_quads.toml");
+    let quads = quads.to_str().unwrap();
     let e = fails(ortm(&["render", "bake", "--scene", quads], dir));
     assert!(e.contains("different scene"), "{e}");
     let e = fails(ortm(
@@ -149,7 +112,7 @@ fn render_writes_frame_and_lightmaps_consistent_with_cpu_reference() {
 
     // No usable adapter (only a backend this build lacks): the error says how to get one.
     if cfg!(target_os = "linux") {
-        let out = Command::new(env!("CARGO_BIN_EXE_ortm"))
+        let out = common::ortm_command()
             .args(["render", "bake", "-o", "no_adapter.png"])
             .env("WGPU_BACKEND", "metal")
             .current_dir(dir)

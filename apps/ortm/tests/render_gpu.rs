@@ -11,7 +11,7 @@
 //!    (tolerant metric). Regenerate it after an intended change of the display with
 //!    `ORTM_UPDATE_REFERENCE=1 cargo test --test render_gpu reference_frame` and look at it.
 
-use std::path::PathBuf;
+mod common;
 
 use glam::{IVec2, Vec3};
 use ortm::atlas::build_atlas_set;
@@ -35,12 +35,6 @@ fn gpu() -> ExclusiveGpu {
     Gpu::new_headless_exclusive().unwrap_or_else(|e| panic!("{e}"))
 }
 
-fn data(rel: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("tests/data/render")
-        .join(rel)
-}
-
 /// Scene, grid and baked maps (jittered-grid offsets, default effects, 8² coarse clusters).
 fn bake(mut scene: Scene, size: u32, offsets: usize) -> (Scene, TexelGrid, Vec<TransferMap>) {
     scene.lightmap_size = (size, size);
@@ -59,7 +53,7 @@ fn bake(mut scene: Scene, size: u32, offsets: usize) -> (Scene, TexelGrid, Vec<T
 }
 
 fn head(size: u32) -> Scene {
-    let mut s = ortm::scene::load_scene(&data("head.toml")).unwrap();
+    let mut s = ortm::scene::load_scene(&common::data("render/head.toml")).unwrap();
     s.lightmap_size = (size, size);
     s
 }
@@ -341,7 +335,7 @@ fn reference_frame_matches_stored_png() {
             },
         )
         .unwrap();
-    let path = data("cornell_frame.png");
+    let path = common::data("render/cornell_frame.png");
     if std::env::var_os("ORTM_UPDATE_REFERENCE").is_some() {
         img.save(&path).unwrap();
         eprintln!("wrote {}", path.display());

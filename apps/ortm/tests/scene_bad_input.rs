@@ -1,15 +1,13 @@
 //! Bad input: one file per case. Each error must name the file and the problem (and, where
 //! the format allows, the line), and nothing may panic.
 
-use std::path::{Path, PathBuf};
+mod common;
+
+use std::path::Path;
+
+use common::data;
 
 use ortm::scene::{SceneError, load_obj, load_scene};
-
-fn data(rel: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("tests/data")
-        .join(rel)
-}
 
 /// Loads an OBJ that must fail; returns the error and its message.
 fn obj_error(rel: &str) -> (SceneError, String) {

@@ -1,18 +1,14 @@
 //! Scene files: values, units, material assignment, lights, textures.
 
-use std::path::{Path, PathBuf};
+mod common;
+
+use common::{data, head_obj};
 
 use glam::{Vec2, Vec3};
 use ortm::scene::file::srgb_to_linear;
 use ortm::scene::{
     Albedo, Light, SubsurfaceModel, load_scene, load_scene_with_warnings, subsurface_preset,
 };
-
-fn data(rel: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("tests/data")
-        .join(rel)
-}
 
 #[test]
 fn two_quads_scene_loads_with_units_materials_and_lights() {
@@ -160,10 +156,7 @@ fn albedo_texture_is_decoded_from_srgb_to_linear() {
 #[test]
 fn explicit_subsurface_coefficients_and_head_style_scene() {
     let dir = tempfile::tempdir().unwrap();
-    let head = Path::new(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../../shared/faces/head.obj"
-    ));
+    let head = head_obj();
     let p = dir.path().join("head.toml");
     std::fs::write(
         &p,

@@ -1,16 +1,14 @@
 //! OBJ loading: counts, triangulation order, welding, materials, normals, and the head scan.
 
-use std::path::{Path, PathBuf};
+mod common;
+
+use std::path::PathBuf;
+
+use common::{data, head_obj};
 
 use glam::Vec3;
 use ortm::scene::obj::{ObjOptions, load_obj_with, smooth_normals};
 use ortm::scene::{MeshTriangle, load_obj};
-
-fn data(rel: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("tests/data")
-        .join(rel)
-}
 
 /// Writes `text` to a fresh temporary OBJ file.
 fn temp_obj(text: &str) -> (tempfile::TempDir, PathBuf) {
@@ -22,11 +20,7 @@ fn temp_obj(text: &str) -> (tempfile::TempDir, PathBuf) {
 
 #[test]
 fn head_scan_counts() {
-    let head = Path::new(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../../shared/faces/head.obj"
-    ));
-    let (mesh, names, warnings) = load_obj(head, 0.34).expect("head.obj loads");
+    let (mesh, names, warnings) = load_obj(&head_obj(), 0.34).expect("head.obj loads");
     assert_eq!(mesh.positions_m.len(), 8_844);
     assert_eq!(mesh.uvs.len(), 35_368);
     assert_eq!(mesh.triangles.len(), 17_684);

@@ -1,5 +1,7 @@
 //! The texel rasterizer: coverage rule, areas, and the UV-overlap error.
 
+mod common;
+
 use glam::{Vec2, Vec3};
 use ortm::scene::{Albedo, Material, Mesh, MeshTriangle, Scene};
 use ortm::bake::texels::{TexelError, TexelGrid};
@@ -65,11 +67,8 @@ fn full_square_covers_every_texel_once_with_the_right_area() {
 
 #[test]
 fn overlapping_uvs_are_an_error_naming_the_overlap() {
-    let path = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/tests/data/bad/overlapping_uvs.obj"
-    );
-    let (mesh, _, _) = ortm::scene::obj::load_obj(std::path::Path::new(path), 1.0).unwrap();
+    let path = common::data("bad/overlapping_uvs.obj");
+    let (mesh, _, _) = ortm::scene::obj::load_obj(&path, 1.0).unwrap();
     let scene = scene_with(mesh.clone(), 32);
     let err = TexelGrid::build(&scene).unwrap_err();
     assert!(matches!(err, TexelError::Overlap { .. }));

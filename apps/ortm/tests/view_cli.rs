@@ -7,25 +7,23 @@
 //! The test fails (never skips) when no X server can be started: CI installs `xvfb` (see the
 //! README's test line).
 
+mod common;
+
 use std::path::Path;
 use std::process::{Child, Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
-fn ortm(args: &[&str], cwd: &Path, display: Option<&str>) -> Output {
-    let mut cmd = Command::new(env!("CARGO_BIN_EXE_ortm"));
-    cmd.args(args).current_dir(cwd);
-    if let Some(d) = display {
-        cmd.env("DISPLAY", d).env_remove("WAYLAND_DISPLAY");
-    }
-    cmd.output().expect("the ortm binary runs")
-}
+use common::{fails, output_text, tiny_cornell_bake};
 
-fn text(out: &Output) -> String {
-    format!(
-        "{}{}",
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    )
+/// Runs `ortm <args>` in `cwd` on the X display `display`.
+fn ortm(args: &[&str], cwd: &Path, display: &str) -> Output {
+    common::ortm_command()
+        .args(args)
+        .current_dir(cwd)
+        .env("DISPLAY", display)
+        .env_remove("WAYLAND_DISPLAY")
+        .output()
+        .expect("the ortm binary runs")
 }
 
 /// An Xvfb started by the test (killed on drop), or the caller's display.
@@ -125,23 +123,7 @@ fn mean_lit(img: &image::RgbaImage, x0: u32, x1: u32) -> (f64, usize) {
 fn view_screenshot_shows_the_lit_box_where_the_light_is() {
     let tmp = tempfile::tempdir().unwrap();
     let dir = tmp.path();
-    let bake = ortm(
-        &[
-            "bake",
-            "cornell",
-            "--size",
-            "32",
-            "--offsets",
-            "12",
-            "--selector",
-            "jittered-grid",
-            "-o",
-            "bake",
-        ],
-        dir,
-        None,
-    );
-    assert!(bake.status.success(), "bake failed:\n{}", text(&bake));
+    tiny_cornell_bake(dir, "bake");
     let x = x_server();
     // A point light close to the red (left, x = 0) wall, then close to the green (right,
     // x = 0.555 m) wall; the camera looks along −z into the open side.
@@ -165,9 +147,9 @@ fn view_screenshot_shows_the_lit_box_where_the_light_is() {
                 light,
             ],
             dir,
-            Some(&x.display),
+            &x.display,
         );
-        let log = text(&out);
+        let log = output_text(&out);
         assert!(out.status.success(), "ortm view failed:\n{log}");
         assert!(!log.contains("panicked"), "{log}");
         let img = image::open(dir.join(&png)).unwrap().to_rgba8();
@@ -214,23 +196,7 @@ fn view_screenshot_shows_the_lit_box_where_the_light_is() {
 fn view_modes_agree_with_each_other_and_the_cpu_reference() {
     let tmp = tempfile::tempdir().unwrap();
     let dir = tmp.path();
-    let bake = ortm(
-        &[
-            "bake",
-            "cornell",
-            "--size",
-            "32",
-            "--offsets",
-            "12",
-            "--selector",
-            "jittered-grid",
-            "-o",
-            "bake",
-        ],
-        dir,
-        None,
-    );
-    assert!(bake.status.success(), "bake failed:\n{}", text(&bake));
+    tiny_cornell_bake(dir, "bake");
     let x = x_server();
     let shot = |name: &str, extra: &[&str]| -> Vec<f64> {
         let png = format!("{name}.png");
@@ -247,11 +213,11 @@ fn view_modes_agree_with_each_other_and_the_cpu_reference() {
             &png,
         ];
         args.extend_from_slice(extra);
-        let out = ortm(&args, dir, Some(&x.display));
+        let out = ortm(&args, dir, &x.display);
         assert!(
             out.status.success(),
             "ortm view {extra:?} failed:\n{}",
-            text(&out)
+            output_text(&out)
         );
         let img = image::open(dir.join(&png)).unwrap().to_rgb8();
         img.pixels().flat_map(|p| p.0.map(f64::from)).collect()
@@ -304,9 +270,13 @@ fn view_modes_agree_with_each_other_and_the_cpu_reference() {
             "resized.png",
         ],
         dir,
-        Some(&x.display),
+        &x.display,
     );
-    assert!(out.status.success(), "resize run failed:\n{}", text(&out));
+    assert!(
+        out.status.success(),
+        "resize run failed:\n{}",
+        output_text(&out)
+    );
     let before = image::open(dir.join("all.png")).unwrap().to_rgba8();
     let after = image::open(dir.join("resized.png")).unwrap().to_rgba8();
     assert!(
@@ -329,9 +299,7 @@ fn view_reports_missing_and_corrupt_bakes_without_panicking() {
     let tmp = tempfile::tempdir().unwrap();
     let dir = tmp.path();
     // Missing directory: an error naming it, before any window opens.
-    let out = ortm(&["view", "no-such-bake", "--frames", "1"], dir, Some(":0"));
-    let err = String::from_utf8_lossy(&out.stderr).into_owned();
-    assert!(!out.status.success());
+    let err = fails(ortm(&["view", "no-such-bake", "--frames", "1"], dir, ":0"));
     assert!(
         err.contains("no-such-bake") && !err.contains("panicked"),
         "{err}"
@@ -339,21 +307,16 @@ fn view_reports_missing_and_corrupt_bakes_without_panicking() {
     // Corrupt index.json.
     std::fs::create_dir(dir.join("bad")).unwrap();
     std::fs::write(dir.join("bad/index.json"), b"{ this is not json").unwrap();
-    let out = ortm(&["view", "bad", "--scene", "cornell"], dir, Some(":0"));
-    let err = String::from_utf8_lossy(&out.stderr).into_owned();
-    assert!(!out.status.success());
+    let err = fails(ortm(&["view", "bad", "--scene", "cornell"], dir, ":0"));
     assert!(
         err.contains("index.json") && !err.contains("panicked"),
         "stderr should name index.json: {err}"
     );
     // An empty folder (no bake at all).
     std::fs::create_dir(dir.join("empty")).unwrap();
-    let out = ortm(&["view", "empty", "--scene", "cornell"], dir, Some(":0"));
-    let err = String::from_utf8_lossy(&out.stderr).into_owned();
-    assert!(!out.status.success());
+    let err = fails(ortm(&["view", "empty", "--scene", "cornell"], dir, ":0"));
     assert!(err.contains("empty") && !err.contains("panicked"), "{err}");
     // --screenshot without --frames is refused by the argument parser.
-    let out = ortm(&["view", "empty", "--screenshot", "x.png"], dir, Some(":0"));
-    assert!(!out.status.success());
-    assert!(String::from_utf8_lossy(&out.stderr).contains("--frames"));
+    let err = fails(ortm(&["view", "empty", "--screenshot", "x.png"], dir, ":0"));
+    assert!(err.contains("--frames"));
 }
