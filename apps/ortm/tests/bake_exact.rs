@@ -2,6 +2,8 @@
 //! Eq. 9 being exact when every integer offset is selected, and the convergence of the
 //! importance-sampled offsets on the head (and the jittered grid's error beside it).
 
+mod common;
+
 use std::sync::Arc;
 
 use glam::{IVec2, Vec3};
@@ -16,9 +18,8 @@ use ortm::bake::transport::dense::DenseTransport;
 use ortm::bake::transport::{Effects, Kernels, Transport, texel_patches};
 
 fn head(size: u32) -> Scene {
-    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/faces/head.obj");
     let (mesh, _, _) = ortm::scene::obj::load_obj(
-        std::path::Path::new(path),
+        &common::head_obj(),
         f64::from(faces::head::HEAD_METRES_PER_UNIT),
     )
     .unwrap();
@@ -46,11 +47,7 @@ fn cornell_exact_solve_conserves_energy() {
         let patches = texel_patches(&grid);
         let dense = DenseTransport::new(&patches, &kernels);
         let e_d = lighting::irradiance(&grid, &scene.lights, &vis);
-        let b_o: Vec<Vec3> = e_d
-            .iter()
-            .zip(&grid.texels)
-            .map(|(e, t)| *e * t.albedo)
-            .collect();
+        let b_o = common::exitance(&grid, &e_d);
         let b = dense.solve(&b_o);
         let row_sums = dense.form_factor_row_sums();
         for ch in 0..3 {

@@ -4,6 +4,9 @@
 //! The head is read from `../shared/faces/head.obj` (or `$ORTM_HEAD_OBJ`) by
 //! [`ortm::scene::head::head_scene`]; lights are the paper's figure set-ups from the `faces` crate.
 
+mod common;
+
+use common::{LUMA, exitance, final_all, final_at, senders};
 use glam::Vec3;
 use ortm::bake::lighting;
 use ortm::bake::raycast::Visibility;
@@ -22,27 +25,6 @@ fn head(size: u32) -> Scene {
 fn figure_lights(id: &str) -> Vec<Light> {
     ortm::scene::head::figure_lights(faces::figures::figure(id).expect("figure"))
 }
-
-/// `B = B_o + R·B_o` for every texel from ortm's pair evaluator (the bake's `R(t, t')`).
-fn final_all(tr: &Transport, b_o: &[Vec3]) -> Vec<Vec3> {
-    let senders: Vec<u32> = (0..b_o.len() as u32)
-        .filter(|&j| b_o[j as usize] != Vec3::ZERO)
-        .collect();
-    (0..b_o.len() as u32)
-        .into_par_iter()
-        .map(|i| final_at(tr, b_o, &senders, i))
-        .collect()
-}
-
-fn final_at(tr: &Transport, b_o: &[Vec3], senders: &[u32], i: u32) -> Vec3 {
-    let mut b = b_o[i as usize];
-    for &j in senders {
-        b += Vec3::from_array(tr.r(i, j)) * b_o[j as usize];
-    }
-    b
-}
-
-const LUMA: Vec3 = Vec3::new(0.2126, 0.7152, 0.0722);
 
 #[test]
 fn head_outgoing_power_never_exceeds_incoming_per_channel() {
@@ -73,11 +55,7 @@ fn head_outgoing_power_never_exceeds_incoming_per_channel() {
         ] {
             let lights = figure_lights(fig);
             let e = lighting::irradiance(&grid, &lights, &vis);
-            let b_o: Vec<Vec3> = e
-                .iter()
-                .zip(&grid.texels)
-                .map(|(e, t)| *e * t.albedo)
-                .collect();
+            let b_o = exitance(&grid, &e);
             let p_in = sum_a(&e);
             for (label, b) in [
                 ("evaluator", final_all(&tr, &b_o)),
@@ -128,11 +106,7 @@ fn subsurface_alone_reemits_no_more_than_the_first_order() {
     for fig in ["fig5_point_light", "fig4_first_order_vs_global"] {
         let lights = figure_lights(fig);
         let e = lighting::irradiance(&grid, &lights, &vis);
-        let b_o: Vec<Vec3> = e
-            .iter()
-            .zip(&grid.texels)
-            .map(|(e, t)| *e * t.albedo)
-            .collect();
+        let b_o = exitance(&grid, &e);
         let ratio = sum_a(&final_all(&tr, &b_o)) / sum_a(&b_o);
         println!("{fig}: ΣB·A / ΣB_o·A = {ratio}");
         assert!(
@@ -150,11 +124,7 @@ fn backlit_ear_glows_with_subsurface_scattering() {
     // Fig. 6b: a point light behind the head.
     let lights = figure_lights("fig6b_backlit_ear");
     let e = lighting::irradiance(&grid, &lights, &vis);
-    let b_o: Vec<Vec3> = e
-        .iter()
-        .zip(&grid.texels)
-        .map(|(e, t)| *e * t.albedo)
-        .collect();
+    let b_o = exitance(&grid, &e);
     // Ear-rim texels the light does not reach directly.
     let ear = ortm::scene::head::ear_texels(&grid);
     let dark: Vec<u32> = ear
@@ -168,9 +138,7 @@ fn backlit_ear_glows_with_subsurface_scattering() {
         dark.len()
     );
     assert!(dark.len() >= 20, "too few unlit ear texels: {}", dark.len());
-    let senders: Vec<u32> = (0..b_o.len() as u32)
-        .filter(|&j| b_o[j as usize] != Vec3::ZERO)
-        .collect();
+    let senders = senders(&b_o);
     let lum = |effects: Effects| -> (f32, Vec3) {
         let tr = Transport::new(&scene, &grid, effects, 8);
         let b: Vec3 = dark

@@ -12,8 +12,11 @@
 //! The dipole is written out here again from Jensen et al. 2001 (not taken from ortm), and the
 //! quadrature knows nothing of texels.
 
+mod common;
+
 use std::f64::consts::PI;
 
+use common::{final_at, luminance, senders};
 use glam::{Vec2, Vec3};
 use ortm::bake::{self, BakeSettings};
 use ortm::bake::lighting;
@@ -211,17 +214,6 @@ const SSS_ONLY: Effects = Effects {
     subsurface: true,
 };
 
-/// `B = B_o + Σ_j R(i, j) B_o(j)` at receiver `i` from ortm's transfer evaluator.
-fn final_at(tr: &Transport, b_o: &[Vec3], i: u32) -> Vec3 {
-    let mut b = b_o[i as usize];
-    for (j, bo) in b_o.iter().enumerate() {
-        if *bo != Vec3::ZERO {
-            b += Vec3::from_array(tr.r(i, j as u32)) * *bo;
-        }
-    }
-    b
-}
-
 #[test]
 fn independent_dipole_matches_ortms_profile() {
     let p = ortm::bake::transport::dipole::Profile::new(&skin1());
@@ -254,6 +246,7 @@ fn slab_under_point_light_matches_direct_convolution() {
     let tr = Transport::new(&scene, &grid, SSS_ONLY, 8);
     let vis = ortm::bake::raycast::Visibility::new(&scene.mesh);
     let b_o = lighting::first_order(&grid, &scene.lights, &vis);
+    let senders = senders(&b_o);
 
     // Analytic irradiance of the point light on the plane (W/m²).
     let e = |q: [f64; 2]| {
@@ -277,7 +270,7 @@ fn slab_under_point_light_matches_direct_convolution() {
         let t = &grid.texels[i as usize];
         let p = [t.position_m.x as f64, t.position_m.y as f64];
         assert!(p[0].abs() < 0.008 + 1e-9 && p[1].abs() < 0.008 + 1e-9);
-        let got = final_at(&tr, &b_o, i);
+        let got = final_at(&tr, &b_o, &senders, i);
         let want = convolve_rect(p, [-h / 2.0; 2], [h / 2.0; 2], &e, &d);
         for c in 0..3 {
             let rel = (got[c] as f64 - want[c]) / want[c];
@@ -325,6 +318,7 @@ fn subsurface_light_crosses_a_uv_seam_through_offset_maps() {
         .iter()
         .map(|t| if lit(t) { t.albedo * e0 } else { Vec3::ZERO })
         .collect();
+    let senders = senders(&b_o);
     let first = lighting::to_lightmap(&grid, &b_o);
 
     // Bake: importance-selected offsets, subsurface only.
@@ -342,7 +336,6 @@ fn subsurface_light_crosses_a_uv_seam_through_offset_maps() {
     let baked = lighting::from_lightmap(&grid, &out);
 
     let d = dipoles(&skin1());
-    let lum = |v: Vec3| v.dot(Vec3::new(0.2126, 0.7152, 0.0722));
     let e_lit = |_: [f64; 2]| [e0 as f64; 3];
     println!(
         "{} offsets, {seam_offsets} of them jump the seam (|dx| ≥ 60)",
@@ -358,7 +351,7 @@ fn subsurface_light_crosses_a_uv_seam_through_offset_maps() {
             assert!(!lit(t));
             let p = [t.position_m.x as f64, t.position_m.y as f64];
             let want = convolve_rect(p, [-0.01, 0.0], [0.0, 0.01], &e_lit, &d);
-            let exact = final_at(&tr, &b_o, i);
+            let exact = final_at(&tr, &b_o, &senders, i);
             let got = baked[i as usize];
             for ch in 0..3 {
                 let rel_exact = (exact[ch] as f64 - want[ch]) / want[ch];
@@ -376,7 +369,7 @@ fn subsurface_light_crosses_a_uv_seam_through_offset_maps() {
                 worst_exact = worst_exact.max(rel_exact.abs());
             }
             if c == 2 {
-                near_seam += lum(got);
+                near_seam += luminance(got);
             }
         }
     }
@@ -385,7 +378,7 @@ fn subsurface_light_crosses_a_uv_seam_through_offset_maps() {
     let mut far = 0.0f32;
     for y in [8, 16, 24] {
         let i = grid.at(33, y).unwrap();
-        far += lum(baked[i as usize]);
+        far += luminance(baked[i as usize]);
     }
     println!("luminance next to the seam {near_seam:.4e}, next to the lit chart in UV {far:.4e}");
     // Power that crosses the seam: Σ B·A over the unlit half, baked maps vs the transfer.
@@ -393,7 +386,7 @@ fn subsurface_light_crosses_a_uv_seam_through_offset_maps() {
     for (i, t) in grid.texels.iter().enumerate() {
         if !lit(t) {
             p_baked += baked[i] * t.area_m2;
-            p_exact += final_at(&tr, &b_o, i as u32) * t.area_m2;
+            p_exact += final_at(&tr, &b_o, &senders, i as u32) * t.area_m2;
         }
     }
     let p_rel = (p_baked - p_exact) / p_exact;

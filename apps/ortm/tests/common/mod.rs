@@ -13,7 +13,9 @@
 //! - Random data (seeded by the caller): [`random_sparse_maps`] and [`random_log_valued_maps`]
 //!   (two distributions of transfer maps; each test keeps the one its numbers were set with),
 //!   [`random_lightmap`] (a first-order lightmap).
-//! - Numbers: [`lightmap_bits`] for bit-exact lightmap comparisons.
+//! - Numbers: [`lightmap_bits`] for bit-exact lightmap comparisons; [`exitance`] (`ρ̄·E`, the
+//!   first-order radiosity), [`senders`], [`final_at`] and [`final_all`] (`B = B_o + R·B_o` from
+//!   ortm's pair evaluator), and [`luminance`] for the transport tests.
 
 #![allow(
     dead_code,
@@ -26,11 +28,14 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 use std::sync::OnceLock;
 
-use glam::IVec2;
+use glam::{IVec2, Vec3};
 use ortm::Lightmap;
+use ortm::bake::texels::TexelGrid;
+use ortm::bake::transport::Transport;
 use ortm::maps::{BakeIndex, BakeKey, LightmapSize, TransferMap, write_map_file};
 use rand::RngExt;
 use rand_chacha::ChaCha8Rng;
+use rayon::prelude::*;
 
 /// `tests/data/<rel>` of this package.
 pub fn data(rel: &str) -> PathBuf {
@@ -170,6 +175,48 @@ pub fn write_bake(
 /// The lightmap's values as bit patterns, for bit-exact comparisons.
 pub fn lightmap_bits(l: &Lightmap) -> Vec<[u32; 3]> {
     l.data.iter().map(|v| v.map(f32::to_bits)).collect()
+}
+
+/// Rec. 709 luminance weights.
+pub const LUMA: Vec3 = Vec3::new(0.2126, 0.7152, 0.0722);
+
+/// Rec. 709 luminance of a linear RGB value.
+pub fn luminance(v: Vec3) -> f32 {
+    v.dot(LUMA)
+}
+
+/// First-order radiosity `B_o = ρ̄·E` per texel from the irradiance `e` (W/m²).
+pub fn exitance(grid: &TexelGrid, e: &[Vec3]) -> Vec<Vec3> {
+    e.iter()
+        .zip(&grid.texels)
+        .map(|(e, t)| *e * t.albedo)
+        .collect()
+}
+
+/// The texels that send light: those whose `b_o` is not zero, in increasing order.
+pub fn senders(b_o: &[Vec3]) -> Vec<u32> {
+    (0..b_o.len() as u32)
+        .filter(|&j| b_o[j as usize] != Vec3::ZERO)
+        .collect()
+}
+
+/// `B = B_o + Σ_j R(i, j) B_o(j)` at receiver `i` from ortm's pair evaluator (the bake's
+/// `R(t, t')`), summed over `senders` in their order.
+pub fn final_at(tr: &Transport, b_o: &[Vec3], senders: &[u32], i: u32) -> Vec3 {
+    let mut b = b_o[i as usize];
+    for &j in senders {
+        b += Vec3::from_array(tr.r(i, j)) * b_o[j as usize];
+    }
+    b
+}
+
+/// [`final_at`] for every texel (in parallel).
+pub fn final_all(tr: &Transport, b_o: &[Vec3]) -> Vec<Vec3> {
+    let senders = senders(b_o);
+    (0..b_o.len() as u32)
+        .into_par_iter()
+        .map(|i| final_at(tr, b_o, &senders, i))
+        .collect()
 }
 
 /// `n` random sparse maps of a `w×h` lightmap, for atlas packing: up to 3 blobs (≤ 20×12) of
