@@ -234,6 +234,8 @@ fn read_after_edit(dir: &Path, edit: impl FnOnce(&mut serde_json::Value)) -> Atl
     read_atlas_set(dir).unwrap_err()
 }
 
+/// One atlas directory tampered with case by case (each case restores what it broke before
+/// the next), so all cases share one set-up: a long list of short cases, not one long algorithm.
 #[test]
 fn tampered_or_inconsistent_atlases_are_refused() {
     let (dir, _) = baked_with_atlases();

@@ -288,12 +288,11 @@ fn slab_under_point_light_matches_direct_convolution() {
     assert!(worst < 0.02, "worst relative difference {worst}");
 }
 
-#[test]
-fn subsurface_light_crosses_a_uv_seam_through_offset_maps() {
-    // A 20 mm × 10 mm slab cut at x = 0 into two charts. In the 72×32 lightmap the right
-    // half (x ∈ [0, 10] mm) sits at texel columns 2..34 and the left half (x ∈ [−10, 0] mm) at
-    // columns 38..70: the seam joins columns 2 and 69 (67 texels apart), while columns 33 and
-    // 38, neighbours across the gutter in the lightmap, are 20 mm apart on the surface.
+/// A 20 mm × 10 mm slab of skin cut at x = 0 into two charts. In the 72×32 lightmap the right
+/// half (x ∈ [0, 10] mm) sits at texel columns 2..34 and the left half (x ∈ [−10, 0] mm) at
+/// columns 38..70: the seam joins columns 2 and 69 (67 texels apart), while columns 33 and
+/// 38, neighbours across the gutter in the lightmap, are 20 mm apart on the surface.
+fn seam_scene() -> Scene {
     let (w, h) = (72u32, 32u32);
     let col = |c: u32| c as f32 / w as f32;
     let mut mesh = Mesh::default();
@@ -307,7 +306,16 @@ fn subsurface_light_crosses_a_uv_seam_through_offset_maps() {
         [-0.01, 0.0, 0.0, 0.01],
         [col(38), col(70), 0.0, 1.0],
     );
-    let scene = skin_scene("seam", mesh, (w, h), vec![]);
+    skin_scene("seam", mesh, (w, h), vec![])
+}
+
+/// One scenario: the checks next to the seam, next to the lit chart in the lightmap and of the
+/// power across the seam all read the same bake.
+#[test]
+fn subsurface_light_crosses_a_uv_seam_through_offset_maps() {
+    // The two charts of `seam_scene`.
+    let scene = seam_scene();
+    let (w, h) = scene.lightmap_size;
     let grid = TexelGrid::build(&scene).unwrap();
     assert_eq!(grid.texels.len(), (64 * h) as usize);
     // Light only the left half: uniform irradiance E0 on x < 0 (first order ρ̄·E0).

@@ -119,6 +119,8 @@ fn splitmix(state: &mut u64) -> u64 {
     z ^ (z >> 31)
 }
 
+/// One scenario: the uninterrupted run's timing and files set the kill moments and the expected
+/// bytes of every killed run after it.
 #[test]
 fn killed_bake_and_bin_resume_to_byte_identical_output() {
     // Uninterrupted reference run (bake, then bin), timed.

@@ -36,6 +36,8 @@ fn check_outputs(dir: &Path) {
     assert!(sum(&fin) > 1.2 * sum(&first), "interreflection adds light");
 }
 
+/// One bake directory taken through render, bin, render again and the error cases in order:
+/// each step reads what the steps before it wrote.
 #[test]
 fn render_writes_frame_and_lightmaps_consistent_with_cpu_reference() {
     let tmp = tempfile::tempdir().unwrap();

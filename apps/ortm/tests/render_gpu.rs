@@ -207,6 +207,8 @@ fn head_final_lightmap_equals_cpu_apply_of_gpu_first_order() {
     check_final(&maps, &fo, &fin);
 }
 
+/// One pass: the CPU reference, the per-texel light masks that find shadow edges and the GPU
+/// lightmap are compared texel by texel in a single loop.
 #[test]
 fn cornell_first_order_matches_ray_cast_shadows_away_from_edges() {
     let gpu = gpu();

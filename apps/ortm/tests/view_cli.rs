@@ -26,6 +26,14 @@ fn ortm(args: &[&str], cwd: &Path, display: &str) -> Output {
         .expect("the ortm binary runs")
 }
 
+/// Runs `ortm view bake --size 900x560 --frames <frames> <extra>` in `dir` on `display`: the
+/// viewer on the tiny Cornell bake in a 900×560 window.
+fn view_bake(dir: &Path, display: &str, frames: &str, extra: &[&str]) -> Output {
+    let mut args = vec!["view", "bake", "--size", "900x560", "--frames", frames];
+    args.extend_from_slice(extra);
+    ortm(&args, dir, display)
+}
+
 /// An Xvfb started by the test (killed on drop), or the caller's display.
 struct XServer {
     display: String,
@@ -133,21 +141,11 @@ fn view_screenshot_shows_the_lit_box_where_the_light_is() {
         ("right", "point:0.495,0.28,0.3:0.3"),
     ] {
         let png = format!("{name}.png");
-        let out = ortm(
-            &[
-                "view",
-                "bake",
-                "--size",
-                "900x560",
-                "--frames",
-                "4",
-                "--screenshot",
-                &png,
-                "--light",
-                light,
-            ],
+        let out = view_bake(
             dir,
             &x.display,
+            "4",
+            &["--screenshot", &png, "--light", light],
         );
         let log = output_text(&out);
         assert!(out.status.success(), "ortm view failed:\n{log}");
@@ -200,20 +198,8 @@ fn view_modes_agree_with_each_other_and_the_cpu_reference() {
     let x = x_server();
     let shot = |name: &str, extra: &[&str]| -> Vec<f64> {
         let png = format!("{name}.png");
-        let mut args = vec![
-            "view",
-            "bake",
-            "--size",
-            "900x560",
-            "--frames",
-            "3",
-            "--exposure",
-            "0.05",
-            "--screenshot",
-            &png,
-        ];
-        args.extend_from_slice(extra);
-        let out = ortm(&args, dir, &x.display);
+        let args = [&["--exposure", "0.05", "--screenshot", &png], extra].concat();
+        let out = view_bake(dir, &x.display, "3", &args);
         assert!(
             out.status.success(),
             "ortm view {extra:?} failed:\n{}",
@@ -256,22 +242,8 @@ fn view_modes_agree_with_each_other_and_the_cpu_reference() {
     );
 
     // Resizing the window mid-run: the later frames are drawn at the new size, still lit.
-    let out = ortm(
-        &[
-            "view",
-            "bake",
-            "--size",
-            "900x560",
-            "--frames",
-            "6",
-            "--resize",
-            "760x800",
-            "--screenshot",
-            "resized.png",
-        ],
-        dir,
-        &x.display,
-    );
+    let resize = ["--resize", "760x800", "--screenshot", "resized.png"];
+    let out = view_bake(dir, &x.display, "6", &resize);
     assert!(
         out.status.success(),
         "resize run failed:\n{}",
