@@ -46,6 +46,6 @@ pub mod transport;
 
 pub use pipeline::{
     BakeError, BakeEvent, BakeSettings, BakeSummary, CellRule, EXACT_CELL_MAX, MapPlan, Selector,
-    SelectionRecord, bake, bake_maps, compute_map_values, compute_map_values_exact, scene_hash,
+    SelectionRecord, bake, bake_maps, compute_map_values, compute_map_values_exact,
     select_offsets, selection_receivers, transference,
 };

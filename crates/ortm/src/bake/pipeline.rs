@@ -7,12 +7,11 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use glam::{IVec2, Vec3};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
-use sha2::{Digest, Sha256};
 
 use crate::Lightmap;
 use crate::maps::{self, BakeIndex, BakeKey, LightmapSize, MapsError, TransferMap};
 use crate::bake::offsets::{self, ImportanceMetric, OffsetError, SelectionSettings};
-use crate::scene::Scene;
+use crate::scene::{Scene, scene_hash};
 use crate::bake::texels::{TexelError, TexelGrid};
 use crate::bake::transport::{Effects, Transport};
 
@@ -160,38 +159,6 @@ pub struct BakeSummary {
     pub stored_texels: u64,
 }
 
-/// A stable hash of everything in the scene that the bake depends on (geometry, UVs, materials,
-/// lightmap size; not the lights).
-pub fn scene_hash(scene: &Scene) -> String {
-    let mut h = Sha256::new();
-    let m = &scene.mesh;
-    for p in &m.positions_m {
-        for c in p.to_array() {
-            h.update(c.to_le_bytes());
-        }
-    }
-    for uv in &m.uvs {
-        h.update(uv.x.to_le_bytes());
-        h.update(uv.y.to_le_bytes());
-    }
-    for n in &m.normals {
-        for c in n.to_array() {
-            h.update(c.to_le_bytes());
-        }
-    }
-    for t in &m.triangles {
-        for k in 0..3 {
-            h.update(t.position[k].to_le_bytes());
-            h.update(t.uv[k].to_le_bytes());
-            h.update(t.normal[k].to_le_bytes());
-        }
-        h.update(t.material.to_le_bytes());
-    }
-    h.update(format!("{:?}", scene.materials).as_bytes());
-    h.update(format!("{}", scene.allow_uv_overlap).as_bytes());
-    h.finalize().iter().map(|b| format!("{b:02x}")).collect()
-}
-
 /// Receivers (texel indices) used to estimate transference: every covered texel, or an evenly
 /// strided subset of at most `max` of them.
 pub fn selection_receivers(grid: &TexelGrid, max: usize) -> Vec<u32> {
@@ -230,6 +197,34 @@ pub fn compute_map_values(
     tva: &[f32],
     contains_origin: bool,
 ) -> (Lightmap, f64) {
+    let w = grid.width;
+    map_over_receivers(grid, offset, |x, y, i, j| {
+        let mut r = Vec3::from_array(transport.r(i, j));
+        let imp = r.abs().max_element() as f64;
+        let delta = if i == j && transport.is_translucent(i) {
+            1.0
+        } else {
+            0.0
+        };
+        r += Vec3::splat(delta);
+        let a_j = transport.patches[j as usize].area_m2;
+        let mut v = r / a_j * tva[(y * w + x) as usize];
+        if contains_origin {
+            v -= Vec3::splat(delta);
+        }
+        (v.to_array(), imp)
+    })
+}
+
+/// One transfer map of `offset` from `texel(x, y, i, j)` = (value, importance) for every
+/// covered receiver `i` at `(x, y)` whose sender `j` at `(x, y) + offset` is covered (0
+/// elsewhere); rows in parallel. Returns the map and the largest importance. Serves
+/// [`compute_map_values`] and [`compute_map_values_exact`].
+fn map_over_receivers(
+    grid: &TexelGrid,
+    offset: IVec2,
+    texel: impl Fn(u32, u32, u32, u32) -> ([f32; 3], f64) + Sync,
+) -> (Lightmap, f64) {
     let (w, h) = (grid.width, grid.height);
     let rows: Vec<(Vec<[f32; 3]>, f64)> = (0..h)
         .into_par_iter()
@@ -243,29 +238,13 @@ pub fn compute_map_values(
                 let Some(j) = grid.at(x as i32 + offset.x, y as i32 + offset.y) else {
                     continue;
                 };
-                let mut r = Vec3::from_array(transport.r(i, j));
-                imp = imp.max(r.abs().max_element() as f64);
-                let delta = if i == j && transport.is_translucent(i) {
-                    1.0
-                } else {
-                    0.0
-                };
-                r += Vec3::splat(delta);
-                let a_j = transport.patches[j as usize].area_m2;
-                let mut v = r / a_j * tva[(y * w + x) as usize];
-                if contains_origin {
-                    v -= Vec3::splat(delta);
-                }
-                row[x as usize] = v.to_array();
+                let (v, texel_imp) = texel(x, y, i, j);
+                imp = imp.max(texel_imp);
+                row[x as usize] = v;
             }
             (row, imp)
         })
         .collect();
-    assemble_rows(w, h, rows)
-}
-
-/// Joins per-row values and importances (computed in parallel) into a map and its importance.
-fn assemble_rows(w: u32, h: u32, rows: Vec<(Vec<[f32; 3]>, f64)>) -> (Lightmap, f64) {
     let mut map = Lightmap::new(w, h);
     let mut importance = 0.0f64;
     for (y, (row, imp)) in rows.into_iter().enumerate() {
@@ -289,40 +268,26 @@ pub fn compute_map_values_exact(
     offset: IVec2,
     runs: &[offsets::RowRun],
 ) -> (Lightmap, f64) {
-    let (w, h) = (grid.width, grid.height);
-    let rows: Vec<(Vec<[f32; 3]>, f64)> = (0..h)
-        .into_par_iter()
-        .map(|y| {
-            let mut row = vec![[0.0f32; 3]; w as usize];
-            let mut imp = 0.0f64;
-            for x in 0..w {
-                let Some(i) = grid.at(x as i32, y as i32) else {
+    map_over_receivers(grid, offset, |x, y, i, _| {
+        let (x, y) = (x as i32, y as i32);
+        let mut imp = 0.0f64;
+        let mut sum = [0.0f64; 3];
+        for run in runs {
+            for dx in run.dx_start..=run.dx_end_inclusive {
+                let Some(j) = grid.at(x + dx, y + run.dy) else {
                     continue;
                 };
-                if grid.at(x as i32 + offset.x, y as i32 + offset.y).is_none() {
-                    continue;
+                let r = transport.r(i, j);
+                if dx == offset.x && run.dy == offset.y {
+                    imp = imp.max(r[0].abs().max(r[1].abs()).max(r[2].abs()) as f64);
                 }
-                let mut sum = [0.0f64; 3];
-                for run in runs {
-                    for dx in run.dx_start..=run.dx_end_inclusive {
-                        let Some(j) = grid.at(x as i32 + dx, y as i32 + run.dy) else {
-                            continue;
-                        };
-                        let r = transport.r(i, j);
-                        if dx == offset.x && run.dy == offset.y {
-                            imp = imp.max(r[0].abs().max(r[1].abs()).max(r[2].abs()) as f64);
-                        }
-                        for c in 0..3 {
-                            sum[c] += r[c] as f64;
-                        }
-                    }
+                for c in 0..3 {
+                    sum[c] += r[c] as f64;
                 }
-                row[x as usize] = [sum[0] as f32, sum[1] as f32, sum[2] as f32];
             }
-            (row, imp)
-        })
-        .collect();
-    assemble_rows(w, h, rows)
+        }
+        ([sum[0] as f32, sum[1] as f32, sum[2] as f32], imp)
+    })
 }
 
 /// Offsets chosen by a selection, with the data needed for the report.

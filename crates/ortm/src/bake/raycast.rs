@@ -53,11 +53,6 @@ impl Visibility {
         Self { bvh, triangles }
     }
 
-    /// Number of triangles in the structure.
-    pub fn triangle_count(&self) -> usize {
-        self.triangles.len()
-    }
-
     /// True when the open segment from `p` to `q` (metres) hits no triangle.
     ///
     /// The segment is shortened by `epsilon_m` at both ends so that the surfaces `p` and `q` lie
@@ -80,7 +75,8 @@ impl Visibility {
     }
 
     /// Distance to the closest hit along a ray from `origin` in unit direction `dir`, within
-    /// `[t_min, t_max]` metres; `None` when nothing is hit.
+    /// `[t_min, t_max]` metres; `None` when nothing is hit (a test's reference).
+    #[cfg(test)]
     pub fn closest_hit(&self, origin: Vec3, dir: Vec3, t_min: f32, t_max: f32) -> Option<f32> {
         if self.triangles.is_empty() {
             return None;

@@ -541,10 +541,7 @@ fn build_mesh(
     }
 
     // Degenerate triangles.
-    let (lo, hi) = positions_m.iter().fold(
-        (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
-        |(lo, hi), p| (lo.min(*p), hi.max(*p)),
-    );
+    let (lo, hi) = super::aabb(&positions_m);
     let diag2 = (hi.as_dvec3() - lo.as_dvec3()).length_squared();
     let world_limit = 2.0 * DEGENERATE_RELATIVE_AREA * diag2;
     let uv_limit = 2.0 * DEGENERATE_UV_AREA;

@@ -112,7 +112,8 @@ impl ClippedCells {
         self.real.iter().map(|p| polygon_area(p)).collect()
     }
 
-    /// Areas of the sentinels' cells.
+    /// Areas of the sentinels' cells (a test's reference).
+    #[cfg(test)]
     pub fn sentinel_areas(&self) -> Vec<f64> {
         self.sentinel.iter().map(|p| polygon_area(p)).collect()
     }
@@ -212,16 +213,6 @@ pub struct DiscreteCells {
     pub real: Vec<Vec<RowRun>>,
     /// Runs of each sentinel, in [`sentinel_offsets`] order.
     pub sentinel: Vec<Vec<RowRun>>,
-}
-
-impl DiscreteCells {
-    /// Number of integer offsets in each real cell.
-    pub fn real_counts(&self) -> Vec<usize> {
-        self.real
-            .iter()
-            .map(|r| r.iter().map(RowRun::len).sum())
-            .collect()
-    }
 }
 
 /// Partitions every valid integer offset (`|v.x| ≤ W−1`, `|v.y| ≤ H−1`) among `offsets`
