@@ -559,7 +559,54 @@ pub fn bake(
     let transport = Transport::new(scene, &grid, settings.effects, settings.coarse_block);
     let t_transport = t0.elapsed().as_secs_f64();
 
-    // Offsets: reuse a saved selection of the same bake.
+    let (offset_list, points) =
+        saved_or_new_selection(dir, &key, &transport, &grid, settings, events)?;
+    let t_select = t0.elapsed().as_secs_f64() - t_transport;
+
+    let plan = MapPlan::new(&grid, &offset_list, settings.cell_rule)?;
+    let written = write_maps(dir, &key, &transport, &grid, plan, events, cancel)?;
+    let importance: Vec<f64> = written.entries.iter().map(|e| e.importance).collect();
+    let index = BakeIndex::new(
+        LightmapSize {
+            width: w,
+            height: h,
+        },
+        hash,
+        settings_json,
+        written.entries,
+    );
+    crate::bake::report::write_bake_report(dir, &grid, &offset_list, &importance, &points).map_err(
+        |e| BakeError::Io {
+            path: dir.join("report"),
+            source: std::io::Error::other(e.to_string()),
+        },
+    )?;
+    index.write(dir)?;
+    Ok(BakeSummary {
+        maps: offset_list.len(),
+        reused: written.reused,
+        seconds: [
+            t_transport,
+            t_select,
+            t0.elapsed().as_secs_f64() - t_transport - t_select,
+        ],
+        texels: grid.texels.len(),
+        stored_texels: written.stored_texels,
+    })
+}
+
+/// The offsets and importance data points of the bake `key`: those saved in `dir`'s
+/// `selection.json` when it belongs to the same bake and is plausible, else a new selection
+/// ([`select_offsets`]), saved atomically.
+fn saved_or_new_selection(
+    dir: &Path,
+    key: &BakeKey,
+    transport: &Transport,
+    grid: &TexelGrid,
+    settings: &BakeSettings,
+    events: &(dyn Fn(BakeEvent) + Sync),
+) -> Result<(Vec<IVec2>, Vec<[f64; 3]>), BakeError> {
+    let (w, h) = settings.size;
     let sel_path = dir.join("selection.json");
     let saved: Option<SelectionRecord> =
         crate::io::limits::read_bounded(&sel_path, crate::io::limits::MAX_JSON_BYTES, "MAX_JSON_BYTES")
@@ -568,33 +615,52 @@ pub fn bake(
             .filter(|s: &SelectionRecord| {
                 s.bake_key == key.as_str() && s.is_plausible(settings.offsets, w, h)
             });
-    let (offset_list, points) = match saved {
-        Some(s) => {
-            events(BakeEvent::Message(
-                "reusing the saved offset selection".into(),
-            ));
-            (
-                s.offsets.iter().map(|o| IVec2::from_array(*o)).collect(),
-                s.data_points,
-            )
-        }
-        None => {
-            let (o, p) = select_offsets(&transport, &grid, settings, events)?;
-            write_json_atomic(
-                &sel_path,
-                &SelectionRecord {
-                    bake_key: key.as_str().to_owned(),
-                    offsets: o.iter().map(|v| v.to_array()).collect(),
-                    data_points: p.clone(),
-                },
-            )?;
-            (o, p)
-        }
-    };
-    let t_select = t0.elapsed().as_secs_f64() - t_transport;
+    if let Some(s) = saved {
+        events(BakeEvent::Message(
+            "reusing the saved offset selection".into(),
+        ));
+        return Ok((
+            s.offsets.iter().map(|o| IVec2::from_array(*o)).collect(),
+            s.data_points,
+        ));
+    }
+    let (o, p) = select_offsets(transport, grid, settings, events)?;
+    write_json_atomic(
+        &sel_path,
+        &SelectionRecord {
+            bake_key: key.as_str().to_owned(),
+            offsets: o.iter().map(|v| v.to_array()).collect(),
+            data_points: p.clone(),
+        },
+    )?;
+    Ok((o, p))
+}
 
-    let mut plan = MapPlan::new(&grid, &offset_list, settings.cell_rule)?;
-    let scan = maps::scan_finished_maps(dir, &key, w, h)?;
+/// The maps of a bake directory after [`write_maps`].
+struct WrittenMaps {
+    /// Index entries, in offset order.
+    entries: Vec<maps::MapEntry>,
+    /// Maps kept from an earlier run.
+    reused: usize,
+    /// Stored (cropped) texels over all maps.
+    stored_texels: u64,
+}
+
+/// Writes every map of `plan` that `dir` does not already hold for the bake `key`
+/// (stale temporary files are removed first). Maps are independent: they are computed,
+/// cropped, encoded and written in parallel, each atomically, so an interruption (`cancel`)
+/// leaves only whole maps behind, whatever the order.
+fn write_maps(
+    dir: &Path,
+    key: &BakeKey,
+    transport: &Transport,
+    grid: &TexelGrid,
+    mut plan: MapPlan,
+    events: &(dyn Fn(BakeEvent) + Sync),
+    cancel: &AtomicBool,
+) -> Result<WrittenMaps, BakeError> {
+    let offset_list = plan.offsets.clone();
+    let scan = maps::scan_finished_maps(dir, key, grid.width, grid.height)?;
     for p in &scan.stale_temp {
         let _ = std::fs::remove_file(p);
     }
@@ -612,14 +678,12 @@ pub fn bake(
         if cancel.load(Ordering::Relaxed) {
             return Err(BakeError::Interrupted { done: 0, total });
         }
-        plan.prepare(&transport, &grid, events);
+        plan.prepare(transport, grid, events);
     }
     events(BakeEvent::Phase {
         name: "writing transfer maps",
         total: total as u64,
     });
-    // Maps are independent: crop, encode (ZIP) and write them in parallel. Each file is written
-    // atomically, so an interruption leaves only whole maps behind, whatever the order.
     let written = std::sync::atomic::AtomicUsize::new(0);
     let results: Vec<Result<(maps::MapEntry, bool, u64), BakeError>> = offset_list
         .par_iter()
@@ -638,62 +702,47 @@ pub fn bake(
                     total,
                 });
             }
-            let map = plan.map_prepared(&transport, &grid, k)?;
-            let entry = maps::write_map_file(dir, k as u32, &map, &key)?;
+            let map = plan.map_prepared(transport, grid, k)?;
+            let entry = maps::write_map_file(dir, k as u32, &map, key)?;
             written.fetch_add(1, Ordering::Relaxed);
             events(BakeEvent::Advance(1));
             Ok((entry, false, map.stored_texels()))
         })
         .collect();
-    let mut entries = Vec::with_capacity(total);
-    let mut reused = 0;
-    let mut stored = 0u64;
+    gather_written(results, written.load(Ordering::Relaxed), total)
+}
+
+/// Joins the per-map results of [`write_maps`] (in offset order). A failed map's error comes
+/// first; else an interruption anywhere is reported with the `written` count.
+fn gather_written(
+    results: Vec<Result<(maps::MapEntry, bool, u64), BakeError>>,
+    written: usize,
+    total: usize,
+) -> Result<WrittenMaps, BakeError> {
+    let mut out = WrittenMaps {
+        entries: Vec::with_capacity(total),
+        reused: 0,
+        stored_texels: 0,
+    };
     let mut interrupted = None;
     for r in results {
         match r {
             Ok((e, was_reused, texels)) => {
-                reused += usize::from(was_reused);
-                stored += texels;
-                entries.push(e);
+                out.reused += usize::from(was_reused);
+                out.stored_texels += texels;
+                out.entries.push(e);
             }
             Err(BakeError::Interrupted { .. }) => {
                 interrupted = Some(BakeError::Interrupted {
-                    done: written.load(Ordering::Relaxed),
+                    done: written,
                     total,
                 });
             }
             Err(e) => return Err(e),
         }
     }
-    if let Some(e) = interrupted {
-        return Err(e);
+    match interrupted {
+        Some(e) => Err(e),
+        None => Ok(out),
     }
-    let importance: Vec<f64> = entries.iter().map(|e| e.importance).collect();
-    let index = BakeIndex::new(
-        LightmapSize {
-            width: w,
-            height: h,
-        },
-        hash,
-        settings_json,
-        entries,
-    );
-    crate::bake::report::write_bake_report(dir, &grid, &offset_list, &importance, &points).map_err(
-        |e| BakeError::Io {
-            path: dir.join("report"),
-            source: std::io::Error::other(e.to_string()),
-        },
-    )?;
-    index.write(dir)?;
-    Ok(BakeSummary {
-        maps: total,
-        reused,
-        seconds: [
-            t_transport,
-            t_select,
-            t0.elapsed().as_secs_f64() - t_transport - t_select,
-        ],
-        texels: grid.texels.len(),
-        stored_texels: stored,
-    })
 }
