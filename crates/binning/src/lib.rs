@@ -81,7 +81,8 @@
 //! atlases much taller than the maps there are few. The best-fit / split-the-tallest rule keeps
 //! slices whole where possible (the tallest fitting slice goes first into a fresh column, and a
 //! split leaves the largest possible remainder, more likely to fit whole elsewhere); exact fill
-//! removes most of the remaining splits. Measured (tests/cases.rs, 1024² atlases, sides uniform):
+//! removes most of the remaining splits. On synthetic sets (1024² atlases, sides uniform;
+//! printed by `cargo test -p binning --test cases synthetic_sets_figures -- --nocapture`):
 //! 100 maps of 20..256: 4.5–4.7 pieces/map with the paper's rule, 4.0–4.3 with exact fill;
 //! 200 maps of 256..512: 6.6 and 5.8 (the paper reports 7–9). Splits remain mostly where a
 //! width class runs out part-way down a column and the narrower slices are all taller than the

@@ -183,8 +183,9 @@ fn faces() -> Vec<Face> {
     out
 }
 
-/// A placed chart: the texel rectangle `[x, x+w) × [y, y+h)` (y down, row 0 is v = 1).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+/// A placed chart: the texel rectangle `[x, x+w) × [y, y+h)` (y down, row 0 is v = 1); the
+/// default is the empty chart at the origin.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 struct ChartRect {
     /// Left texel column.
     x: u32,
@@ -226,18 +227,7 @@ fn skyline_pack(sizes: &[(u32, u32)], size: u32) -> Option<Vec<(ChartRect, bool)
         (std::cmp::Reverse(w.max(h)), std::cmp::Reverse(w.min(h)), i)
     });
     let mut sky: Skyline = vec![(0, extent, 0)];
-    let mut out = vec![
-        (
-            ChartRect {
-                x: 0,
-                y: 0,
-                w: 0,
-                h: 0
-            },
-            false
-        );
-        sizes.len()
-    ];
+    let mut out = vec![(ChartRect::default(), false); sizes.len()];
     for i in order {
         let (y, x, w, h, turned) = lowest_placement(&sky, sizes[i], extent)?;
         out[i] = (
@@ -340,20 +330,7 @@ fn layout(faces: &[Face], size: u32) -> (f64, Vec<(ChartRect, bool)>) {
     }
     // `lo` is feasible (s = 0 gives minimum-size charts, which fit at MIN_LIGHTMAP_SIZE);
     // fall back to empty charts otherwise so that nothing can overlap.
-    let rects = fits(lo).unwrap_or_else(|| {
-        vec![
-            (
-                ChartRect {
-                    x: 0,
-                    y: 0,
-                    w: 0,
-                    h: 0
-                },
-                false
-            );
-            faces.len()
-        ]
-    });
+    let rects = fits(lo).unwrap_or_else(|| vec![(ChartRect::default(), false); faces.len()]);
     (lo, rects)
 }
 

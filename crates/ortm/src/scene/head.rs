@@ -1,4 +1,4 @@
-//! The face (issue 7): the scanned head as an ortm [`Scene`] and the paper's face figures as
+//! The face: the scanned head as an ortm [`Scene`] and the paper's face figures as
 //! ortm [`Light`]s, from the plain data of the `faces` crate.
 //!
 //! - [`head_scene`]: `head.obj` (from [`faces::head_obj_path`]: `$ORTM_HEAD_OBJ` or

@@ -182,19 +182,20 @@ impl Profile {
     }
 }
 
+/// Skin1 of Jensen et al. 2001 (per mm): the tests' reference profile.
+#[cfg(test)]
+pub(crate) fn skin1(model: SubsurfaceModel) -> Profile {
+    Profile::new(&Subsurface {
+        sigma_a_per_mm: Vec3::new(0.032, 0.17, 0.48),
+        sigma_s_prime_per_mm: Vec3::new(0.74, 0.88, 1.01),
+        eta: 1.3,
+        model,
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    /// Skin1 of Jensen et al. 2001 (per mm).
-    fn skin1(model: SubsurfaceModel) -> Profile {
-        Profile::new(&Subsurface {
-            sigma_a_per_mm: Vec3::new(0.032, 0.17, 0.48),
-            sigma_s_prime_per_mm: Vec3::new(0.74, 0.88, 1.01),
-            eta: 1.3,
-            model,
-        })
-    }
 
     /// ∫₀^∞ R_d(r) 2πr dr by composite Simpson on a log-spaced grid.
     fn numeric_total(c: &ChannelProfile) -> f64 {

@@ -51,20 +51,9 @@ impl RdTable {
 
 #[cfg(test)]
 mod tests {
-    use glam::Vec3;
-
     use super::*;
-    use crate::scene::{Subsurface, SubsurfaceModel};
-
-    /// Skin1 of Jensen et al. 2001 (per mm).
-    fn skin1(model: SubsurfaceModel) -> Profile {
-        Profile::new(&Subsurface {
-            sigma_a_per_mm: Vec3::new(0.032, 0.17, 0.48),
-            sigma_s_prime_per_mm: Vec3::new(0.74, 0.88, 1.01),
-            eta: 1.3,
-            model,
-        })
-    }
+    use crate::scene::SubsurfaceModel;
+    use crate::scene::subsurface::skin1;
 
     #[test]
     fn tabulated_profile_matches_the_exact_one() {
