@@ -612,8 +612,7 @@ impl Integration<'_> {
         let mut next_near = 0usize;
         for cj in 0..nc {
             let k = ci * nc + cj;
-            let v: [f64; 3] = if next_near < near.len() && near[next_near].cluster as usize == cj
-            {
+            let v: [f64; 3] = if next_near < near.len() && near[next_near].cluster as usize == cj {
                 let b = near_bounce(&near[next_near]);
                 next_near += 1;
                 [0, 1, 2].map(|c| rem.rem[c][k] as f64 + b[c])

@@ -9,10 +9,10 @@ use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 use crate::bake::lighting;
-use crate::maps::{self, TransferMap};
 use crate::bake::raycast::Visibility;
-use crate::scene::{Light, Scene};
 use crate::bake::texels::TexelGrid;
+use crate::maps::{self, TransferMap};
+use crate::scene::{Light, Scene};
 
 /// `count` random point-light set-ups around the scene: each has one or two point lights at
 /// 1.5–3 bounding radii from the centre, random colours, intensities giving ~10 W/m² at the

@@ -9,11 +9,11 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::Lightmap;
-use crate::maps::{self, BakeIndex, BakeKey, LightmapSize, MapsError, TransferMap};
 use crate::bake::offsets::{self, ImportanceMetric, OffsetError, SelectionSettings};
-use crate::scene::{Scene, scene_hash};
 use crate::bake::texels::{TexelError, TexelGrid};
 use crate::bake::transport::{Effects, Transport};
+use crate::maps::{self, BakeIndex, BakeKey, LightmapSize, MapsError, TransferMap};
+use crate::scene::{Scene, scene_hash};
 
 /// How offsets are chosen.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
@@ -436,10 +436,9 @@ impl MapPlan {
             total: grid.texels.len() as u64,
         });
         let t0 = std::time::Instant::now();
-        let iv =
-            crate::bake::cells::integrate(transport, grid, &self.offsets, &self.cells, &|n| {
-                events(BakeEvent::Advance(n))
-            });
+        let iv = crate::bake::cells::integrate(transport, grid, &self.offsets, &self.cells, &|n| {
+            events(BakeEvent::Advance(n))
+        });
         let st = &iv.stats;
         events(BakeEvent::Message(format!(
             "cells integrated in {:.2} s: {} near cluster pairs ({} texel pairs, {} of them \
@@ -575,12 +574,11 @@ pub fn bake(
         settings_json,
         written.entries,
     );
-    crate::bake::report::write_bake_report(dir, &grid, &offset_list, &importance, &points).map_err(
-        |e| BakeError::Io {
+    crate::bake::report::write_bake_report(dir, &grid, &offset_list, &importance, &points)
+        .map_err(|e| BakeError::Io {
             path: dir.join("report"),
             source: std::io::Error::other(e.to_string()),
-        },
-    )?;
+        })?;
     index.write(dir)?;
     Ok(BakeSummary {
         maps: offset_list.len(),
@@ -608,13 +606,16 @@ fn saved_or_new_selection(
 ) -> Result<(Vec<IVec2>, Vec<[f64; 3]>), BakeError> {
     let (w, h) = settings.size;
     let sel_path = dir.join("selection.json");
-    let saved: Option<SelectionRecord> =
-        crate::io::limits::read_bounded(&sel_path, crate::io::limits::MAX_JSON_BYTES, "MAX_JSON_BYTES")
-            .ok()
-            .and_then(|b| serde_json::from_slice(&b).ok())
-            .filter(|s: &SelectionRecord| {
-                s.bake_key == key.as_str() && s.is_plausible(settings.offsets, w, h)
-            });
+    let saved: Option<SelectionRecord> = crate::io::limits::read_bounded(
+        &sel_path,
+        crate::io::limits::MAX_JSON_BYTES,
+        "MAX_JSON_BYTES",
+    )
+    .ok()
+    .and_then(|b| serde_json::from_slice(&b).ok())
+    .filter(|s: &SelectionRecord| {
+        s.bake_key == key.as_str() && s.is_plausible(settings.offsets, w, h)
+    });
     if let Some(s) = saved {
         events(BakeEvent::Message(
             "reusing the saved offset selection".into(),

@@ -269,7 +269,14 @@ pub fn load_scene_with_warnings(path: &Path) -> Result<(Scene, Vec<String>), Sce
         skip_degenerate_faces: raw.skip_degenerate_faces,
     };
     let (mut mesh, obj_names, mut warnings) = load_obj_with(&mesh_path, mpu, &options)?;
-    assign_materials(path, &mesh_path, &mut mesh, &obj_names, &materials, &mut warnings);
+    assign_materials(
+        path,
+        &mesh_path,
+        &mut mesh,
+        &obj_names,
+        &materials,
+        &mut warnings,
+    );
 
     let name = raw.name.unwrap_or_else(|| {
         path.file_stem()

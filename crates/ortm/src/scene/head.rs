@@ -12,9 +12,9 @@
 
 use glam::Vec3;
 
+use crate::bake::texels::TexelGrid;
 use crate::scene::presets::{from_measured, model_of};
 use crate::scene::{Albedo, Light, Material, Scene, SceneError};
-use crate::bake::texels::TexelGrid;
 
 /// The head scene with the given skin falloff (see the module docs).
 pub fn head_scene_with(falloff: faces::Falloff) -> Result<Scene, SceneError> {

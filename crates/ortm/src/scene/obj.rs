@@ -513,13 +513,8 @@ fn build_mesh(
         &uvs,
         &mut warnings,
     )?;
-    let use_file_normals = file_normals_usable(
-        path,
-        use_file_normals,
-        &tris,
-        &file_normals,
-        &mut warnings,
-    )?;
+    let use_file_normals =
+        file_normals_usable(path, use_file_normals, &tris, &file_normals, &mut warnings)?;
 
     let mut triangles: Vec<MeshTriangle> = Vec::with_capacity(tris.len());
     for (t, tri) in tris.iter().enumerate() {

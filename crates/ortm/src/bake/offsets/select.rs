@@ -237,7 +237,11 @@ pub fn select_importance(
 }
 
 /// The errors of [`select_importance`] that its settings and the map size alone decide.
-fn check_selection_settings(settings: &SelectionSettings, w: u32, h: u32) -> Result<(), OffsetError> {
+fn check_selection_settings(
+    settings: &SelectionSettings,
+    w: u32,
+    h: u32,
+) -> Result<(), OffsetError> {
     check_map(w, h)?;
     if settings.seed_grid < 2 {
         return Err(OffsetError::InvalidSettings {

@@ -45,8 +45,8 @@ use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
 use crate::bake::raycast::Visibility;
-use crate::scene::Scene;
 use crate::bake::texels::TexelGrid;
+use crate::scene::Scene;
 use crate::scene::subsurface::Profile;
 use dipole::RdTable;
 use form_factor::{FfPatch, unoccluded_form_factor};
