@@ -216,7 +216,7 @@ const SSS_ONLY: Effects = Effects {
 
 #[test]
 fn independent_dipole_matches_ortms_profile() {
-    let p = ortm::bake::transport::dipole::Profile::new(&skin1());
+    let p = ortm::scene::subsurface::Profile::new(&skin1());
     let d = dipoles(&skin1());
     for r in [0.0, 1e-4, 1e-3, 5e-3, 2e-2] {
         let o = p.rd(r);

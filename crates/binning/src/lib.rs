@@ -81,7 +81,8 @@
 //! atlases much taller than the maps there are few. The best-fit / split-the-tallest rule keeps
 //! slices whole where possible (the tallest fitting slice goes first into a fresh column, and a
 //! split leaves the largest possible remainder, more likely to fit whole elsewhere); exact fill
-//! removes most of the remaining splits. Measured (tests/cases.rs, 1024² atlases, sides uniform):
+//! removes most of the remaining splits. On synthetic sets (1024² atlases, sides uniform;
+//! printed by `cargo test -p binning --test cases synthetic_sets_figures -- --nocapture`):
 //! 100 maps of 20..256: 4.5–4.7 pieces/map with the paper's rule, 4.0–4.3 with exact fill;
 //! 200 maps of 256..512: 6.6 and 5.8 (the paper reports 7–9). Splits remain mostly where a
 //! width class runs out part-way down a column and the narrower slices are all taller than the
@@ -444,6 +445,45 @@ pub fn pack_with(
             height: atlas_h,
         });
     }
+    let seen = source_indices(rects)?;
+    let (texels, slice_count) = problem_size(rects, atlas_w, atlas_h)?;
+    let (mut slices, mut pools) = slice_sources(rects, atlas_w, slice_count);
+    let filled = fill(&mut slices, &mut pools, rects, atlas_w, atlas_h, options);
+
+    // 3. Merging, then a canonical order.
+    let (mut placements, merges) = merge_adjacent(filled.placements);
+    placements.sort_by_key(|p| (p.atlas, p.dst_y, p.dst_x));
+
+    let mut pieces_per_source = vec![0u32; rects.len()];
+    for p in &placements {
+        pieces_per_source[seen[&p.source]] += 1;
+    }
+    let atlas_count = filled.atlas_count;
+    let atlas_area = u128::from(atlas_w) * u128::from(atlas_h);
+    let fill_ratio = if atlas_count == 0 {
+        0.0
+    } else {
+        texels as f64 / (f64::from(atlas_count) * atlas_area as f64)
+    };
+    Ok(Packing {
+        atlas_w,
+        atlas_h,
+        atlas_count,
+        placements,
+        sources: rects.to_vec(),
+        stats: PackStats {
+            pieces_per_source,
+            slices: slices.len(),
+            splits: filled.splits,
+            merges,
+            texels,
+            fill_ratio,
+        },
+    })
+}
+
+/// Id → input index of every rectangle; [`BinError::DuplicateId`] if two share an id.
+fn source_indices(rects: &[SourceRect]) -> Result<HashMap<u32, usize>, BinError> {
     let mut seen: HashMap<u32, usize> = HashMap::with_capacity(rects.len());
     for (i, r) in rects.iter().enumerate() {
         if let Some(&first) = seen.get(&r.id) {
@@ -455,8 +495,13 @@ pub fn pack_with(
         }
         seen.insert(r.id, i);
     }
+    Ok(seen)
+}
 
-    // Size the problem before allocating anything proportional to it.
+/// Sizes the problem before anything proportional to it is allocated: the texels to pack and
+/// the number of slices; [`BinError::TooManyPieces`] if the result could exceed
+/// [`MAX_PIECES`] placements.
+fn problem_size(rects: &[SourceRect], atlas_w: u32, atlas_h: u32) -> Result<(u64, u128), BinError> {
     let atlas_area = u128::from(atlas_w) * u128::from(atlas_h);
     let mut texels: u128 = 0;
     let mut slice_count: u128 = 0;
@@ -473,13 +518,20 @@ pub fn pack_with(
         });
     }
     // Both fit comfortably now: texels ≤ pieces · 2^32 ≤ 2^56.
-    let texels = texels as u64;
+    Ok((texels as u64, slice_count))
+}
 
-    // 1. Slicing.
+/// Step 1, slicing: every non-empty rectangle cut into power-of-two-wide slices
+/// ([`slice_widths`]), and per width class `2^k` the pool of its slices' keys
+/// (height, Reverse(slice index)), so that the last key at or below a height is the tallest
+/// fitting slice, earliest in input order among equals.
+fn slice_sources(
+    rects: &[SourceRect],
+    atlas_w: u32,
+    slice_count: u128,
+) -> (Vec<Slice>, Vec<BTreeSet<Key>>) {
     let classes_n = atlas_w.trailing_zeros() as usize + 1;
     let mut slices: Vec<Slice> = Vec::with_capacity(slice_count as usize);
-    // Per width class 2^k: keys (height, Reverse(slice index)), so that the last key at or
-    // below a height is the tallest fitting slice, earliest in input order among equals.
     let mut pools: Vec<BTreeSet<Key>> = vec![BTreeSet::new(); classes_n];
     for (source, r) in rects.iter().enumerate() {
         if r.w == 0 || r.h == 0 {
@@ -499,49 +551,49 @@ pub fn pack_with(
             x += w;
         }
     }
+    (slices, pools)
+}
 
-    // 2. Filling.
+/// What [`fill`] placed.
+struct Filled {
+    placements: Vec<Placement>,
+    atlas_count: u32,
+    splits: usize,
+}
+
+/// Step 2, filling (see the crate docs): free areas from a stack, new atlases when it is
+/// empty, until every slice is placed. Slices split here keep their rest in `slices`.
+fn fill(
+    slices: &mut [Slice],
+    pools: &mut [BTreeSet<Key>],
+    rects: &[SourceRect],
+    atlas_w: u32,
+    atlas_h: u32,
+    options: PackOptions,
+) -> Filled {
     let mut placements: Vec<Placement> = Vec::with_capacity(slices.len());
     let mut remaining = slices.len();
     let mut stack: Vec<Area> = Vec::new();
     let mut atlas_count: u32 = 0;
     let mut splits = 0usize;
     while remaining > 0 {
-        let mut area = match stack.pop() {
-            Some(a) => a,
-            None => {
-                atlas_count += 1;
-                Area {
-                    atlas: atlas_count - 1,
-                    x: 0,
-                    y: 0,
-                    w: atlas_w,
-                    h: atlas_h,
-                    exact: true,
-                }
-            }
-        };
+        let mut area = stack.pop().unwrap_or_else(|| {
+            atlas_count += 1;
+            whole_atlas(atlas_count - 1, atlas_w, atlas_h)
+        });
         let pool = &mut pools[area.w.trailing_zeros() as usize];
         if pool.is_empty() {
-            if area.w > 1 {
-                let half = area.w / 2;
-                let left = Area {
-                    w: half,
-                    exact: true,
-                    ..area
-                };
-                stack.push(Area {
-                    x: area.x + half,
-                    ..left
-                });
-                stack.push(left);
-            }
             // A 1-wide area with no 1-wide slice left is dropped; by the invariant in the crate
             // docs this only happens once every slice is placed.
+            if area.w > 1 {
+                let (left, right) = halves(&area);
+                stack.push(right);
+                stack.push(left);
+            }
             continue;
         }
         if area.exact && options.exact_fill {
-            if let Some(subset) = exact_subset(pool, area.h, &slices) {
+            if let Some(subset) = exact_subset(pool, area.h, slices) {
                 // Stack the chosen slices, tallest first; they fill the area exactly.
                 let mut y = area.y;
                 for key in subset {
@@ -581,43 +633,54 @@ pub fn pack_with(
             splits += 1;
         }
     }
-
-    // 3. Merging, then a canonical order.
-    let (mut placements, merges) = merge_adjacent(placements);
-    placements.sort_by_key(|p| (p.atlas, p.dst_y, p.dst_x));
-
-    let mut pieces_per_source = vec![0u32; rects.len()];
-    for p in &placements {
-        pieces_per_source[seen[&p.source]] += 1;
-    }
-    let fill_ratio = if atlas_count == 0 {
-        0.0
-    } else {
-        texels as f64 / (f64::from(atlas_count) * atlas_area as f64)
-    };
-    Ok(Packing {
-        atlas_w,
-        atlas_h,
-        atlas_count,
+    Filled {
         placements,
-        sources: rects.to_vec(),
-        stats: PackStats {
-            pieces_per_source,
-            slices: slices.len(),
-            splits,
-            merges,
-            texels,
-            fill_ratio,
-        },
-    })
+        atlas_count,
+        splits,
+    }
+}
+
+/// The free area of a new, empty atlas.
+fn whole_atlas(atlas: u32, w: u32, h: u32) -> Area {
+    Area {
+        atlas,
+        x: 0,
+        y: 0,
+        w,
+        h,
+        exact: true,
+    }
+}
+
+/// The left and right halves of a free `area` at least 2 wide, both open to an exact-fill
+/// search again.
+fn halves(area: &Area) -> (Area, Area) {
+    let half = area.w / 2;
+    let left = Area {
+        w: half,
+        exact: true,
+        ..*area
+    };
+    let right = Area {
+        x: area.x + half,
+        ..left
+    };
+    (left, right)
 }
 
 /// Merges pieces of the same source that are adjacent in both the source and the atlas, first
-/// side by side (same rows), then one above the other (same columns). Returns the merged list
-/// and the number of merges.
-fn merge_adjacent(mut ps: Vec<Placement>) -> (Vec<Placement>, usize) {
+/// side by side (same rows), then one above the other (same columns, by [`merge_rows`] on the
+/// transposed pieces). Returns the merged list and the number of merges.
+fn merge_adjacent(ps: Vec<Placement>) -> (Vec<Placement>, usize) {
+    let (ps, across) = merge_rows(ps);
+    let (ps, down) = merge_rows(ps.into_iter().map(transposed).collect());
+    (ps.into_iter().map(transposed).collect(), across + down)
+}
+
+/// Merges pieces of the same source side by side: grouped by (atlas, source, dst_y, src_y,
+/// h), walked in dst_x order. Returns them in that order and the number of merges.
+fn merge_rows(mut ps: Vec<Placement>) -> (Vec<Placement>, usize) {
     let mut merges = 0;
-    // Horizontal: group by (atlas, source, dst_y, src_y, h), walk in dst_x order.
     ps.sort_by_key(|p| (p.atlas, p.source, p.dst_y, p.src_y, p.h, p.dst_x));
     let mut out: Vec<Placement> = Vec::with_capacity(ps.len());
     for p in ps {
@@ -633,24 +696,21 @@ fn merge_adjacent(mut ps: Vec<Placement>) -> (Vec<Placement>, usize) {
         }
         out.push(p);
     }
-    // Vertical: group by (atlas, source, dst_x, src_x, w), walk in dst_y order.
-    let mut ps = out;
-    ps.sort_by_key(|p| (p.atlas, p.source, p.dst_x, p.src_x, p.w, p.dst_y));
-    let mut out: Vec<Placement> = Vec::with_capacity(ps.len());
-    for p in ps {
-        if let Some(q) = out.last_mut()
-            && (q.atlas, q.source, q.dst_x, q.src_x, q.w)
-                == (p.atlas, p.source, p.dst_x, p.src_x, p.w)
-            && q.dst_y + q.h == p.dst_y
-            && q.src_y + q.h == p.src_y
-        {
-            q.h += p.h;
-            merges += 1;
-            continue;
-        }
-        out.push(p);
-    }
     (out, merges)
+}
+
+/// `p` with x and y (and width and height) swapped, in the atlas and in the source.
+fn transposed(p: Placement) -> Placement {
+    Placement {
+        atlas: p.atlas,
+        dst_x: p.dst_y,
+        dst_y: p.dst_x,
+        w: p.h,
+        h: p.w,
+        source: p.source,
+        src_x: p.src_y,
+        src_y: p.src_x,
+    }
 }
 
 /// Checks the texel data against the packing's sources; returns id → source index.

@@ -6,7 +6,8 @@
 //!   `u = (x + 0.5) / W`, `v = 1 − (y + 0.5) / H`: row 0 is `v = 1`, as in image files
 //!   (PNG, OpenEXR) and as wgpu's framebuffer rows.
 //! - Values are radiosity `B = π·L_out` in W/m², linear RGB. First-order `B_o = ρ·E`.
-//! - A texel is *covered* when its centre lies inside a UV triangle (see [`crate::bake::texels`]).
+//! - A texel is *covered* when its centre lies inside a UV triangle (the GPU rasterizer's rule;
+//!   the bake's texel grid applies it with the top-left tie-break).
 
 use glam::{IVec2, Vec2};
 
@@ -63,8 +64,8 @@ impl Lightmap {
 }
 
 /// UV coordinate of the centre of texel `(x, y)` in a `width×height` map
-/// (`u = (x+0.5)/W`, `v = 1 − (y+0.5)/H`).
-#[inline]
+/// (`u = (x+0.5)/W`, `v = 1 − (y+0.5)/H`); the tests' reference for [`uv_to_texel_space`].
+#[cfg(test)]
 pub fn texel_center_uv(x: u32, y: u32, width: u32, height: u32) -> Vec2 {
     Vec2::new(
         (x as f32 + 0.5) / width as f32,

@@ -366,14 +366,14 @@ pub fn scene_arg_from_settings(index: &BakeIndex) -> Option<String> {
 }
 
 /// Checks that `scene` (named `scene_arg` in messages) hashes to the bake's `scene_hash`
-/// ([`crate::bake::scene_hash`]: geometry, UVs, normals, materials; not the lights).
+/// ([`crate::scene::scene_hash`]: geometry, UVs, normals, materials; not the lights).
 pub fn check_scene(
     dir: &Path,
     index: &BakeIndex,
     scene: &Scene,
     scene_arg: &str,
 ) -> Result<(), RenderError> {
-    let found = crate::bake::scene_hash(scene);
+    let found = crate::scene::scene_hash(scene);
     if found != index.scene_hash {
         return Err(RenderError::SceneMismatch {
             dir: dir.to_owned(),
@@ -454,14 +454,9 @@ pub fn auto_exposure(lightmap: &TexelImage) -> f32 {
 /// sphere fits both the vertical field of view (`fov_y_deg`) and the horizontal one at
 /// `aspect` = width/height. Up is +y.
 pub fn default_camera(mesh: &Mesh, aspect: f32, fov_y_deg: f32) -> Camera {
-    let (lo, hi) = mesh.positions_m.iter().fold(
-        (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
-        |(lo, hi), p| (lo.min(*p), hi.max(*p)),
-    );
-    let (centre, radius) = if lo.is_finite() && hi.is_finite() {
-        ((lo + hi) * 0.5, ((hi - lo).length() * 0.5).max(1e-3))
-    } else {
-        (Vec3::ZERO, 1.0)
+    let (centre, radius) = match mesh.bounding_sphere() {
+        Some((c, r)) => (c, r.max(1e-3)),
+        None => (Vec3::ZERO, 1.0),
     };
     let half_y = (fov_y_deg.to_radians() * 0.5).clamp(1e-3, 1.5);
     let half_x = (half_y.tan() * aspect.max(1e-3)).atan();

@@ -22,14 +22,7 @@ pub struct Args {
 pub fn run(a: Args) -> Result<()> {
     let scene = super::load_scene(&a.scene, a.size)?;
     let m = &scene.mesh;
-    let (mut lo, mut hi) = (
-        glam::Vec3::splat(f32::INFINITY),
-        glam::Vec3::splat(f32::NEG_INFINITY),
-    );
-    for p in &m.positions_m {
-        lo = lo.min(*p);
-        hi = hi.max(*p);
-    }
+    let (lo, hi) = m.bounds();
     let area: f64 = m
         .triangles
         .iter()

@@ -293,16 +293,5 @@ fn sum_rgb(img: &TexelImage) -> f64 {
 
 /// Half the diagonal of the mesh's bounding box, metres.
 pub fn bounding_radius(mesh: &ortm::scene::Mesh) -> f32 {
-    let (lo, hi) = mesh.positions_m.iter().fold(
-        (
-            glam::Vec3::splat(f32::INFINITY),
-            glam::Vec3::splat(f32::NEG_INFINITY),
-        ),
-        |(lo, hi), p| (lo.min(*p), hi.max(*p)),
-    );
-    if lo.is_finite() && hi.is_finite() {
-        (hi - lo).length() * 0.5
-    } else {
-        1.0
-    }
+    mesh.bounding_sphere().map_or(1.0, |(_, r)| r)
 }

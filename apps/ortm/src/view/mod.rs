@@ -134,14 +134,9 @@ impl ViewerInput {
 
     /// Bounding sphere of the mesh (centre, radius in metres).
     pub fn bounds(&self) -> (Vec3, f32) {
-        let (lo, hi) = self.scene.mesh.positions_m.iter().fold(
-            (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
-            |(lo, hi), p| (lo.min(*p), hi.max(*p)),
-        );
-        if lo.is_finite() && hi.is_finite() {
-            ((lo + hi) * 0.5, ((hi - lo).length() * 0.5).max(1e-6))
-        } else {
-            (Vec3::ZERO, 1.0)
+        match self.scene.mesh.bounding_sphere() {
+            Some((c, r)) => (c, r.max(1e-6)),
+            None => (Vec3::ZERO, 1.0),
         }
     }
 }

@@ -1,22 +1,24 @@
-//! Transfer-map values by integrating the transfer over each offset's Voronoi cell.
+//! Transfer-map values by integrating the transfer over each offset's Voronoi cell
+//! ([`crate::bake::CellRule::Integrated`], the default).
 //!
-//! # Why
+//! # What is computed
 //! Eq. 9 of the paper splits the indirect light at `t` by offset cells,
-//! `B(t) − B_o(t) = Σ_k Σ_{v ∈ V_k} R(t, t+v)·B_o(t+v)`, and approximates every cell by its site:
-//! `≈ Σ_k M_k(t)·B_o(t+Δt_k)`. Eq. 10 takes `M_k(t) = TR(t, t+Δt_k)·TVA(t, Δt_k)` — one sample of
-//! the transfer times the cell's area. The transfer is far from smooth in offset space: a cell
-//! of a few hundred offsets spans several UV charts, and across a seam the sample can land on the
-//! near-singular peak of the form factor or the subsurface profile (then the whole cell is
-//! weighted by it) or on an unrelated chart. Measured on the head at 64² (`ortm bench
-//! cells`), that one-sample estimate is what makes importance-sampled offsets lose to a jittered
-//! grid. Here `M_k(t) = Σ_{v ∈ V_k} R(t, t+v)` — the transfer integrated over the cell, only
-//! `B_o` is taken at the site. The render-time format and Eq. 9 are unchanged; when every integer
-//! offset is selected both rules agree and are exact.
+//! `B(t) − B_o(t) = Σ_k Σ_{v ∈ V_k} R(t, t+v)·B_o(t+v)`, and takes `B_o` at each cell's site:
+//! `≈ Σ_k M_k(t)·B_o(t+Δt_k)`. Here `M_k(t) = Σ_{v ∈ V_k} R(t, t+v)` — the transfer integrated
+//! over the cell (dimensionless, RGB), where Eq. 10 takes one sample,
+//! `TR(t, t+Δt_k)·TVA(t, Δt_k)` ([`crate::bake::CellRule::Sampled`]). The transfer is far from
+//! smooth in offset space (a cell of a few hundred offsets spans several UV charts, and one
+//! sample can land on the near-singular peak of the form factor or the subsurface profile), so
+//! the integral is the better estimate; `ortm bench cells` compares both. The render-time
+//! format and Eq. 9 are the same for both rules; when every integer offset is selected both
+//! are exact.
 //!
-//! # How (receiver-major)
-//! For each receiving texel `t` the sum runs over every sender `j`, binned into the cell of the
-//! offset `j − t` (a lookup table over all offsets). Senders are grouped by the clusters of the
-//! coarse level ([`crate::bake::transport::coarse`]):
+//! # Data flow (receiver-major)
+//! [`integrate`] takes the [`Transport`], the [`TexelGrid`], the offsets and their discrete
+//! cells ([`DiscreteCells`]) and returns [`CellValues`] (every map's values, their peaks and
+//! [`CellStats`]). For each receiving texel `t` the sum runs over every sender `j`, binned into
+//! the cell of the offset `j − t` (a lookup table over all offsets). Senders are grouped by the
+//! clusters of the coarse level ([`crate::bake::transport::coarse`]):
 //! - **far clusters**: the cluster transfer `R(I, J)` of the dense coarse solve, shared by area.
 //!   When the cluster's tile, seen from `t`, lies inside one cell (a precomputed table of
 //!   cell-uniform windows) it adds to that cell in O(1); otherwise each quadrant of the tile
@@ -24,7 +26,7 @@
 //!   partition of offset space is the Voronoi one up to ±`P/4` texels (±2 at the default 8×8
 //!   clusters; exact for 1×1 and 2×2 clusters) — still a partition, so every sender's transfer
 //!   is counted once, only the site whose first-order light it multiplies can be a neighbouring
-//!   one. Resolving those windows texel by texel cost more than half of the bake.
+//!   one.
 //! - **near clusters** (centroids closer than [`NEAR_FACTOR`]·(r_I + r_J), or within reach of
 //!   the subsurface profile's support): the coarse remainder by area, plus texel by texel the
 //!   exact subsurface term (within the profile's support) and the exact first bounce (shadow
@@ -37,21 +39,17 @@
 //! straddles a UV seam or several charts, its site can land on an unrelated surface. So every
 //! sender (texel-exact or far cluster) is counted with whichever of its cell's site, the sites
 //! of the cell's Voronoi neighbours and the receiver itself lies physically nearest to it. The
-//! total transfer of `t` is unchanged; only which first-order sample it multiplies. Measured
-//! (`bake_exact` tests): on the head a 2.7 mm seam partner had put 1.57 of red transfer on a lit
-//! site 17 texels away. The Cornell box's convergence is printed by `cornell_offsets_converge`.
+//! total transfer of `t` is unchanged; only which first-order sample it multiplies.
 //!
 //! A receiver whose site `t + Δt_k` is uncovered cannot be reached by map `k` (its first-order
 //! light is 0 there). Its transfer in that cell is counted with the receiver's own cell (the
 //! one holding `Δt = 0`; if that cell's site is uncovered too, the covered site nearest to
 //! `Δt = 0`): like a seam crossing, `B_o` near the receiver is a far better sample than the
-//! unrelated chart a neighbouring site would land on, and dropping it (as Eq. 10 must) lost
-//! whole cells of transfer wherever a site fell off the charts. On the head at 64² that loss was
-//! the largest and most seed-dependent part of the error; moving it to the nearest covered site
-//! in offset space instead was worse still (`bake_exact` tests, this session's notes).
-
-//! The error of each choice against the exact solve (head, 64²) is printed by the
-//! `bake_exact` tests.
+//! unrelated chart a neighbouring site would land on, and dropping it (as Eq. 10 must) would
+//! lose whole cells of transfer wherever a site falls off the charts.
+//!
+//! The error of each rule against the exact solve (head and Cornell box) is printed by
+//! `cargo test -p ortm-cli --test bake_exact -- --nocapture`.
 
 use glam::{IVec2, Vec3};
 use rayon::prelude::*;
@@ -244,6 +242,8 @@ struct Clusters {
     near: Vec<Vec<Near>>,
 }
 
+/// The coarse level's clusters as receivers and senders: their texels, tiles and near
+/// clusters.
 fn clusters(transport: &Transport, grid: &TexelGrid) -> Clusters {
     let rem = &transport.remainder;
     let nc = rem.clusters.len();
@@ -255,6 +255,27 @@ fn clusters(transport: &Transport, grid: &TexelGrid) -> Clusters {
         let t = &grid.texels[i];
         tile[c as usize] = IVec2::new((t.x / b * b) as i32, (t.y / b * b) as i32);
     }
+    let near = near_clusters(transport, &texels);
+    let p = b.next_power_of_two() as i32;
+    let tiles = texels
+        .iter()
+        .enumerate()
+        .map(|(c, list)| tile_quadrants(transport, grid, tile[c], p, c, list))
+        .collect();
+    Clusters {
+        texels,
+        tiles,
+        near,
+    }
+}
+
+/// For every cluster, its near clusters (sorted by index; see [`Near`]): within
+/// [`NEAR_FACTOR`]·(r_I + r_J) for the first bounce, or with texel pairs possibly within the
+/// subsurface support or [`FF_EXACT_PITCHES`] texel pitches. `texels` lists each cluster's
+/// texels.
+fn near_clusters(transport: &Transport, texels: &[Vec<u32>]) -> Vec<Vec<Near>> {
+    let rem = &transport.remainder;
+    let nc = rem.clusters.len();
     let radius: Vec<f32> = (0..nc)
         .map(|c| {
             let p = rem.clusters[c].position_m;
@@ -270,7 +291,7 @@ fn clusters(transport: &Transport, grid: &TexelGrid) -> Clusters {
         .map(|p| p.area_m2.sqrt())
         .fold(0.0f32, f32::max);
     let k = &transport.kernels;
-    let near = (0..nc)
+    (0..nc)
         .into_par_iter()
         .map(|ci| {
             let a: &Patch = &rem.clusters[ci];
@@ -309,41 +330,40 @@ fn clusters(transport: &Transport, grid: &TexelGrid) -> Clusters {
                 })
                 .collect()
         })
-        .collect();
-    let p = b.next_power_of_two() as i32;
-    let tiles = texels
-        .iter()
-        .enumerate()
-        .map(|(c, list)| {
-            let inv_area = 1.0 / rem.clusters[c].area_m2 as f64;
-            let origin = tile[c];
-            let half = (p / 2).max(1);
-            let ideal = [0, 1, 2, 3]
-                .map(|q| origin + IVec2::new((q % 2) * half + p / 4, (q / 2) * half + p / 4));
-            // (representative texel, its squared distance to the ideal centre, share)
-            let mut best = [(IVec2::ZERO, i32::MAX, 0.0f64); 4];
-            for &i in list {
-                let t = &grid.texels[i as usize];
-                let at = IVec2::new(t.x as i32, t.y as i32);
-                let rel = at - origin;
-                let q = ((rel.x / half).min(1) + 2 * (rel.y / half).min(1)) as usize;
-                let d2 = (at - ideal[q]).length_squared();
-                let e = &mut best[q];
-                if d2 < e.1 {
-                    e.0 = at;
-                    e.1 = d2;
-                }
-                e.2 += transport.patches[i as usize].area_m2 as f64 * inv_area;
-            }
-            let quads = best.map(|(at, _, share)| (at, share));
-            Tile { origin, quads }
-        })
-        .collect();
-    Clusters {
-        texels,
-        tiles,
-        near,
+        .collect()
+}
+
+/// Cluster `c`'s `p × p` tile at `origin` with its texels `list` split into quadrants: each
+/// quadrant's texel nearest its centre and its share of the cluster's area.
+fn tile_quadrants(
+    transport: &Transport,
+    grid: &TexelGrid,
+    origin: IVec2,
+    p: i32,
+    c: usize,
+    list: &[u32],
+) -> Tile {
+    let inv_area = 1.0 / transport.remainder.clusters[c].area_m2 as f64;
+    let half = (p / 2).max(1);
+    let ideal =
+        [0, 1, 2, 3].map(|q| origin + IVec2::new((q % 2) * half + p / 4, (q / 2) * half + p / 4));
+    // (representative texel, its squared distance to the ideal centre, share)
+    let mut best = [(IVec2::ZERO, i32::MAX, 0.0f64); 4];
+    for &i in list {
+        let t = &grid.texels[i as usize];
+        let at = IVec2::new(t.x as i32, t.y as i32);
+        let rel = at - origin;
+        let q = ((rel.x / half).min(1) + 2 * (rel.y / half).min(1)) as usize;
+        let d2 = (at - ideal[q]).length_squared();
+        let e = &mut best[q];
+        if d2 < e.1 {
+            e.0 = at;
+            e.1 = d2;
+        }
+        e.2 += transport.patches[i as usize].area_m2 as f64 * inv_area;
     }
+    let quads = best.map(|(at, _, share)| (at, share));
+    Tile { origin, quads }
 }
 
 /// The cell whose site represents a sender at `p_m` whose offset lies in `cell`, for a receiver
@@ -431,207 +451,38 @@ pub fn integrate(
     let nc = rem.clusters.len();
     let p = rem.block.max(1).next_power_of_two() as usize;
     let table = CellTable::new(cells, w, h, p);
-    let cl = clusters(transport, grid);
     let origin = match table.cell(0, 0) {
         NO_CELL => None,
         c => Some(c),
     };
-    let kern = &transport.kernels;
     let neighbours = cell_neighbours(&table, kmaps);
+    let run = Integration {
+        transport,
+        grid,
+        offsets,
+        clusters: clusters(transport, grid),
+        table,
+        origin,
+        neighbours,
+    };
     let per_cluster: Vec<(Vec<[f32; 3]>, CellStats)> = (0..nc)
         .into_par_iter()
         .map(|ci| {
-            let mut st = CellStats::default();
-            let recv = &cl.texels[ci];
-            let n = recv.len();
-            let xy: Vec<(i32, i32)> = recv
-                .iter()
-                .map(|&i| {
-                    let t = &grid.texels[i as usize];
-                    (t.x as i32, t.y as i32)
-                })
-                .collect();
-            let mut acc = vec![[0.0f64; 3]; n * kmaps];
-            let mut sites: Vec<Option<Vec3>> = vec![None; n * kmaps];
-            for (r, &(xi, yi)) in xy.iter().enumerate() {
-                for (k, o) in offsets.iter().enumerate() {
-                    sites[r * kmaps + k] = grid
-                        .at(xi + o.x, yi + o.y)
-                        .map(|j| transport.patches[j as usize].position_m);
-                }
-            }
-            let near = &cl.near[ci];
-            // The share-able first bounce of a near cluster (0 when it is texel-exact).
-            let near_bounce = |n: &Near| -> [f64; 3] {
-                if n.exact_bounce {
-                    [0.0; 3]
-                } else {
-                    n.bounce.map(f64::from)
-                }
-            };
-            // Every cluster by area share: the cluster transfer for far clusters; the
-            // remainder plus the point-to-cluster bounce for near ones (their subsurface part
-            // and near-singular bounce are added texel by texel below).
-            let mut next_near = 0usize;
-            for cj in 0..nc {
-                let k = ci * nc + cj;
-                let v: [f64; 3] =
-                    if next_near < near.len() && near[next_near].cluster as usize == cj {
-                        let b = near_bounce(&near[next_near]);
-                        next_near += 1;
-                        [0, 1, 2].map(|c| rem.rem[c][k] as f64 + b[c])
-                    } else {
-                        [0, 1, 2].map(|c| rem.full[c][k] as f64)
-                    };
-                if v == [0.0; 3] {
-                    continue;
-                }
-                let tile = &cl.tiles[cj];
-                let pj = rem.clusters[cj].position_m;
-                for (r, &(xi, yi)) in xy.iter().enumerate() {
-                    let acc = &mut acc[r * kmaps..(r + 1) * kmaps];
-                    let sites = &sites[r * kmaps..(r + 1) * kmaps];
-                    if !table.uniform.is_empty() {
-                        let u = table.uniform[table.index(tile.origin.x - xi, tile.origin.y - yi)];
-                        if u != NO_CELL {
-                            st.uniform_windows += 1;
-                            let u = place(u, pj, sites, origin, &neighbours, &mut st.rehomed_far);
-                            let a = &mut acc[u as usize];
-                            for c in 0..3 {
-                                a[c] += v[c];
-                            }
-                            continue;
-                        }
-                    }
-                    // The window straddles cells: each quadrant goes whole to the cell of its
-                    // centre texel (see the module docs).
-                    st.split_windows += 1;
-                    for &(centre, share) in &tile.quads {
-                        if share == 0.0 {
-                            continue;
-                        }
-                        let cell = table.cell(centre.x - xi, centre.y - yi);
-                        if cell == NO_CELL {
-                            continue;
-                        }
-                        let cell = place(cell, pj, sites, origin, &neighbours, &mut st.rehomed_far);
-                        let a = &mut acc[cell as usize];
-                        for c in 0..3 {
-                            a[c] += v[c] * share;
-                        }
-                    }
-                }
-            }
-            // The exact zone, texel by texel: the subsurface term within the profile's
-            // support and the texel form factor of near-singular neighbours (replacing their
-            // point-to-cluster share).
-            for (r, (&i, &(xi, yi))) in recv.iter().zip(&xy).enumerate() {
-                let pi = &transport.patches[i as usize];
-                let sites = &sites[r * kmaps..(r + 1) * kmaps];
-                let acc = &mut acc[r * kmaps..(r + 1) * kmaps];
-                let translucent = kern.is_translucent(pi.material);
-                let support2 = if translucent {
-                    (kern.support_m[pi.material as usize] as f32).powi(2)
-                } else {
-                    0.0
-                };
-                let ff2 = if kern.effects.radiosity {
-                    FF_EXACT_PITCHES * FF_EXACT_PITCHES * pi.area_m2
-                } else {
-                    0.0
-                };
-                for n in near.iter().filter(|n| n.exact_zone) {
-                    st.near_cluster_pairs += 1;
-                    let cj = n.cluster as usize;
-                    let inv_area = 1.0 / rem.clusters[cj].area_m2 as f64;
-                    let approx = near_bounce(n);
-                    let one_texel = cl.texels[cj].len() == 1;
-                    for &j in &cl.texels[cj] {
-                        let pj = &transport.patches[j as usize];
-                        let d2 = (pj.position_m - pi.position_m).length_squared();
-                        let in_sss = translucent && pj.material == pi.material && d2 < support2;
-                        let in_ff = n.exact_bounce || one_texel || d2 < ff2;
-                        if !(in_sss || in_ff || i == j) {
-                            continue;
-                        }
-                        let t = &grid.texels[j as usize];
-                        let cell = table.cell(t.x as i32 - xi, t.y as i32 - yi);
-                        if cell == NO_CELL {
-                            continue;
-                        }
-                        st.near_texel_pairs += 1;
-                        let cell = place(
-                            cell,
-                            pj.position_m,
-                            sites,
-                            origin,
-                            &neighbours,
-                            &mut st.rehomed,
-                        );
-                        let mut e = kern.r_subsurface(pi, pj, i == j);
-                        if in_ff {
-                            let b = kern.r_bounce(pi, pj, i == j);
-                            let share = pj.area_m2 as f64 * inv_area;
-                            for c in 0..3 {
-                                e[c] += b[c] - approx[c] * share;
-                            }
-                        }
-                        let a = &mut acc[cell as usize];
-                        for c in 0..3 {
-                            a[c] += e[c];
-                        }
-                    }
-                }
-            }
-            // Cells whose site is uncovered for this receiver: their transfer is counted with
-            // the receiver's own cell (the one holding Δt = 0), or, when that cell's site is
-            // uncovered too, the cell with a covered site nearest to Δt = 0.
-            for r in 0..n {
-                let valid = |k: usize| sites[r * kmaps + k].is_some();
-                let Some(home) = origin
-                    .map(|o| o as usize)
-                    .filter(|&o| valid(o))
-                    .or_else(|| nearest_valid_to_zero(offsets, &valid))
-                else {
-                    continue;
-                };
-                for k in 0..kmaps {
-                    if valid(k) || acc[r * kmaps + k] == [0.0; 3] {
-                        continue;
-                    }
-                    st.moved_uncovered += 1;
-                    let moved = std::mem::take(&mut acc[r * kmaps + k]);
-                    let a = &mut acc[r * kmaps + home];
-                    for c in 0..3 {
-                        a[c] += moved[c];
-                    }
-                }
-            }
-            let out: Vec<[f32; 3]> = acc
-                .iter()
-                .zip(&sites)
-                .map(|(a, s)| {
-                    if s.is_some() {
-                        a.map(|v| v as f32)
-                    } else {
-                        [0.0; 3]
-                    }
-                })
-                .collect();
-            progress(n as u64);
-            (out, st)
+            let out = run.receiving_cluster(ci);
+            progress(run.clusters.texels[ci].len() as u64);
+            out
         })
         .collect();
     let mut values = vec![[0.0f32; 3]; (w * h) as usize * kmaps];
-    let mut stats = Vec::with_capacity(nc);
-    for ((out, st), recv) in per_cluster.into_iter().zip(&cl.texels) {
+    let mut stats = CellStats::default();
+    for ((out, st), recv) in per_cluster.into_iter().zip(&run.clusters.texels) {
         for (r, &i) in recv.iter().enumerate() {
             let t = &grid.texels[i as usize];
             let slot = (t.y * w + t.x) as usize;
             values[slot * kmaps..(slot + 1) * kmaps]
                 .copy_from_slice(&out[r * kmaps..(r + 1) * kmaps]);
         }
-        stats.push(st);
+        stats = stats.plus(&st);
     }
     let mut peak = vec![0.0f64; kmaps];
     for px in values.chunks_exact(kmaps) {
@@ -639,17 +490,6 @@ pub fn integrate(
             *p = p.max(v[0].abs().max(v[1].abs()).max(v[2].abs()) as f64);
         }
     }
-    let stats = stats
-        .into_iter()
-        .fold(CellStats::default(), |a, b| CellStats {
-            near_cluster_pairs: a.near_cluster_pairs + b.near_cluster_pairs,
-            near_texel_pairs: a.near_texel_pairs + b.near_texel_pairs,
-            uniform_windows: a.uniform_windows + b.uniform_windows,
-            split_windows: a.split_windows + b.split_windows,
-            rehomed: a.rehomed + b.rehomed,
-            moved_uncovered: a.moved_uncovered + b.moved_uncovered,
-            rehomed_far: a.rehomed_far + b.rehomed_far,
-        });
     CellValues {
         width: w,
         height: h,
@@ -657,5 +497,267 @@ pub fn integrate(
         values,
         peak,
         stats,
+    }
+}
+
+impl CellStats {
+    /// The field-wise sum of two sets of counts.
+    fn plus(&self, b: &CellStats) -> CellStats {
+        CellStats {
+            near_cluster_pairs: self.near_cluster_pairs + b.near_cluster_pairs,
+            near_texel_pairs: self.near_texel_pairs + b.near_texel_pairs,
+            uniform_windows: self.uniform_windows + b.uniform_windows,
+            split_windows: self.split_windows + b.split_windows,
+            rehomed: self.rehomed + b.rehomed,
+            moved_uncovered: self.moved_uncovered + b.moved_uncovered,
+            rehomed_far: self.rehomed_far + b.rehomed_far,
+        }
+    }
+}
+
+/// Everything [`integrate`] shares between receiving clusters.
+struct Integration<'a> {
+    transport: &'a Transport,
+    grid: &'a TexelGrid,
+    offsets: &'a [IVec2],
+    clusters: Clusters,
+    table: CellTable,
+    /// The cell holding `Δt = 0`, if any.
+    origin: Option<u32>,
+    /// Voronoi neighbours of every cell.
+    neighbours: Vec<Vec<u32>>,
+}
+
+/// The running sums of one receiving cluster: per receiver `r` (in cluster order) and map `k`,
+/// at `r · K + k`.
+struct Receivers {
+    /// Texel coordinates of each receiver.
+    xy: Vec<(i32, i32)>,
+    /// Transfer summed per cell.
+    acc: Vec<[f64; 3]>,
+    /// Position of the site `t + Δt_k`, `None` when uncovered.
+    sites: Vec<Option<Vec3>>,
+    stats: CellStats,
+}
+
+/// The share-able first bounce of a near cluster (0 when it is texel-exact).
+fn near_bounce(n: &Near) -> [f64; 3] {
+    if n.exact_bounce {
+        [0.0; 3]
+    } else {
+        n.bounce.map(f64::from)
+    }
+}
+
+impl Integration<'_> {
+    /// The cell values of every receiver of cluster `ci` (receiver-major, `K` per receiver,
+    /// 0 where a site is uncovered) and what it took.
+    fn receiving_cluster(&self, ci: usize) -> (Vec<[f32; 3]>, CellStats) {
+        let mut rx = self.receivers(ci);
+        self.add_cluster_shares(ci, &mut rx);
+        self.add_exact_zone(ci, &mut rx);
+        self.move_uncovered(&mut rx);
+        let out: Vec<[f32; 3]> = rx
+            .acc
+            .iter()
+            .zip(&rx.sites)
+            .map(|(a, s)| {
+                if s.is_some() {
+                    a.map(|v| v as f32)
+                } else {
+                    [0.0; 3]
+                }
+            })
+            .collect();
+        (out, rx.stats)
+    }
+
+    /// Empty sums and the sites of every receiver of cluster `ci`.
+    fn receivers(&self, ci: usize) -> Receivers {
+        let kmaps = self.offsets.len();
+        let recv = &self.clusters.texels[ci];
+        let xy: Vec<(i32, i32)> = recv
+            .iter()
+            .map(|&i| {
+                let t = &self.grid.texels[i as usize];
+                (t.x as i32, t.y as i32)
+            })
+            .collect();
+        let mut sites: Vec<Option<Vec3>> = vec![None; recv.len() * kmaps];
+        for (r, &(xi, yi)) in xy.iter().enumerate() {
+            for (k, o) in self.offsets.iter().enumerate() {
+                sites[r * kmaps + k] = self
+                    .grid
+                    .at(xi + o.x, yi + o.y)
+                    .map(|j| self.transport.patches[j as usize].position_m);
+            }
+        }
+        Receivers {
+            xy,
+            acc: vec![[0.0f64; 3]; recv.len() * kmaps],
+            sites,
+            stats: CellStats::default(),
+        }
+    }
+
+    /// Every sender cluster by area share: the cluster transfer for far clusters; the
+    /// remainder plus the point-to-cluster bounce for near ones (their subsurface part and
+    /// near-singular bounce are added texel by texel by [`Integration::add_exact_zone`]).
+    fn add_cluster_shares(&self, ci: usize, rx: &mut Receivers) {
+        let kmaps = self.offsets.len();
+        let rem = &self.transport.remainder;
+        let nc = rem.clusters.len();
+        let near = &self.clusters.near[ci];
+        let table = &self.table;
+        let mut next_near = 0usize;
+        for cj in 0..nc {
+            let k = ci * nc + cj;
+            let v: [f64; 3] = if next_near < near.len() && near[next_near].cluster as usize == cj {
+                let b = near_bounce(&near[next_near]);
+                next_near += 1;
+                [0, 1, 2].map(|c| rem.rem[c][k] as f64 + b[c])
+            } else {
+                [0, 1, 2].map(|c| rem.full[c][k] as f64)
+            };
+            if v == [0.0; 3] {
+                continue;
+            }
+            let tile = &self.clusters.tiles[cj];
+            let pj = rem.clusters[cj].position_m;
+            for (r, &(xi, yi)) in rx.xy.iter().enumerate() {
+                let acc = &mut rx.acc[r * kmaps..(r + 1) * kmaps];
+                let sites = &rx.sites[r * kmaps..(r + 1) * kmaps];
+                let st = &mut rx.stats;
+                if !table.uniform.is_empty() {
+                    let u = table.uniform[table.index(tile.origin.x - xi, tile.origin.y - yi)];
+                    if u != NO_CELL {
+                        st.uniform_windows += 1;
+                        let u = self.place(u, pj, sites, &mut st.rehomed_far);
+                        let a = &mut acc[u as usize];
+                        for c in 0..3 {
+                            a[c] += v[c];
+                        }
+                        continue;
+                    }
+                }
+                // The window straddles cells: each quadrant goes whole to the cell of its
+                // centre texel (see the module docs).
+                st.split_windows += 1;
+                for &(centre, share) in &tile.quads {
+                    if share == 0.0 {
+                        continue;
+                    }
+                    let cell = table.cell(centre.x - xi, centre.y - yi);
+                    if cell == NO_CELL {
+                        continue;
+                    }
+                    let cell = self.place(cell, pj, sites, &mut st.rehomed_far);
+                    let a = &mut acc[cell as usize];
+                    for c in 0..3 {
+                        a[c] += v[c] * share;
+                    }
+                }
+            }
+        }
+    }
+
+    /// The exact zone, texel by texel: the subsurface term within the profile's support and
+    /// the texel form factor of near-singular neighbours (replacing their point-to-cluster
+    /// share).
+    fn add_exact_zone(&self, ci: usize, rx: &mut Receivers) {
+        let kmaps = self.offsets.len();
+        let transport = self.transport;
+        let kern = &transport.kernels;
+        let rem = &transport.remainder;
+        let cl = &self.clusters;
+        let recv = &cl.texels[ci];
+        for (r, (&i, &(xi, yi))) in recv.iter().zip(&rx.xy).enumerate() {
+            let pi = &transport.patches[i as usize];
+            let sites = &rx.sites[r * kmaps..(r + 1) * kmaps];
+            let acc = &mut rx.acc[r * kmaps..(r + 1) * kmaps];
+            let st = &mut rx.stats;
+            let translucent = kern.is_translucent(pi.material);
+            let support2 = if translucent {
+                (kern.support_m[pi.material as usize] as f32).powi(2)
+            } else {
+                0.0
+            };
+            let ff2 = if kern.effects.radiosity {
+                FF_EXACT_PITCHES * FF_EXACT_PITCHES * pi.area_m2
+            } else {
+                0.0
+            };
+            for n in cl.near[ci].iter().filter(|n| n.exact_zone) {
+                st.near_cluster_pairs += 1;
+                let cj = n.cluster as usize;
+                let inv_area = 1.0 / rem.clusters[cj].area_m2 as f64;
+                let approx = near_bounce(n);
+                let one_texel = cl.texels[cj].len() == 1;
+                for &j in &cl.texels[cj] {
+                    let pj = &transport.patches[j as usize];
+                    let d2 = (pj.position_m - pi.position_m).length_squared();
+                    let in_sss = translucent && pj.material == pi.material && d2 < support2;
+                    let in_ff = n.exact_bounce || one_texel || d2 < ff2;
+                    if !(in_sss || in_ff || i == j) {
+                        continue;
+                    }
+                    let t = &self.grid.texels[j as usize];
+                    let cell = self.table.cell(t.x as i32 - xi, t.y as i32 - yi);
+                    if cell == NO_CELL {
+                        continue;
+                    }
+                    st.near_texel_pairs += 1;
+                    let cell = self.place(cell, pj.position_m, sites, &mut st.rehomed);
+                    let mut e = kern.r_subsurface(pi, pj, i == j);
+                    if in_ff {
+                        let b = kern.r_bounce(pi, pj, i == j);
+                        let share = pj.area_m2 as f64 * inv_area;
+                        for c in 0..3 {
+                            e[c] += b[c] - approx[c] * share;
+                        }
+                    }
+                    let a = &mut acc[cell as usize];
+                    for c in 0..3 {
+                        a[c] += e[c];
+                    }
+                }
+            }
+        }
+    }
+
+    /// Cells whose site is uncovered for a receiver: their transfer is counted with the
+    /// receiver's own cell (the one holding Δt = 0), or, when that cell's site is uncovered
+    /// too, the cell with a covered site nearest to Δt = 0.
+    fn move_uncovered(&self, rx: &mut Receivers) {
+        let kmaps = self.offsets.len();
+        for r in 0..rx.xy.len() {
+            let sites = &rx.sites;
+            let valid = |k: usize| sites[r * kmaps + k].is_some();
+            let Some(home) = self
+                .origin
+                .map(|o| o as usize)
+                .filter(|&o| valid(o))
+                .or_else(|| nearest_valid_to_zero(self.offsets, &valid))
+            else {
+                continue;
+            };
+            for k in 0..kmaps {
+                if valid(k) || rx.acc[r * kmaps + k] == [0.0; 3] {
+                    continue;
+                }
+                rx.stats.moved_uncovered += 1;
+                let moved = std::mem::take(&mut rx.acc[r * kmaps + k]);
+                let a = &mut rx.acc[r * kmaps + home];
+                for c in 0..3 {
+                    a[c] += moved[c];
+                }
+            }
+        }
+    }
+
+    /// [`place`] with this integration's origin cell and neighbours.
+    #[inline]
+    fn place(&self, cell: u32, p_m: Vec3, sites: &[Option<Vec3>], moved: &mut u64) -> u32 {
+        place(cell, p_m, sites, self.origin, &self.neighbours, moved)
     }
 }

@@ -9,22 +9,17 @@ use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 use crate::bake::lighting;
-use crate::maps::{self, TransferMap};
 use crate::bake::raycast::Visibility;
-use crate::scene::{Light, Scene};
 use crate::bake::texels::TexelGrid;
+use crate::maps::{self, TransferMap};
+use crate::scene::{Light, Scene};
 
 /// `count` random point-light set-ups around the scene: each has one or two point lights at
 /// 1.5–3 bounding radii from the centre, random colours, intensities giving ~10 W/m² at the
 /// centre. Deterministic for `seed`.
 pub fn random_light_setups(scene: &Scene, count: usize, seed: u64) -> Vec<Vec<Light>> {
-    let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
-    for p in &scene.mesh.positions_m {
-        lo = lo.min(*p);
-        hi = hi.max(*p);
-    }
-    let centre = (lo + hi) * 0.5;
-    let radius = (hi - lo).length() * 0.5;
+    let (lo, hi) = scene.mesh.bounds();
+    let (centre, radius) = ((lo + hi) * 0.5, (hi - lo).length() * 0.5);
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     (0..count)
         .map(|_| {

@@ -17,8 +17,8 @@ use rayon::prelude::*;
 
 use crate::Lightmap;
 use crate::bake::raycast::Visibility;
-use crate::scene::Light;
 use crate::bake::texels::{Texel, TexelGrid};
+use crate::scene::Light;
 
 /// Distance used for the shadow rays of directional lights, metres.
 const FAR_M: f32 = 1.0e4;

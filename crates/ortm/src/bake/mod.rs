@@ -45,7 +45,7 @@ pub mod texels;
 pub mod transport;
 
 pub use pipeline::{
-    BakeError, BakeEvent, BakeSettings, BakeSummary, CellRule, EXACT_CELL_MAX, MapPlan, Selector,
-    SelectionRecord, bake, bake_maps, compute_map_values, compute_map_values_exact, scene_hash,
+    BakeError, BakeEvent, BakeSettings, BakeSummary, CellRule, EXACT_CELL_MAX, MapPlan,
+    SelectionRecord, Selector, bake, bake_maps, compute_map_values, compute_map_values_exact,
     select_offsets, selection_receivers, transference,
 };

@@ -7,14 +7,13 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use glam::{IVec2, Vec3};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
-use sha2::{Digest, Sha256};
 
 use crate::Lightmap;
-use crate::maps::{self, BakeIndex, BakeKey, LightmapSize, MapsError, TransferMap};
 use crate::bake::offsets::{self, ImportanceMetric, OffsetError, SelectionSettings};
-use crate::scene::Scene;
 use crate::bake::texels::{TexelError, TexelGrid};
 use crate::bake::transport::{Effects, Transport};
+use crate::maps::{self, BakeIndex, BakeKey, LightmapSize, MapsError, TransferMap};
+use crate::scene::{Scene, scene_hash};
 
 /// How offsets are chosen.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
@@ -160,38 +159,6 @@ pub struct BakeSummary {
     pub stored_texels: u64,
 }
 
-/// A stable hash of everything in the scene that the bake depends on (geometry, UVs, materials,
-/// lightmap size; not the lights).
-pub fn scene_hash(scene: &Scene) -> String {
-    let mut h = Sha256::new();
-    let m = &scene.mesh;
-    for p in &m.positions_m {
-        for c in p.to_array() {
-            h.update(c.to_le_bytes());
-        }
-    }
-    for uv in &m.uvs {
-        h.update(uv.x.to_le_bytes());
-        h.update(uv.y.to_le_bytes());
-    }
-    for n in &m.normals {
-        for c in n.to_array() {
-            h.update(c.to_le_bytes());
-        }
-    }
-    for t in &m.triangles {
-        for k in 0..3 {
-            h.update(t.position[k].to_le_bytes());
-            h.update(t.uv[k].to_le_bytes());
-            h.update(t.normal[k].to_le_bytes());
-        }
-        h.update(t.material.to_le_bytes());
-    }
-    h.update(format!("{:?}", scene.materials).as_bytes());
-    h.update(format!("{}", scene.allow_uv_overlap).as_bytes());
-    h.finalize().iter().map(|b| format!("{b:02x}")).collect()
-}
-
 /// Receivers (texel indices) used to estimate transference: every covered texel, or an evenly
 /// strided subset of at most `max` of them.
 pub fn selection_receivers(grid: &TexelGrid, max: usize) -> Vec<u32> {
@@ -230,6 +197,34 @@ pub fn compute_map_values(
     tva: &[f32],
     contains_origin: bool,
 ) -> (Lightmap, f64) {
+    let w = grid.width;
+    map_over_receivers(grid, offset, |x, y, i, j| {
+        let mut r = Vec3::from_array(transport.r(i, j));
+        let imp = r.abs().max_element() as f64;
+        let delta = if i == j && transport.is_translucent(i) {
+            1.0
+        } else {
+            0.0
+        };
+        r += Vec3::splat(delta);
+        let a_j = transport.patches[j as usize].area_m2;
+        let mut v = r / a_j * tva[(y * w + x) as usize];
+        if contains_origin {
+            v -= Vec3::splat(delta);
+        }
+        (v.to_array(), imp)
+    })
+}
+
+/// One transfer map of `offset` from `texel(x, y, i, j)` = (value, importance) for every
+/// covered receiver `i` at `(x, y)` whose sender `j` at `(x, y) + offset` is covered (0
+/// elsewhere); rows in parallel. Returns the map and the largest importance. Serves
+/// [`compute_map_values`] and [`compute_map_values_exact`].
+fn map_over_receivers(
+    grid: &TexelGrid,
+    offset: IVec2,
+    texel: impl Fn(u32, u32, u32, u32) -> ([f32; 3], f64) + Sync,
+) -> (Lightmap, f64) {
     let (w, h) = (grid.width, grid.height);
     let rows: Vec<(Vec<[f32; 3]>, f64)> = (0..h)
         .into_par_iter()
@@ -243,29 +238,13 @@ pub fn compute_map_values(
                 let Some(j) = grid.at(x as i32 + offset.x, y as i32 + offset.y) else {
                     continue;
                 };
-                let mut r = Vec3::from_array(transport.r(i, j));
-                imp = imp.max(r.abs().max_element() as f64);
-                let delta = if i == j && transport.is_translucent(i) {
-                    1.0
-                } else {
-                    0.0
-                };
-                r += Vec3::splat(delta);
-                let a_j = transport.patches[j as usize].area_m2;
-                let mut v = r / a_j * tva[(y * w + x) as usize];
-                if contains_origin {
-                    v -= Vec3::splat(delta);
-                }
-                row[x as usize] = v.to_array();
+                let (v, texel_imp) = texel(x, y, i, j);
+                imp = imp.max(texel_imp);
+                row[x as usize] = v;
             }
             (row, imp)
         })
         .collect();
-    assemble_rows(w, h, rows)
-}
-
-/// Joins per-row values and importances (computed in parallel) into a map and its importance.
-fn assemble_rows(w: u32, h: u32, rows: Vec<(Vec<[f32; 3]>, f64)>) -> (Lightmap, f64) {
     let mut map = Lightmap::new(w, h);
     let mut importance = 0.0f64;
     for (y, (row, imp)) in rows.into_iter().enumerate() {
@@ -289,40 +268,26 @@ pub fn compute_map_values_exact(
     offset: IVec2,
     runs: &[offsets::RowRun],
 ) -> (Lightmap, f64) {
-    let (w, h) = (grid.width, grid.height);
-    let rows: Vec<(Vec<[f32; 3]>, f64)> = (0..h)
-        .into_par_iter()
-        .map(|y| {
-            let mut row = vec![[0.0f32; 3]; w as usize];
-            let mut imp = 0.0f64;
-            for x in 0..w {
-                let Some(i) = grid.at(x as i32, y as i32) else {
+    map_over_receivers(grid, offset, |x, y, i, _| {
+        let (x, y) = (x as i32, y as i32);
+        let mut imp = 0.0f64;
+        let mut sum = [0.0f64; 3];
+        for run in runs {
+            for dx in run.dx_start..=run.dx_end_inclusive {
+                let Some(j) = grid.at(x + dx, y + run.dy) else {
                     continue;
                 };
-                if grid.at(x as i32 + offset.x, y as i32 + offset.y).is_none() {
-                    continue;
+                let r = transport.r(i, j);
+                if dx == offset.x && run.dy == offset.y {
+                    imp = imp.max(r[0].abs().max(r[1].abs()).max(r[2].abs()) as f64);
                 }
-                let mut sum = [0.0f64; 3];
-                for run in runs {
-                    for dx in run.dx_start..=run.dx_end_inclusive {
-                        let Some(j) = grid.at(x as i32 + dx, y as i32 + run.dy) else {
-                            continue;
-                        };
-                        let r = transport.r(i, j);
-                        if dx == offset.x && run.dy == offset.y {
-                            imp = imp.max(r[0].abs().max(r[1].abs()).max(r[2].abs()) as f64);
-                        }
-                        for c in 0..3 {
-                            sum[c] += r[c] as f64;
-                        }
-                    }
+                for c in 0..3 {
+                    sum[c] += r[c] as f64;
                 }
-                row[x as usize] = [sum[0] as f32, sum[1] as f32, sum[2] as f32];
             }
-            (row, imp)
-        })
-        .collect();
-    assemble_rows(w, h, rows)
+        }
+        ([sum[0] as f32, sum[1] as f32, sum[2] as f32], imp)
+    })
 }
 
 /// Offsets chosen by a selection, with the data needed for the report.
@@ -471,10 +436,9 @@ impl MapPlan {
             total: grid.texels.len() as u64,
         });
         let t0 = std::time::Instant::now();
-        let iv =
-            crate::bake::cells::integrate(transport, grid, &self.offsets, &self.cells, &|n| {
-                events(BakeEvent::Advance(n))
-            });
+        let iv = crate::bake::cells::integrate(transport, grid, &self.offsets, &self.cells, &|n| {
+            events(BakeEvent::Advance(n))
+        });
         let st = &iv.stats;
         events(BakeEvent::Message(format!(
             "cells integrated in {:.2} s: {} near cluster pairs ({} texel pairs, {} of them \
@@ -594,42 +558,110 @@ pub fn bake(
     let transport = Transport::new(scene, &grid, settings.effects, settings.coarse_block);
     let t_transport = t0.elapsed().as_secs_f64();
 
-    // Offsets: reuse a saved selection of the same bake.
-    let sel_path = dir.join("selection.json");
-    let saved: Option<SelectionRecord> =
-        crate::io::limits::read_bounded(&sel_path, crate::io::limits::MAX_JSON_BYTES, "MAX_JSON_BYTES")
-            .ok()
-            .and_then(|b| serde_json::from_slice(&b).ok())
-            .filter(|s: &SelectionRecord| {
-                s.bake_key == key.as_str() && s.is_plausible(settings.offsets, w, h)
-            });
-    let (offset_list, points) = match saved {
-        Some(s) => {
-            events(BakeEvent::Message(
-                "reusing the saved offset selection".into(),
-            ));
-            (
-                s.offsets.iter().map(|o| IVec2::from_array(*o)).collect(),
-                s.data_points,
-            )
-        }
-        None => {
-            let (o, p) = select_offsets(&transport, &grid, settings, events)?;
-            write_json_atomic(
-                &sel_path,
-                &SelectionRecord {
-                    bake_key: key.as_str().to_owned(),
-                    offsets: o.iter().map(|v| v.to_array()).collect(),
-                    data_points: p.clone(),
-                },
-            )?;
-            (o, p)
-        }
-    };
+    let (offset_list, points) =
+        saved_or_new_selection(dir, &key, &transport, &grid, settings, events)?;
     let t_select = t0.elapsed().as_secs_f64() - t_transport;
 
-    let mut plan = MapPlan::new(&grid, &offset_list, settings.cell_rule)?;
-    let scan = maps::scan_finished_maps(dir, &key, w, h)?;
+    let plan = MapPlan::new(&grid, &offset_list, settings.cell_rule)?;
+    let written = write_maps(dir, &key, &transport, &grid, plan, events, cancel)?;
+    let importance: Vec<f64> = written.entries.iter().map(|e| e.importance).collect();
+    let index = BakeIndex::new(
+        LightmapSize {
+            width: w,
+            height: h,
+        },
+        hash,
+        settings_json,
+        written.entries,
+    );
+    crate::bake::report::write_bake_report(dir, &grid, &offset_list, &importance, &points)
+        .map_err(|e| BakeError::Io {
+            path: dir.join("report"),
+            source: std::io::Error::other(e.to_string()),
+        })?;
+    index.write(dir)?;
+    Ok(BakeSummary {
+        maps: offset_list.len(),
+        reused: written.reused,
+        seconds: [
+            t_transport,
+            t_select,
+            t0.elapsed().as_secs_f64() - t_transport - t_select,
+        ],
+        texels: grid.texels.len(),
+        stored_texels: written.stored_texels,
+    })
+}
+
+/// The offsets and importance data points of the bake `key`: those saved in `dir`'s
+/// `selection.json` when it belongs to the same bake and is plausible, else a new selection
+/// ([`select_offsets`]), saved atomically.
+fn saved_or_new_selection(
+    dir: &Path,
+    key: &BakeKey,
+    transport: &Transport,
+    grid: &TexelGrid,
+    settings: &BakeSettings,
+    events: &(dyn Fn(BakeEvent) + Sync),
+) -> Result<(Vec<IVec2>, Vec<[f64; 3]>), BakeError> {
+    let (w, h) = settings.size;
+    let sel_path = dir.join("selection.json");
+    let saved: Option<SelectionRecord> = crate::io::limits::read_bounded(
+        &sel_path,
+        crate::io::limits::MAX_JSON_BYTES,
+        "MAX_JSON_BYTES",
+    )
+    .ok()
+    .and_then(|b| serde_json::from_slice(&b).ok())
+    .filter(|s: &SelectionRecord| {
+        s.bake_key == key.as_str() && s.is_plausible(settings.offsets, w, h)
+    });
+    if let Some(s) = saved {
+        events(BakeEvent::Message(
+            "reusing the saved offset selection".into(),
+        ));
+        return Ok((
+            s.offsets.iter().map(|o| IVec2::from_array(*o)).collect(),
+            s.data_points,
+        ));
+    }
+    let (o, p) = select_offsets(transport, grid, settings, events)?;
+    write_json_atomic(
+        &sel_path,
+        &SelectionRecord {
+            bake_key: key.as_str().to_owned(),
+            offsets: o.iter().map(|v| v.to_array()).collect(),
+            data_points: p.clone(),
+        },
+    )?;
+    Ok((o, p))
+}
+
+/// The maps of a bake directory after [`write_maps`].
+struct WrittenMaps {
+    /// Index entries, in offset order.
+    entries: Vec<maps::MapEntry>,
+    /// Maps kept from an earlier run.
+    reused: usize,
+    /// Stored (cropped) texels over all maps.
+    stored_texels: u64,
+}
+
+/// Writes every map of `plan` that `dir` does not already hold for the bake `key`
+/// (stale temporary files are removed first). Maps are independent: they are computed,
+/// cropped, encoded and written in parallel, each atomically, so an interruption (`cancel`)
+/// leaves only whole maps behind, whatever the order.
+fn write_maps(
+    dir: &Path,
+    key: &BakeKey,
+    transport: &Transport,
+    grid: &TexelGrid,
+    mut plan: MapPlan,
+    events: &(dyn Fn(BakeEvent) + Sync),
+    cancel: &AtomicBool,
+) -> Result<WrittenMaps, BakeError> {
+    let offset_list = plan.offsets.clone();
+    let scan = maps::scan_finished_maps(dir, key, grid.width, grid.height)?;
     for p in &scan.stale_temp {
         let _ = std::fs::remove_file(p);
     }
@@ -647,14 +679,12 @@ pub fn bake(
         if cancel.load(Ordering::Relaxed) {
             return Err(BakeError::Interrupted { done: 0, total });
         }
-        plan.prepare(&transport, &grid, events);
+        plan.prepare(transport, grid, events);
     }
     events(BakeEvent::Phase {
         name: "writing transfer maps",
         total: total as u64,
     });
-    // Maps are independent: crop, encode (ZIP) and write them in parallel. Each file is written
-    // atomically, so an interruption leaves only whole maps behind, whatever the order.
     let written = std::sync::atomic::AtomicUsize::new(0);
     let results: Vec<Result<(maps::MapEntry, bool, u64), BakeError>> = offset_list
         .par_iter()
@@ -673,62 +703,47 @@ pub fn bake(
                     total,
                 });
             }
-            let map = plan.map_prepared(&transport, &grid, k)?;
-            let entry = maps::write_map_file(dir, k as u32, &map, &key)?;
+            let map = plan.map_prepared(transport, grid, k)?;
+            let entry = maps::write_map_file(dir, k as u32, &map, key)?;
             written.fetch_add(1, Ordering::Relaxed);
             events(BakeEvent::Advance(1));
             Ok((entry, false, map.stored_texels()))
         })
         .collect();
-    let mut entries = Vec::with_capacity(total);
-    let mut reused = 0;
-    let mut stored = 0u64;
+    gather_written(results, written.load(Ordering::Relaxed), total)
+}
+
+/// Joins the per-map results of [`write_maps`] (in offset order). A failed map's error comes
+/// first; else an interruption anywhere is reported with the `written` count.
+fn gather_written(
+    results: Vec<Result<(maps::MapEntry, bool, u64), BakeError>>,
+    written: usize,
+    total: usize,
+) -> Result<WrittenMaps, BakeError> {
+    let mut out = WrittenMaps {
+        entries: Vec::with_capacity(total),
+        reused: 0,
+        stored_texels: 0,
+    };
     let mut interrupted = None;
     for r in results {
         match r {
             Ok((e, was_reused, texels)) => {
-                reused += usize::from(was_reused);
-                stored += texels;
-                entries.push(e);
+                out.reused += usize::from(was_reused);
+                out.stored_texels += texels;
+                out.entries.push(e);
             }
             Err(BakeError::Interrupted { .. }) => {
                 interrupted = Some(BakeError::Interrupted {
-                    done: written.load(Ordering::Relaxed),
+                    done: written,
                     total,
                 });
             }
             Err(e) => return Err(e),
         }
     }
-    if let Some(e) = interrupted {
-        return Err(e);
+    match interrupted {
+        Some(e) => Err(e),
+        None => Ok(out),
     }
-    let importance: Vec<f64> = entries.iter().map(|e| e.importance).collect();
-    let index = BakeIndex::new(
-        LightmapSize {
-            width: w,
-            height: h,
-        },
-        hash,
-        settings_json,
-        entries,
-    );
-    crate::bake::report::write_bake_report(dir, &grid, &offset_list, &importance, &points).map_err(
-        |e| BakeError::Io {
-            path: dir.join("report"),
-            source: std::io::Error::other(e.to_string()),
-        },
-    )?;
-    index.write(dir)?;
-    Ok(BakeSummary {
-        maps: total,
-        reused,
-        seconds: [
-            t_transport,
-            t_select,
-            t0.elapsed().as_secs_f64() - t_transport - t_select,
-        ],
-        texels: grid.texels.len(),
-        stored_texels: stored,
-    })
 }

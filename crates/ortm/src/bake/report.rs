@@ -120,22 +120,67 @@ pub fn write_bake_report(
     data_points: &[[f64; 3]],
 ) -> Result<(), ReportError> {
     let (w, h) = (grid.width as f64, grid.height as f64);
+    let sites: Vec<glam::DVec2> = offsets
+        .iter()
+        .map(|o| glam::DVec2::new(o.x as f64 / w, o.y as f64 / h))
+        .collect();
+    save_png(
+        &offsets_picture(&sites, importance),
+        &dir.join("report_offsets.png"),
+    )?;
+    save_png(
+        &density_picture(w, h, data_points),
+        &dir.join("report_density.png"),
+    )
+}
+
+/// Normalised offset `[−1, 1]²` of the centre of report pixel `(x, y)`.
+fn report_pixel_to_norm(x: u32, y: u32) -> glam::DVec2 {
     let px = REPORT_PX;
-    let to_norm = |x: u32, y: u32| {
-        glam::DVec2::new(
-            (x as f64 + 0.5) / px as f64 * 2.0 - 1.0,
-            (y as f64 + 0.5) / px as f64 * 2.0 - 1.0,
-        )
-    };
-    let norm = |o: glam::IVec2| glam::DVec2::new(o.x as f64 / w, o.y as f64 / h);
-    let sites: Vec<glam::DVec2> = offsets.iter().map(|&o| norm(o)).collect();
-    let log_range = |v: &[f64]| {
-        let pos: Vec<f64> = v.iter().copied().filter(|x| *x > 0.0).collect();
-        let hi = pos.iter().copied().fold(f64::MIN, f64::max);
-        let lo = pos.iter().copied().fold(f64::MAX, f64::min).max(hi * 1e-6);
-        (lo.max(1e-30).ln(), hi.max(1e-30).ln())
-    };
-    let (lo, hi) = log_range(importance);
+    glam::DVec2::new(
+        (x as f64 + 0.5) / px as f64 * 2.0 - 1.0,
+        (y as f64 + 0.5) / px as f64 * 2.0 - 1.0,
+    )
+}
+
+/// Natural logs of the smallest and largest positive values of `v` (the smallest clamped to
+/// 1e-6 of the largest).
+fn log_range(v: &[f64]) -> (f64, f64) {
+    let pos: Vec<f64> = v.iter().copied().filter(|x| *x > 0.0).collect();
+    let hi = pos.iter().copied().fold(f64::MIN, f64::max);
+    let lo = pos.iter().copied().fold(f64::MAX, f64::min).max(hi * 1e-6);
+    (lo.max(1e-30).ln(), hi.max(1e-30).ln())
+}
+
+/// `v` on the log scale `[lo, hi]` → `[0, 1]` for [`heat`] (0 for non-positive values).
+fn log_scale(v: f64, (lo, hi): (f64, f64)) -> f32 {
+    if v > 0.0 && hi > lo {
+        ((v.ln() - lo) / (hi - lo)) as f32
+    } else {
+        0.0
+    }
+}
+
+/// A 3×3 dot of colour `c` at normalised offset `p`.
+fn dot(img: &mut RgbImage, p: glam::DVec2, c: Rgb<u8>) {
+    let px = REPORT_PX;
+    let cx = ((p.x + 1.0) * 0.5 * px as f64) as i64;
+    let cy = ((p.y + 1.0) * 0.5 * px as f64) as i64;
+    for dy in -1..=1 {
+        for dx in -1..=1 {
+            let (x, y) = (cx + dx, cy + dy);
+            if x >= 0 && y >= 0 && x < px as i64 && y < px as i64 {
+                img.put_pixel(x as u32, y as u32, c);
+            }
+        }
+    }
+}
+
+/// `report_offsets.png`: each site's (normalised offset's) Voronoi cell coloured by its
+/// importance, borders dark, sites white.
+fn offsets_picture(sites: &[glam::DVec2], importance: &[f64]) -> RgbImage {
+    let px = REPORT_PX;
+    let range = log_range(importance);
     let nearest = |p: glam::DVec2| {
         let mut best = (f64::MAX, 0usize);
         for (k, s) in sites.iter().enumerate() {
@@ -147,39 +192,26 @@ pub fn write_bake_report(
         best.1
     };
     let cells: Vec<usize> = (0..px * px)
-        .map(|i| nearest(to_norm(i % px, i / px)))
+        .map(|i| nearest(report_pixel_to_norm(i % px, i / px)))
         .collect();
     let mut img = RgbImage::from_fn(px, px, |x, y| {
         let k = cells[(y * px + x) as usize];
         let v = importance.get(k).copied().unwrap_or(0.0);
-        let t = if v > 0.0 && hi > lo {
-            ((v.ln() - lo) / (hi - lo)) as f32
-        } else {
-            0.0
-        };
-        let c = heat(t);
+        let c = heat(log_scale(v, range));
         let border = (x + 1 < px && cells[(y * px + x + 1) as usize] != k)
             || (y + 1 < px && cells[((y + 1) * px + x) as usize] != k);
         if border { Rgb([20, 20, 20]) } else { c }
     });
-    let dot = |img: &mut RgbImage, p: glam::DVec2, c: Rgb<u8>| {
-        let cx = ((p.x + 1.0) * 0.5 * px as f64) as i64;
-        let cy = ((p.y + 1.0) * 0.5 * px as f64) as i64;
-        for dy in -1..=1 {
-            for dx in -1..=1 {
-                let (x, y) = (cx + dx, cy + dy);
-                if x >= 0 && y >= 0 && x < px as i64 && y < px as i64 {
-                    img.put_pixel(x as u32, y as u32, c);
-                }
-            }
-        }
-    };
-    for s in &sites {
+    for s in sites {
         dot(&mut img, *s, Rgb([255, 255, 255]));
     }
-    save_png(&img, &dir.join("report_offsets.png"))?;
+    img
+}
 
-    // Density picture.
+/// `report_density.png`: the importance density through `data_points` (texel offsets and
+/// values) of a `w × h` lightmap, data points grey.
+fn density_picture(w: f64, h: f64, data_points: &[[f64; 3]]) -> RgbImage {
+    let px = REPORT_PX;
     let pts: Vec<(glam::DVec2, f64)> = data_points
         .iter()
         .map(|p| (glam::DVec2::new(p[0], p[1]), p[2]))
@@ -187,21 +219,15 @@ pub fn write_bake_report(
     let density = crate::bake::offsets::PiecewiseLinearDensity::new(&pts).ok();
     let values: Vec<f64> = (0..px * px)
         .map(|i| {
-            let p = to_norm(i % px, i / px);
+            let p = report_pixel_to_norm(i % px, i / px);
             density
                 .as_ref()
                 .map_or(0.0, |d| d.value(glam::DVec2::new(p.x * w, p.y * h)))
         })
         .collect();
-    let (lo, hi) = log_range(&values);
+    let range = log_range(&values);
     let mut img = RgbImage::from_fn(px, px, |x, y| {
-        let v = values[(y * px + x) as usize];
-        let t = if v > 0.0 && hi > lo {
-            ((v.ln() - lo) / (hi - lo)) as f32
-        } else {
-            0.0
-        };
-        heat(t)
+        heat(log_scale(values[(y * px + x) as usize], range))
     });
     for p in &pts {
         dot(
@@ -210,5 +236,5 @@ pub fn write_bake_report(
             Rgb([160, 160, 160]),
         );
     }
-    save_png(&img, &dir.join("report_density.png"))
+    img
 }

@@ -28,8 +28,8 @@ use glam::{Vec2, Vec3};
 use thiserror::Error;
 
 use crate::lightmap::uv_to_texel_space;
+use crate::scene::subsurface::Profile;
 use crate::scene::{Albedo, AlbedoTexture, Scene};
-use crate::bake::transport::dipole::Profile;
 
 /// Marker for an uncovered lightmap slot.
 pub const NO_TEXEL: u32 = u32::MAX;
@@ -207,6 +207,192 @@ fn charts(scene: &Scene) -> (Vec<u32>, usize) {
     (out, ids.len())
 }
 
+/// Which triangle covers each lightmap slot (the coverage rule of the module docs).
+struct Coverage {
+    /// Per slot (`y·W + x`): the last covering triangle ([`NO_TEXEL`] if none) and the texel
+    /// centre's barycentrics in it.
+    cover: Vec<(u32, [f32; 3])>,
+    /// Per slot, how many triangles cover it (saturating).
+    count: Vec<u8>,
+    /// The first overlap found: (earlier triangle, later triangle, x, y).
+    first_overlap: Option<(u32, u32, u32, u32)>,
+    /// Triangles that cover no texel centre (or have no UV area).
+    triangles_without_texels: usize,
+}
+
+/// Rasterizes every triangle's UVs at `width × height` texel centres, top-left rule on shared
+/// edges; a later triangle overwrites an earlier one.
+fn rasterize(scene: &Scene, width: u32, height: u32) -> Coverage {
+    let mesh = &scene.mesh;
+    let n_slots = width as usize * height as usize;
+    let mut cov = Coverage {
+        cover: vec![(NO_TEXEL, [0.0; 3]); n_slots],
+        count: vec![0u8; n_slots],
+        first_overlap: None,
+        triangles_without_texels: 0,
+    };
+    for (ti, tri) in mesh.triangles.iter().enumerate() {
+        let p: [(f64, f64); 3] = std::array::from_fn(|k| {
+            let q = uv_to_texel_space(mesh.uvs[tri.uv[k] as usize], width, height);
+            (q.x as f64, q.y as f64)
+        });
+        // Orientation: make E = (b−a)×(p−a) positive inside.
+        let area2 = (p[1].0 - p[0].0) * (p[2].1 - p[0].1) - (p[1].1 - p[0].1) * (p[2].0 - p[0].0);
+        if area2 == 0.0 || !area2.is_finite() {
+            cov.triangles_without_texels += 1;
+            continue;
+        }
+        let order = if area2 > 0.0 { [0, 1, 2] } else { [0, 2, 1] };
+        let v = [p[order[0]], p[order[1]], p[order[2]]];
+        if !rasterize_triangle(&mut cov, ti as u32, v, order, area2.abs(), width, height) {
+            cov.triangles_without_texels += 1;
+        }
+    }
+    cov
+}
+
+/// Marks the texel centres inside the positively oriented texel-space triangle `v` (vertex `k`
+/// of `v` is vertex `order[k]` of triangle `ti`, whose doubled area is `area2`); whether any
+/// was.
+fn rasterize_triangle(
+    cov: &mut Coverage,
+    ti: u32,
+    v: [(f64, f64); 3],
+    order: [usize; 3],
+    area2: f64,
+    width: u32,
+    height: u32,
+) -> bool {
+    let min_x = v.iter().map(|q| q.0).fold(f64::INFINITY, f64::min);
+    let max_x = v.iter().map(|q| q.0).fold(f64::NEG_INFINITY, f64::max);
+    let min_y = v.iter().map(|q| q.1).fold(f64::INFINITY, f64::min);
+    let max_y = v.iter().map(|q| q.1).fold(f64::NEG_INFINITY, f64::max);
+    let x0 = ((min_x - 0.5).ceil().max(0.0)) as i64;
+    let x1 = ((max_x - 0.5).floor().min(width as f64 - 1.0)) as i64;
+    let y0 = ((min_y - 0.5).ceil().max(0.0)) as i64;
+    let y1 = ((max_y - 0.5).floor().min(height as f64 - 1.0)) as i64;
+    let tl = [
+        is_top_left(v[0], v[1]),
+        is_top_left(v[1], v[2]),
+        is_top_left(v[2], v[0]),
+    ];
+    let mut any = false;
+    for y in y0..=y1 {
+        for x in x0..=x1 {
+            let c = (x as f64 + 0.5, y as f64 + 0.5);
+            let e = |a: (f64, f64), b: (f64, f64)| {
+                (b.0 - a.0) * (c.1 - a.1) - (b.1 - a.1) * (c.0 - a.0)
+            };
+            let e0 = e(v[0], v[1]); // opposite v2
+            let e1 = e(v[1], v[2]); // opposite v0
+            let e2 = e(v[2], v[0]); // opposite v1
+            let inside = |ev: f64, top_left: bool| ev > 0.0 || (ev == 0.0 && top_left);
+            if !(inside(e0, tl[0]) && inside(e1, tl[1]) && inside(e2, tl[2])) {
+                continue;
+            }
+            any = true;
+            // Barycentrics in the original vertex order.
+            let mut b = [0.0f32; 3];
+            b[order[0]] = (e1 / area2) as f32;
+            b[order[1]] = (e2 / area2) as f32;
+            b[order[2]] = (e0 / area2) as f32;
+            let s = y as usize * width as usize + x as usize;
+            if cov.count[s] > 0 && cov.first_overlap.is_none() {
+                cov.first_overlap = Some((cov.cover[s].0, ti, x as u32, y as u32));
+            }
+            cov.count[s] = cov.count[s].saturating_add(1);
+            cov.cover[s] = (ti, b);
+        }
+    }
+    any
+}
+
+/// The patch of texel `(x, y)` of a `width × height` lightmap whose centre lies in triangle
+/// `ti` at barycentrics `b` (the attributes of the module docs); `profiles` holds each
+/// material's subsurface profile, `chart` the triangle's chart.
+fn texel_patch(
+    scene: &Scene,
+    profiles: &[Option<Profile>],
+    (x, y): (u32, u32),
+    (width, height): (u32, u32),
+    (ti, b): (u32, [f32; 3]),
+    chart: u32,
+) -> Texel {
+    let mesh = &scene.mesh;
+    let tri = &mesh.triangles[ti as usize];
+    let pos: [Vec3; 3] = std::array::from_fn(|k| mesh.positions_m[tri.position[k] as usize]);
+    let uvs: [Vec2; 3] = std::array::from_fn(|k| mesh.uvs[tri.uv[k] as usize]);
+    let nrm: [Vec3; 3] = std::array::from_fn(|k| mesh.normals[tri.normal[k] as usize]);
+    let position_m = pos[0] * b[0] + pos[1] * b[1] + pos[2] * b[2];
+    let cross = (pos[1] - pos[0]).cross(pos[2] - pos[0]);
+    let world_area = 0.5 * cross.length();
+    let face_normal = cross.normalize_or_zero();
+    let normal = (nrm[0] * b[0] + nrm[1] * b[1] + nrm[2] * b[2])
+        .try_normalize()
+        .unwrap_or(face_normal);
+    let t: [Vec2; 3] = std::array::from_fn(|k| uv_to_texel_space(uvs[k], width, height));
+    let texel_area = 0.5 * ((t[1] - t[0]).perp_dot(t[2] - t[0])).abs();
+    let area_m2 = world_area / texel_area;
+    let uv = uvs[0] * b[0] + uvs[1] * b[1] + uvs[2] * b[2];
+    let material = tri.material;
+    let mat = &scene.materials[material as usize];
+    let albedo = match &profiles[material as usize] {
+        Some(p) => p.total_reflectance(),
+        None => match &mat.albedo {
+            Albedo::Constant(c) => *c,
+            Albedo::Texture(tex) => sample_texture(tex, uv),
+        },
+    };
+    Texel {
+        x,
+        y,
+        position_m,
+        normal,
+        face_normal,
+        area_m2,
+        albedo,
+        material,
+        chart,
+        triangle: ti,
+    }
+}
+
+/// The overlap rule of the module docs: an error when more than [`OVERLAP_TOLERANCE`] of the
+/// `covered` texels overlap and the scene does not allow it, else a warning for any overlap.
+fn check_overlap(
+    scene: &Scene,
+    width: u32,
+    height: u32,
+    overlapping: usize,
+    covered: usize,
+    cov: &Coverage,
+) -> Result<Vec<String>, TexelError> {
+    let mut warnings = Vec::new();
+    if overlapping > 0 {
+        let fraction = overlapping as f64 / covered as f64;
+        let (tri_a, tri_b, x, y) = cov.first_overlap.unwrap_or_default();
+        if fraction > OVERLAP_TOLERANCE && !scene.allow_uv_overlap {
+            return Err(TexelError::Overlap {
+                scene: scene.name.clone(),
+                texels: overlapping,
+                fraction: fraction * 100.0,
+                width,
+                height,
+                tri_a,
+                tri_b,
+                x,
+                y,
+            });
+        }
+        warnings.push(format!(
+            "{overlapping} overlapping texel(s) ({:.3}% of covered) at {width}x{height}; \
+             the last triangle wins",
+            fraction * 100.0
+        ));
+    }
+    Ok(warnings)
+}
+
 impl TexelGrid {
     /// Rasterizes `scene`'s UV layout at the scene's lightmap size.
     pub fn build(scene: &Scene) -> Result<Self, TexelError> {
@@ -216,74 +402,8 @@ impl TexelGrid {
 
     /// Rasterizes `scene`'s UV layout at `width × height`.
     pub fn build_with_size(scene: &Scene, width: u32, height: u32) -> Result<Self, TexelError> {
-        let mesh = &scene.mesh;
         let n_slots = width as usize * height as usize;
-        // Per slot: (triangle, barycentrics) of the last covering triangle, and a cover count.
-        let mut cover: Vec<(u32, [f32; 3])> = vec![(NO_TEXEL, [0.0; 3]); n_slots];
-        let mut count = vec![0u8; n_slots];
-        let mut first_overlap: Option<(u32, u32, u32, u32)> = None;
-        let mut tris_without = 0usize;
-        for (ti, tri) in mesh.triangles.iter().enumerate() {
-            let p: [(f64, f64); 3] = std::array::from_fn(|k| {
-                let q = uv_to_texel_space(mesh.uvs[tri.uv[k] as usize], width, height);
-                (q.x as f64, q.y as f64)
-            });
-            // Orientation: make E = (b−a)×(p−a) positive inside.
-            let area2 =
-                (p[1].0 - p[0].0) * (p[2].1 - p[0].1) - (p[1].1 - p[0].1) * (p[2].0 - p[0].0);
-            if area2 == 0.0 || !area2.is_finite() {
-                tris_without += 1;
-                continue;
-            }
-            let order = if area2 > 0.0 { [0, 1, 2] } else { [0, 2, 1] };
-            let v = [p[order[0]], p[order[1]], p[order[2]]];
-            let area2 = area2.abs();
-            let min_x = v.iter().map(|q| q.0).fold(f64::INFINITY, f64::min);
-            let max_x = v.iter().map(|q| q.0).fold(f64::NEG_INFINITY, f64::max);
-            let min_y = v.iter().map(|q| q.1).fold(f64::INFINITY, f64::min);
-            let max_y = v.iter().map(|q| q.1).fold(f64::NEG_INFINITY, f64::max);
-            let x0 = ((min_x - 0.5).ceil().max(0.0)) as i64;
-            let x1 = ((max_x - 0.5).floor().min(width as f64 - 1.0)) as i64;
-            let y0 = ((min_y - 0.5).ceil().max(0.0)) as i64;
-            let y1 = ((max_y - 0.5).floor().min(height as f64 - 1.0)) as i64;
-            let tl = [
-                is_top_left(v[0], v[1]),
-                is_top_left(v[1], v[2]),
-                is_top_left(v[2], v[0]),
-            ];
-            let mut any = false;
-            for y in y0..=y1 {
-                for x in x0..=x1 {
-                    let c = (x as f64 + 0.5, y as f64 + 0.5);
-                    let e = |a: (f64, f64), b: (f64, f64)| {
-                        (b.0 - a.0) * (c.1 - a.1) - (b.1 - a.1) * (c.0 - a.0)
-                    };
-                    let e0 = e(v[0], v[1]); // opposite v2
-                    let e1 = e(v[1], v[2]); // opposite v0
-                    let e2 = e(v[2], v[0]); // opposite v1
-                    let inside = |ev: f64, top_left: bool| ev > 0.0 || (ev == 0.0 && top_left);
-                    if !(inside(e0, tl[0]) && inside(e1, tl[1]) && inside(e2, tl[2])) {
-                        continue;
-                    }
-                    any = true;
-                    // Barycentrics in the original vertex order.
-                    let mut b = [0.0f32; 3];
-                    b[order[0]] = (e1 / area2) as f32;
-                    b[order[1]] = (e2 / area2) as f32;
-                    b[order[2]] = (e0 / area2) as f32;
-                    let s = y as usize * width as usize + x as usize;
-                    if count[s] > 0 && first_overlap.is_none() {
-                        first_overlap = Some((cover[s].0, ti as u32, x as u32, y as u32));
-                    }
-                    count[s] = count[s].saturating_add(1);
-                    cover[s] = (ti as u32, b);
-                }
-            }
-            if !any {
-                tris_without += 1;
-            }
-        }
-
+        let cov = rasterize(scene, width, height);
         let (triangle_chart, n_charts) = charts(scene);
         let profiles: Vec<Option<Profile>> = scene
             .materials
@@ -298,53 +418,24 @@ impl TexelGrid {
         for y in 0..height {
             for x in 0..width {
                 let s = y as usize * width as usize + x as usize;
-                let (ti, b) = cover[s];
+                let (ti, b) = cov.cover[s];
                 if ti == NO_TEXEL {
                     continue;
                 }
-                if count[s] > 1 {
+                if cov.count[s] > 1 {
                     overlapping += 1;
                 }
-                let tri = &mesh.triangles[ti as usize];
-                let pos: [Vec3; 3] =
-                    std::array::from_fn(|k| mesh.positions_m[tri.position[k] as usize]);
-                let uvs: [Vec2; 3] = std::array::from_fn(|k| mesh.uvs[tri.uv[k] as usize]);
-                let nrm: [Vec3; 3] = std::array::from_fn(|k| mesh.normals[tri.normal[k] as usize]);
-                let position_m = pos[0] * b[0] + pos[1] * b[1] + pos[2] * b[2];
-                let cross = (pos[1] - pos[0]).cross(pos[2] - pos[0]);
-                let world_area = 0.5 * cross.length();
-                let face_normal = cross.normalize_or_zero();
-                let normal = (nrm[0] * b[0] + nrm[1] * b[1] + nrm[2] * b[2])
-                    .try_normalize()
-                    .unwrap_or(face_normal);
-                let t: [Vec2; 3] =
-                    std::array::from_fn(|k| uv_to_texel_space(uvs[k], width, height));
-                let texel_area = 0.5 * ((t[1] - t[0]).perp_dot(t[2] - t[0])).abs();
-                let area_m2 = world_area / texel_area;
-                let uv = uvs[0] * b[0] + uvs[1] * b[1] + uvs[2] * b[2];
-                let material = tri.material;
-                let mat = &scene.materials[material as usize];
-                let albedo = match &profiles[material as usize] {
-                    Some(p) => p.total_reflectance(),
-                    None => match &mat.albedo {
-                        Albedo::Constant(c) => *c,
-                        Albedo::Texture(tex) => sample_texture(tex, uv),
-                    },
-                };
-                area_total += area_m2 as f64;
+                let texel = texel_patch(
+                    scene,
+                    &profiles,
+                    (x, y),
+                    (width, height),
+                    (ti, b),
+                    triangle_chart[ti as usize],
+                );
+                area_total += texel.area_m2 as f64;
                 slot[s] = texels.len() as u32;
-                texels.push(Texel {
-                    x,
-                    y,
-                    position_m,
-                    normal,
-                    face_normal,
-                    area_m2,
-                    albedo,
-                    material,
-                    chart: triangle_chart[ti as usize],
-                    triangle: ti,
-                });
+                texels.push(texel);
             }
         }
         if texels.is_empty() {
@@ -354,29 +445,7 @@ impl TexelGrid {
                 height,
             });
         }
-        let mut warnings = Vec::new();
-        if overlapping > 0 {
-            let fraction = overlapping as f64 / texels.len() as f64;
-            let (tri_a, tri_b, x, y) = first_overlap.unwrap_or_default();
-            if fraction > OVERLAP_TOLERANCE && !scene.allow_uv_overlap {
-                return Err(TexelError::Overlap {
-                    scene: scene.name.clone(),
-                    texels: overlapping,
-                    fraction: fraction * 100.0,
-                    width,
-                    height,
-                    tri_a,
-                    tri_b,
-                    x,
-                    y,
-                });
-            }
-            warnings.push(format!(
-                "{overlapping} overlapping texel(s) ({:.3}% of covered) at {width}x{height}; \
-                 the last triangle wins",
-                fraction * 100.0
-            ));
-        }
+        let warnings = check_overlap(scene, width, height, overlapping, texels.len(), &cov)?;
         Ok(Self {
             width,
             height,
@@ -384,7 +453,7 @@ impl TexelGrid {
                 covered: texels.len(),
                 overlapping,
                 charts: n_charts,
-                triangles_without_texels: tris_without,
+                triangles_without_texels: cov.triangles_without_texels,
                 area_m2: area_total,
                 warnings,
             },

@@ -183,8 +183,9 @@ fn faces() -> Vec<Face> {
     out
 }
 
-/// A placed chart: the texel rectangle `[x, x+w) × [y, y+h)` (y down, row 0 is v = 1).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+/// A placed chart: the texel rectangle `[x, x+w) × [y, y+h)` (y down, row 0 is v = 1); the
+/// default is the empty chart at the origin.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 struct ChartRect {
     /// Left texel column.
     x: u32,
@@ -225,47 +226,10 @@ fn skyline_pack(sizes: &[(u32, u32)], size: u32) -> Option<Vec<(ChartRect, bool)
         let (w, h) = sizes[i];
         (std::cmp::Reverse(w.max(h)), std::cmp::Reverse(w.min(h)), i)
     });
-    // Skyline: (x, width, y) segments covering [0, extent), in packing-area coordinates.
-    let mut sky: Vec<(u32, u32, u32)> = vec![(0, extent, 0)];
-    let mut out = vec![
-        (
-            ChartRect {
-                x: 0,
-                y: 0,
-                w: 0,
-                h: 0
-            },
-            false
-        );
-        sizes.len()
-    ];
+    let mut sky: Skyline = vec![(0, extent, 0)];
+    let mut out = vec![(ChartRect::default(), false); sizes.len()];
     for i in order {
-        let (w0, h0) = sizes[i];
-        // Best placement: (y, x, skyline index, w, h, turned).
-        let mut best: Option<(u32, u32, usize, u32, u32, bool)> = None;
-        for (w, h, turned) in [(w0, h0, false), (h0, w0, true)] {
-            let (wi, hi) = (w + g, h + g);
-            for start in 0..sky.len() {
-                let x = sky[start].0;
-                if x + wi > extent {
-                    break;
-                }
-                // Highest skyline under [x, x + wi).
-                let y = sky[start..]
-                    .iter()
-                    .take_while(|seg| seg.0 < x + wi)
-                    .map(|seg| seg.2)
-                    .max()
-                    .unwrap_or(0);
-                if y + hi > extent {
-                    continue;
-                }
-                if best.is_none_or(|b| (y, x) < (b.0, b.1)) {
-                    best = Some((y, x, start, w, h, turned));
-                }
-            }
-        }
-        let (y, x, _, w, h, turned) = best?;
+        let (y, x, w, h, turned) = lowest_placement(&sky, sizes[i], extent)?;
         out[i] = (
             ChartRect {
                 x: x + g,
@@ -275,34 +239,76 @@ fn skyline_pack(sizes: &[(u32, u32)], size: u32) -> Option<Vec<(ChartRect, bool)
             },
             turned,
         );
-        // Raise the skyline over [x, x + w + g) to y + h + g.
-        let (x_end, top) = (x + w + g, y + h + g);
-        let mut next: Vec<(u32, u32, u32)> = Vec::with_capacity(sky.len() + 2);
-        for &(sx, sw, sy) in &sky {
-            let s_end = sx + sw;
-            if s_end <= x || sx >= x_end {
-                next.push((sx, sw, sy));
+        raise_skyline(&mut sky, x, w + g, y + h + g);
+    }
+    Some(out)
+}
+
+/// Skyline: `(x, width, y)` segments covering `[0, extent)`, in packing-area coordinates,
+/// sorted by `x`.
+type Skyline = Vec<(u32, u32, u32)>;
+
+/// The lowest (then leftmost) place on `sky` for a `(w0, h0)` chart inflated by the gutter,
+/// as is or turned: `(y, x, w, h, turned)`; `None` if it fits nowhere within `extent`.
+fn lowest_placement(
+    sky: &[(u32, u32, u32)],
+    (w0, h0): (u32, u32),
+    extent: u32,
+) -> Option<(u32, u32, u32, u32, bool)> {
+    let g = GUTTER_TEXELS;
+    // Best placement: (y, x, w, h, turned).
+    let mut best: Option<(u32, u32, u32, u32, bool)> = None;
+    for (w, h, turned) in [(w0, h0, false), (h0, w0, true)] {
+        let (wi, hi) = (w + g, h + g);
+        for start in 0..sky.len() {
+            let x = sky[start].0;
+            if x + wi > extent {
+                break;
+            }
+            // Highest skyline under [x, x + wi).
+            let y = sky[start..]
+                .iter()
+                .take_while(|seg| seg.0 < x + wi)
+                .map(|seg| seg.2)
+                .max()
+                .unwrap_or(0);
+            if y + hi > extent {
                 continue;
             }
-            if sx < x {
-                next.push((sx, x - sx, sy));
-            }
-            if s_end > x_end {
-                next.push((x_end, s_end - x_end, sy));
-            }
-        }
-        next.push((x, w + g, top));
-        next.sort_by_key(|seg| seg.0);
-        // Merge neighbours at the same height.
-        sky.clear();
-        for seg in next {
-            match sky.last_mut() {
-                Some(last) if last.2 == seg.2 && last.0 + last.1 == seg.0 => last.1 += seg.1,
-                _ => sky.push(seg),
+            if best.is_none_or(|b| (y, x) < (b.0, b.1)) {
+                best = Some((y, x, w, h, turned));
             }
         }
     }
-    Some(out)
+    best
+}
+
+/// Raises the skyline over `[x, x + width)` to `top`, merging neighbours at the same height.
+fn raise_skyline(sky: &mut Skyline, x: u32, width: u32, top: u32) {
+    let x_end = x + width;
+    let mut next: Vec<(u32, u32, u32)> = Vec::with_capacity(sky.len() + 2);
+    for &(sx, sw, sy) in sky.iter() {
+        let s_end = sx + sw;
+        if s_end <= x || sx >= x_end {
+            next.push((sx, sw, sy));
+            continue;
+        }
+        if sx < x {
+            next.push((sx, x - sx, sy));
+        }
+        if s_end > x_end {
+            next.push((x_end, s_end - x_end, sy));
+        }
+    }
+    next.push((x, width, top));
+    next.sort_by_key(|seg| seg.0);
+    sky.clear();
+    for seg in next {
+        match sky.last_mut() {
+            Some(last) if last.2 == seg.2 && last.0 + last.1 == seg.0 => last.1 += seg.1,
+            _ => sky.push(seg),
+        }
+    }
 }
 
 /// The packed layout for a `size × size` lightmap: texel density (texels per metre), and per
@@ -324,20 +330,7 @@ fn layout(faces: &[Face], size: u32) -> (f64, Vec<(ChartRect, bool)>) {
     }
     // `lo` is feasible (s = 0 gives minimum-size charts, which fit at MIN_LIGHTMAP_SIZE);
     // fall back to empty charts otherwise so that nothing can overlap.
-    let rects = fits(lo).unwrap_or_else(|| {
-        vec![
-            (
-                ChartRect {
-                    x: 0,
-                    y: 0,
-                    w: 0,
-                    h: 0
-                },
-                false
-            );
-            faces.len()
-        ]
-    });
+    let rects = fits(lo).unwrap_or_else(|| vec![(ChartRect::default(), false); faces.len()]);
     (lo, rects)
 }
 

@@ -41,7 +41,7 @@
 //! returned by [`load_scene_with_warnings`]; [`load_scene`] prints them to stderr.
 
 use std::ops::Range;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use glam::Vec3;
@@ -51,7 +51,7 @@ use toml::Spanned;
 use super::obj::{ObjOptions, load_obj_with};
 use super::presets::{PRESET_NAMES, subsurface_preset};
 use super::{
-    Albedo, AlbedoTexture, Light, Material, Scene, SceneError, Subsurface, SubsurfaceModel,
+    Albedo, AlbedoTexture, Light, Material, Mesh, Scene, SceneError, Subsurface, SubsurfaceModel,
     read_text_bounded,
 };
 
@@ -247,7 +247,6 @@ pub fn load_scene_with_warnings(path: &Path) -> Result<(Scene, Vec<String>), Sce
     let ctx = Ctx { path, text: &text };
     let dir = path.parent().unwrap_or(Path::new(""));
 
-    // Top-level values.
     let mpu = *raw.metres_per_unit.get_ref();
     if !(mpu.is_finite() && mpu > 0.0) {
         return Err(ctx.err(
@@ -257,88 +256,55 @@ pub fn load_scene_with_warnings(path: &Path) -> Result<(Scene, Vec<String>), Sce
             "give the size of one model unit in metres, e.g. 0.01 for centimetres",
         ));
     }
-    let lightmap_size = match &raw.lightmap {
-        None => (DEFAULT_LIGHTMAP_SIZE, DEFAULT_LIGHTMAP_SIZE),
-        Some(lm) => {
-            let mut size = [0u32; 2];
-            for (k, (key, value)) in [
-                ("width", lm.get_ref().width),
-                ("height", lm.get_ref().height),
-            ]
-            .into_iter()
-            .enumerate()
-            {
-                let v = value.unwrap_or(DEFAULT_LIGHTMAP_SIZE);
-                if !(1..=MAX_LIGHTMAP_SIZE).contains(&v) {
-                    return Err(ctx.err(
-                        Some(lm.span()),
-                        &format!("lightmap.{key}"),
-                        format!("is {v}, outside 1..={MAX_LIGHTMAP_SIZE}"),
-                        "choose a lightmap size between 1 and 8192 texels (e.g. 256 or 512)",
-                    ));
-                }
-                size[k] = v;
-            }
-            (size[0], size[1])
-        }
-    };
-
-    // Materials.
-    if raw.material.is_empty() {
-        return Err(ctx.err(
-            None,
-            "material",
-            "is missing: the scene has no [[material]]".into(),
-            "add at least one [[material]] table with a `name` and an `albedo`",
-        ));
-    }
-    let mut materials: Vec<Material> = Vec::with_capacity(raw.material.len());
-    for (i, m) in raw.material.iter().enumerate() {
-        let material = ctx.material(i, m, dir)?;
-        if materials.iter().any(|x| x.name == material.name) {
-            return Err(ctx.err(
-                Some(m.span()),
-                &format!("material[{i}].name"),
-                format!("`{}` is used by two materials", material.name),
-                "give every [[material]] a different name",
-            ));
-        }
-        materials.push(material);
-    }
-
-    // Lights.
+    let lightmap_size = ctx.lightmap_size(raw.lightmap.as_ref())?;
+    let materials = ctx.materials(&raw.material, dir)?;
     let lights = raw
         .light
         .iter()
         .enumerate()
         .map(|(i, l)| ctx.light(i, l))
         .collect::<Result<Vec<_>, _>>()?;
-
-    // Mesh.
-    let mesh_rel = raw.mesh.get_ref();
-    if mesh_rel.trim().is_empty() {
-        return Err(ctx.err(
-            Some(raw.mesh.span()),
-            "mesh",
-            "is empty".into(),
-            "give the OBJ file's path, relative to the scene file's folder",
-        ));
-    }
-    let mesh_path = dir.join(mesh_rel);
-    if !mesh_path.is_file() {
-        return Err(ctx.err(
-            Some(raw.mesh.span()),
-            "mesh",
-            format!("names {}, which does not exist", mesh_path.display()),
-            "correct the path (it is relative to the scene file's folder)",
-        ));
-    }
+    let mesh_path = ctx.mesh_path(&raw.mesh, dir)?;
     let options = ObjOptions {
         skip_degenerate_faces: raw.skip_degenerate_faces,
     };
     let (mut mesh, obj_names, mut warnings) = load_obj_with(&mesh_path, mpu, &options)?;
+    assign_materials(
+        path,
+        &mesh_path,
+        &mut mesh,
+        &obj_names,
+        &materials,
+        &mut warnings,
+    );
 
-    // usemtl names → scene materials.
+    let name = raw.name.unwrap_or_else(|| {
+        path.file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_else(|| "scene".into())
+    });
+    let scene = Scene {
+        name,
+        mesh,
+        materials,
+        lights,
+        lightmap_size,
+        allow_uv_overlap: raw.allow_uv_overlap,
+    };
+    Ok((scene, warnings))
+}
+
+/// Maps the OBJ's `usemtl` names (`obj_names`, indexed by the triangles' material) to scene
+/// `materials` by name; a name without a material uses the material `default` (or the first)
+/// with a warning (faces before any `usemtl`, name `""`, use it silently).
+fn assign_materials(
+    path: &Path,
+    mesh_path: &Path,
+    mesh: &mut Mesh,
+    obj_names: &[String],
+    materials: &[Material],
+    warnings: &mut Vec<String>,
+) {
     let fallback = materials
         .iter()
         .position(|m| m.name == "default")
@@ -369,21 +335,6 @@ pub fn load_scene_with_warnings(path: &Path) -> Result<(Scene, Vec<String>), Sce
             .copied()
             .unwrap_or(fallback as u32);
     }
-
-    let name = raw.name.unwrap_or_else(|| {
-        path.file_stem()
-            .map(|s| s.to_string_lossy().into_owned())
-            .unwrap_or_else(|| "scene".into())
-    });
-    let scene = Scene {
-        name,
-        mesh,
-        materials,
-        lights,
-        lightmap_size,
-        allow_uv_overlap: raw.allow_uv_overlap,
-    };
-    Ok((scene, warnings))
 }
 
 /// 1-based line of byte offset `offset` in `text`.
@@ -417,6 +368,87 @@ impl Ctx<'_> {
             problem,
             fix: fix.to_string(),
         }
+    }
+
+    /// `[lightmap]`: each side defaults to [`DEFAULT_LIGHTMAP_SIZE`] and must lie in
+    /// `1..=MAX_LIGHTMAP_SIZE`.
+    fn lightmap_size(&self, lm: Option<&Spanned<RawLightmap>>) -> Result<(u32, u32), SceneError> {
+        let Some(lm) = lm else {
+            return Ok((DEFAULT_LIGHTMAP_SIZE, DEFAULT_LIGHTMAP_SIZE));
+        };
+        let mut size = [0u32; 2];
+        for (k, (key, value)) in [
+            ("width", lm.get_ref().width),
+            ("height", lm.get_ref().height),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            let v = value.unwrap_or(DEFAULT_LIGHTMAP_SIZE);
+            if !(1..=MAX_LIGHTMAP_SIZE).contains(&v) {
+                return Err(self.err(
+                    Some(lm.span()),
+                    &format!("lightmap.{key}"),
+                    format!("is {v}, outside 1..={MAX_LIGHTMAP_SIZE}"),
+                    "choose a lightmap size between 1 and 8192 texels (e.g. 256 or 512)",
+                ));
+            }
+            size[k] = v;
+        }
+        Ok((size[0], size[1]))
+    }
+
+    /// Every `[[material]]` (at least one, names distinct); textures are read from `dir`.
+    fn materials(
+        &self,
+        raw: &[Spanned<RawMaterial>],
+        dir: &Path,
+    ) -> Result<Vec<Material>, SceneError> {
+        if raw.is_empty() {
+            return Err(self.err(
+                None,
+                "material",
+                "is missing: the scene has no [[material]]".into(),
+                "add at least one [[material]] table with a `name` and an `albedo`",
+            ));
+        }
+        let mut materials: Vec<Material> = Vec::with_capacity(raw.len());
+        for (i, m) in raw.iter().enumerate() {
+            let material = self.material(i, m, dir)?;
+            if materials.iter().any(|x| x.name == material.name) {
+                return Err(self.err(
+                    Some(m.span()),
+                    &format!("material[{i}].name"),
+                    format!("`{}` is used by two materials", material.name),
+                    "give every [[material]] a different name",
+                ));
+            }
+            materials.push(material);
+        }
+        Ok(materials)
+    }
+
+    /// The `mesh` path, relative to the scene file's folder `dir`; it must name a file.
+    fn mesh_path(&self, mesh: &Spanned<String>, dir: &Path) -> Result<PathBuf, SceneError> {
+        let mesh_rel = mesh.get_ref();
+        if mesh_rel.trim().is_empty() {
+            return Err(self.err(
+                Some(mesh.span()),
+                "mesh",
+                "is empty".into(),
+                "give the OBJ file's path, relative to the scene file's folder",
+            ));
+        }
+        let mesh_path = dir.join(mesh_rel);
+        if !mesh_path.is_file() {
+            return Err(self.err(
+                Some(mesh.span()),
+                "mesh",
+                format!("names {}, which does not exist", mesh_path.display()),
+                "correct the path (it is relative to the scene file's folder)",
+            ));
+        }
+        Ok(mesh_path)
     }
 
     /// Checks an RGB triple: finite, within `[lo, hi]`.
@@ -638,26 +670,15 @@ impl Ctx<'_> {
         })
     }
 
-    /// Validates one `[[light]]`.
-    fn light(&self, i: usize, l: &Spanned<RawLight>) -> Result<Light, SceneError> {
-        let span = l.span();
-        let raw = l.get_ref();
-        let f = |key: &str| format!("light[{i}].{key}");
-        let type_name = match raw.kind {
-            RawLightKind::Point => "point",
-            RawLightKind::Spot => "spot",
-            RawLightKind::Directional => "directional",
-        };
-        let color = match raw.color {
-            None => Vec3::ONE,
-            Some(c) => self.rgb(
-                &span,
-                &f("color"),
-                c,
-                (0.0, f32::MAX),
-                "give a linear-RGB tint with components ≥ 0, e.g. [1, 1, 1]",
-            )?,
-        };
+    /// The keys of a `type_name` light: one that this type does not take is an error first (a
+    /// misplaced key explains a missing one), then a missing one. `f` names a key in messages.
+    fn check_light_keys(
+        &self,
+        span: &Range<usize>,
+        f: &dyn Fn(&str) -> String,
+        raw: &RawLight,
+        type_name: &str,
+    ) -> Result<(), SceneError> {
         let allowed: &[&str] = match raw.kind {
             RawLightKind::Point => &["position", "intensity"],
             RawLightKind::Spot => &[
@@ -677,7 +698,6 @@ impl Ctx<'_> {
             ("inner_deg", raw.inner_deg.is_some()),
             ("outer_deg", raw.outer_deg.is_some()),
         ];
-        // Keys that do not belong to this type first (a misplaced key explains a missing one).
         for (key, is_present) in present {
             if is_present && !allowed.contains(&key) {
                 return Err(self.err(
@@ -701,6 +721,57 @@ impl Ctx<'_> {
                 ));
             }
         }
+        Ok(())
+    }
+
+    /// A spot light's `(inner_deg, outer_deg)`: `0 ≤ inner ≤ outer ≤ 90`, `outer > 0`.
+    fn spot_cone(
+        &self,
+        span: &Range<usize>,
+        f: &dyn Fn(&str) -> String,
+        raw: &RawLight,
+    ) -> Result<(f32, f32), SceneError> {
+        let inner = raw.inner_deg.unwrap_or(0.0);
+        let outer = raw.outer_deg.unwrap_or(0.0);
+        let ok = inner.is_finite()
+            && outer.is_finite()
+            && 0.0 <= inner
+            && inner <= outer
+            && 0.0 < outer
+            && outer <= 90.0;
+        if !ok {
+            return Err(self.err(
+                Some(span.clone()),
+                &f("outer_deg"),
+                format!("inner_deg = {inner}, outer_deg = {outer} are not a valid cone"),
+                "give half-angles in degrees with 0 ≤ inner_deg ≤ outer_deg ≤ 90 and \
+                 outer_deg > 0",
+            ));
+        }
+        Ok((inner, outer))
+    }
+
+    /// Validates one `[[light]]`.
+    fn light(&self, i: usize, l: &Spanned<RawLight>) -> Result<Light, SceneError> {
+        let span = l.span();
+        let raw = l.get_ref();
+        let f = |key: &str| format!("light[{i}].{key}");
+        let type_name = match raw.kind {
+            RawLightKind::Point => "point",
+            RawLightKind::Spot => "spot",
+            RawLightKind::Directional => "directional",
+        };
+        let color = match raw.color {
+            None => Vec3::ONE,
+            Some(c) => self.rgb(
+                &span,
+                &f("color"),
+                c,
+                (0.0, f32::MAX),
+                "give a linear-RGB tint with components ≥ 0, e.g. [1, 1, 1]",
+            )?,
+        };
+        self.check_light_keys(&span, &f, raw, type_name)?;
         let position = |p: [f32; 3]| {
             self.rgb(
                 &span,
@@ -740,23 +811,7 @@ impl Ctx<'_> {
                 intensity_w_sr: non_negative("intensity", raw.intensity.unwrap_or(0.0), "W/sr")?,
             },
             RawLightKind::Spot => {
-                let inner = raw.inner_deg.unwrap_or(0.0);
-                let outer = raw.outer_deg.unwrap_or(0.0);
-                let ok = inner.is_finite()
-                    && outer.is_finite()
-                    && 0.0 <= inner
-                    && inner <= outer
-                    && 0.0 < outer
-                    && outer <= 90.0;
-                if !ok {
-                    return Err(self.err(
-                        Some(span.clone()),
-                        &f("outer_deg"),
-                        format!("inner_deg = {inner}, outer_deg = {outer} are not a valid cone"),
-                        "give half-angles in degrees with 0 ≤ inner_deg ≤ outer_deg ≤ 90 and \
-                         outer_deg > 0",
-                    ));
-                }
+                let (inner, outer) = self.spot_cone(&span, &f, raw)?;
                 Light::Spot {
                     position_m: position(raw.position.unwrap_or_default())?,
                     direction: direction(raw.direction.unwrap_or_default())?,

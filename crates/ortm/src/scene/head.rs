@@ -1,4 +1,4 @@
-//! The face (issue 7): the scanned head as an ortm [`Scene`] and the paper's face figures as
+//! The face: the scanned head as an ortm [`Scene`] and the paper's face figures as
 //! ortm [`Light`]s, from the plain data of the `faces` crate.
 //!
 //! - [`head_scene`]: `head.obj` (from [`faces::head_obj_path`]: `$ORTM_HEAD_OBJ` or
@@ -12,9 +12,9 @@
 
 use glam::Vec3;
 
+use crate::bake::texels::TexelGrid;
 use crate::scene::presets::{from_measured, model_of};
 use crate::scene::{Albedo, Light, Material, Scene, SceneError};
-use crate::bake::texels::TexelGrid;
 
 /// The head scene with the given skin falloff (see the module docs).
 pub fn head_scene_with(falloff: faces::Falloff) -> Result<Scene, SceneError> {

@@ -5,7 +5,8 @@
 //!
 //! Scenes come from a TOML scene file ([`file`], format in `docs/scene-format.md`) or are
 //! built in code ([`cornell`]). Meshes are read from OBJ by [`obj`], which validates them.
-//! Named subsurface coefficient sets live in [`presets`]; all loading errors are
+//! Named subsurface coefficient sets live in [`presets`], the profile they define in
+//! [`subsurface`]; all loading errors are
 //! [`SceneError`]s (file, problem, fix).
 
 pub mod cornell;
@@ -14,12 +15,14 @@ pub mod file;
 pub mod head;
 pub mod obj;
 pub mod presets;
+pub mod subsurface;
 
 use std::io::Read;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use glam::{Vec2, Vec3};
+use sha2::{Digest, Sha256};
 
 pub use cornell::cornell_box;
 pub use error::{AtLine, SceneError};
@@ -38,6 +41,29 @@ pub struct Mesh {
     pub normals: Vec<Vec3>,
     /// Triangles (quads and polygons are fan-triangulated on load).
     pub triangles: Vec<MeshTriangle>,
+}
+
+impl Mesh {
+    /// Axis-aligned bounding box `(lo, hi)` of the positions, metres (`(+∞, −∞)` when there are
+    /// none).
+    pub fn bounds(&self) -> (Vec3, Vec3) {
+        aabb(&self.positions_m)
+    }
+
+    /// The sphere around [`Mesh::bounds`]: the box's centre and half its diagonal, metres;
+    /// `None` when the box is not finite (no positions).
+    pub fn bounding_sphere(&self) -> Option<(Vec3, f32)> {
+        let (lo, hi) = self.bounds();
+        (lo.is_finite() && hi.is_finite()).then(|| ((lo + hi) * 0.5, (hi - lo).length() * 0.5))
+    }
+}
+
+/// Axis-aligned bounding box `(lo, hi)` of `points` (`(+∞, −∞)` when empty).
+pub(crate) fn aabb(points: &[Vec3]) -> (Vec3, Vec3) {
+    points.iter().fold(
+        (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
+        |(lo, hi), p| (lo.min(*p), hi.max(*p)),
+    )
 }
 
 /// One triangle: indices into the mesh's position, UV and normal arrays, and its material.
@@ -193,6 +219,40 @@ pub struct Scene {
     pub lightmap_size: (u32, u32),
     /// Allow overlapping lightmap UVs (overlaps are otherwise an error).
     pub allow_uv_overlap: bool,
+}
+
+/// A stable hash (SHA-256, 64 lower-case hex digits) of everything in the scene that a bake
+/// depends on: geometry, UVs, normals, triangles, materials, `allow_uv_overlap`; not the lights
+/// nor the lightmap size (the bake key adds its settings). A bake stores it and rendering
+/// checks a scene against it.
+pub fn scene_hash(scene: &Scene) -> String {
+    let mut h = Sha256::new();
+    let m = &scene.mesh;
+    for p in &m.positions_m {
+        for c in p.to_array() {
+            h.update(c.to_le_bytes());
+        }
+    }
+    for uv in &m.uvs {
+        h.update(uv.x.to_le_bytes());
+        h.update(uv.y.to_le_bytes());
+    }
+    for n in &m.normals {
+        for c in n.to_array() {
+            h.update(c.to_le_bytes());
+        }
+    }
+    for t in &m.triangles {
+        for k in 0..3 {
+            h.update(t.position[k].to_le_bytes());
+            h.update(t.uv[k].to_le_bytes());
+            h.update(t.normal[k].to_le_bytes());
+        }
+        h.update(t.material.to_le_bytes());
+    }
+    h.update(format!("{:?}", scene.materials).as_bytes());
+    h.update(format!("{}", scene.allow_uv_overlap).as_bytes());
+    h.finalize().iter().map(|b| format!("{b:02x}")).collect()
 }
 
 /// Reads a whole text file, refusing files larger than `limit` bytes before reading and

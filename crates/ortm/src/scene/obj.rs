@@ -262,103 +262,32 @@ fn scan(path: &Path, text: &str) -> Result<Scan, SceneError> {
         };
         match keyword {
             "v" | "vt" | "vn" => {
-                let statement = match keyword {
-                    "v" => {
-                        v_count += 1;
-                        "v"
-                    }
-                    "vt" => {
-                        s.vt_count += 1;
-                        "vt"
-                    }
-                    _ => {
-                        vn_count += 1;
-                        "vn"
-                    }
+                let (statement, count) = match keyword {
+                    "v" => ("v", &mut v_count),
+                    "vt" => ("vt", &mut s.vt_count),
+                    _ => ("vn", &mut vn_count),
                 };
-                let non_finite = words
-                    .filter_map(|w| w.parse::<f32>().ok())
-                    .any(|x| !x.is_finite());
-                if non_finite {
-                    return Err(SceneError::ObjNonFinite {
-                        path: path.to_path_buf(),
-                        line: line_no,
-                        statement,
-                        text: excerpt(line),
-                    });
-                }
+                *count += 1;
+                check_finite(path, line_no, line, statement, words)?;
             }
-            "f" | "l" => {
-                let corners: Vec<&str> = words.collect();
-                if keyword == "l" {
-                    if corners.len() > 2 {
-                        return Err(SceneError::ObjSyntax {
-                            path: path.to_path_buf(),
-                            line: Some(line_no),
-                            problem: "polylines (`l`) with more than two vertices are not \
-                                      supported; remove the statement"
-                                .into(),
-                        });
-                    }
-                    continue;
-                }
+            "l" if words.clone().count() > 2 => {
+                return Err(SceneError::ObjSyntax {
+                    path: path.to_path_buf(),
+                    line: Some(line_no),
+                    problem: "polylines (`l`) with more than two vertices are not supported; \
+                              remove the statement"
+                        .into(),
+                });
+            }
+            "f" => {
                 face_no += 1;
-                if corners.is_empty() {
-                    return Err(SceneError::ObjSyntax {
-                        path: path.to_path_buf(),
-                        line: Some(line_no),
-                        problem: "a face (`f`) without corners".into(),
-                    });
-                }
-                for corner in &corners {
-                    let mut parts = corner.split('/');
-                    let slots = [
-                        ("position", v_count, parts.next()),
-                        ("texture coordinate", s.vt_count, parts.next()),
-                        ("normal", vn_count, parts.next()),
-                    ];
-                    for (slot, (kind, count, part)) in slots.into_iter().enumerate() {
-                        let part = part.filter(|p| !p.is_empty());
-                        match (slot, part) {
-                            (1, None) => {
-                                first_missing_uv.get_or_insert((line_no, face_no));
-                            }
-                            (2, None) => s.all_corners_have_normals = false,
-                            _ => {}
-                        }
-                        let Some(part) = part else { continue };
-                        // Unparseable indices were already rejected by tobj.
-                        let Ok(index) = part.parse::<i64>() else {
-                            continue;
-                        };
-                        if resolve_index(index, count).is_none() {
-                            return Err(SceneError::ObjIndexOutOfRange {
-                                path: path.to_path_buf(),
-                                line: line_no,
-                                face: face_no,
-                                kind,
-                                index,
-                                count,
-                            });
-                        }
-                    }
-                }
-                if corners.len() >= 3 {
-                    let name = current_material.clone().unwrap_or_default();
-                    let material = match s.material_names.iter().position(|n| *n == name) {
-                        Some(m) => m,
-                        None => {
-                            s.material_names.push(name);
-                            s.material_names.len() - 1
-                        }
-                    };
-                    s.faces.push(FaceRecord {
-                        line: line_no,
-                        face: face_no,
-                        triangles: corners.len() - 2,
-                        material: material as u32,
-                    });
-                }
+                let at = FaceAt {
+                    path,
+                    line: line_no,
+                    face: face_no,
+                };
+                let counts = [v_count, s.vt_count, vn_count];
+                s.face(&at, words, counts, &mut first_missing_uv, &current_material)?;
             }
             "usemtl" => {
                 let name = line
@@ -390,6 +319,133 @@ fn scan(path: &Path, text: &str) -> Result<Scan, SceneError> {
     Ok(s)
 }
 
+/// Refuses a `v`/`vt`/`vn` statement (`statement`, on line `line_no`) with a NaN or infinite
+/// number among `words`.
+fn check_finite<'a>(
+    path: &Path,
+    line_no: usize,
+    line: &str,
+    statement: &'static str,
+    words: impl Iterator<Item = &'a str>,
+) -> Result<(), SceneError> {
+    let non_finite = words
+        .filter_map(|w| w.parse::<f32>().ok())
+        .any(|x| !x.is_finite());
+    if non_finite {
+        return Err(SceneError::ObjNonFinite {
+            path: path.to_path_buf(),
+            line: line_no,
+            statement,
+            text: excerpt(line),
+        });
+    }
+    Ok(())
+}
+
+/// Where a face statement is, for its messages.
+struct FaceAt<'a> {
+    path: &'a Path,
+    /// 1-based line.
+    line: usize,
+    /// 1-based face number.
+    face: usize,
+}
+
+impl FaceAt<'_> {
+    /// Checks one face corner `v[/vt[/vn]]` against the `counts` of `v`, `vt` and `vn`
+    /// statements so far: an index out of range is an error; a missing UV is remembered in
+    /// `first_missing_uv` (line, face), a missing normal clears `all_normals`.
+    fn check_corner(
+        &self,
+        corner: &str,
+        counts: [usize; 3],
+        first_missing_uv: &mut Option<(usize, usize)>,
+        all_normals: &mut bool,
+    ) -> Result<(), SceneError> {
+        let mut parts = corner.split('/');
+        let slots = [
+            ("position", counts[0], parts.next()),
+            ("texture coordinate", counts[1], parts.next()),
+            ("normal", counts[2], parts.next()),
+        ];
+        for (slot, (kind, count, part)) in slots.into_iter().enumerate() {
+            let part = part.filter(|p| !p.is_empty());
+            match (slot, part) {
+                (1, None) => {
+                    first_missing_uv.get_or_insert((self.line, self.face));
+                }
+                (2, None) => *all_normals = false,
+                _ => {}
+            }
+            let Some(part) = part else { continue };
+            // Unparseable indices were already rejected by tobj.
+            let Ok(index) = part.parse::<i64>() else {
+                continue;
+            };
+            if resolve_index(index, count).is_none() {
+                return Err(SceneError::ObjIndexOutOfRange {
+                    path: self.path.to_path_buf(),
+                    line: self.line,
+                    face: self.face,
+                    kind,
+                    index,
+                    count,
+                });
+            }
+        }
+        Ok(())
+    }
+}
+
+impl Scan {
+    /// One `f` statement at `at` with the corners `words`, after `counts` `v`, `vt` and `vn`
+    /// statements: every corner is checked ([`FaceAt::check_corner`]) and a face of three or
+    /// more corners is recorded under the current `usemtl` name `material`.
+    fn face<'a>(
+        &mut self,
+        at: &FaceAt,
+        words: impl Iterator<Item = &'a str>,
+        counts: [usize; 3],
+        first_missing_uv: &mut Option<(usize, usize)>,
+        material: &Option<String>,
+    ) -> Result<(), SceneError> {
+        let corners: Vec<&str> = words.collect();
+        if corners.is_empty() {
+            return Err(SceneError::ObjSyntax {
+                path: at.path.to_path_buf(),
+                line: Some(at.line),
+                problem: "a face (`f`) without corners".into(),
+            });
+        }
+        for corner in &corners {
+            at.check_corner(
+                corner,
+                counts,
+                first_missing_uv,
+                &mut self.all_corners_have_normals,
+            )?;
+        }
+        if corners.len() < 3 {
+            return Ok(());
+        }
+        let name = material.clone().unwrap_or_default();
+        let material = match self.material_names.iter().position(|n| *n == name) {
+            Some(m) => m,
+            None => {
+                self.material_names.push(name);
+                self.material_names.len() - 1
+            }
+        };
+        self.faces.push(FaceRecord {
+            line: at.line,
+            face: at.face,
+            triangles: corners.len() - 2,
+            material: material as u32,
+        });
+        Ok(())
+    }
+}
+
 /// An error for data `tobj` returned inconsistently (should not happen).
 fn internal(path: &Path, what: &str) -> SceneError {
     SceneError::ObjSyntax {
@@ -417,6 +473,18 @@ fn double_area(a: DVec3, b: DVec3, c: DVec3) -> f64 {
     (b - a).cross(c - a).length()
 }
 
+/// The `tobj` models merged into one list of triangles (before scaling and validation).
+struct Merged {
+    /// Welded positions, in file units.
+    positions: Vec<Vec3>,
+    uvs: Vec<Vec2>,
+    file_normals: Vec<Vec3>,
+    /// Per triangle: position, UV and file-normal indices.
+    tris: Vec<[[u32; 3]; 3]>,
+    /// Whether every corner has a file normal.
+    use_file_normals: bool,
+}
+
 /// Merges the `tobj` models into one validated [`Mesh`].
 fn build_mesh(
     path: &Path,
@@ -426,15 +494,77 @@ fn build_mesh(
     scan: &Scan,
     mut warnings: Vec<String>,
 ) -> Result<(Mesh, Vec<String>, Vec<String>), SceneError> {
+    let Merged {
+        positions,
+        mut uvs,
+        file_normals,
+        tris,
+        use_file_normals,
+    } = merge_models(path, models, scan.all_corners_have_normals)?;
+    let faces = triangle_faces(path, scan, tris.len())?;
+    let positions_m = to_metres(path, &positions, metres_per_unit)?;
+    check_uvs(path, &faces, &tris, &mut uvs)?;
+    let keep = degenerate_triangles(
+        path,
+        options,
+        &faces,
+        &tris,
+        &positions_m,
+        &uvs,
+        &mut warnings,
+    )?;
+    let use_file_normals =
+        file_normals_usable(path, use_file_normals, &tris, &file_normals, &mut warnings)?;
+
+    let mut triangles: Vec<MeshTriangle> = Vec::with_capacity(tris.len());
+    for (t, tri) in tris.iter().enumerate() {
+        if !keep[t] {
+            continue;
+        }
+        triangles.push(MeshTriangle {
+            position: tri[0],
+            uv: tri[1],
+            normal: if use_file_normals { tri[2] } else { tri[0] },
+            material: faces.of(t).material,
+        });
+    }
+    if triangles.is_empty() {
+        return Err(SceneError::ObjNoTriangles {
+            path: path.to_path_buf(),
+        });
+    }
+    let normals = if use_file_normals {
+        file_normals.iter().map(|n| n.normalize()).collect()
+    } else {
+        smooth_normals(&positions_m, &triangles)
+    };
+    let mesh = Mesh {
+        positions_m,
+        uvs,
+        normals,
+        triangles,
+    };
+    Ok((mesh, scan.material_names.clone(), warnings))
+}
+
+/// Merges the `tobj` models: positions welded by bit-identical coordinates, UVs and normals
+/// concatenated. `all_corners_have_normals` is the scan's finding.
+fn merge_models(
+    path: &Path,
+    models: &[tobj::Model],
+    all_corners_have_normals: bool,
+) -> Result<Merged, SceneError> {
     let mut weld: HashMap<[u32; 3], u32> = HashMap::new();
-    let mut positions: Vec<Vec3> = Vec::new();
-    let mut uvs: Vec<Vec2> = Vec::new();
-    let mut file_normals: Vec<Vec3> = Vec::new();
-    // Per triangle: position, uv, file-normal indices.
-    let mut tris: Vec<[[u32; 3]; 3]> = Vec::new();
-    let mut use_file_normals = scan.all_corners_have_normals;
+    let mut out = Merged {
+        positions: Vec::new(),
+        uvs: Vec::new(),
+        file_normals: Vec::new(),
+        tris: Vec::new(),
+        use_file_normals: all_corners_have_normals,
+    };
     for model in models {
         let m = &model.mesh;
+        let positions = &mut out.positions;
         let pos_map: Vec<u32> = m
             .positions
             .chunks_exact(3)
@@ -446,10 +576,11 @@ fn build_mesh(
                 })
             })
             .collect();
-        let uv_offset = uvs.len() as u32;
-        uvs.extend(m.texcoords.chunks_exact(2).map(|t| Vec2::new(t[0], t[1])));
-        let n_offset = file_normals.len() as u32;
-        file_normals.extend(
+        let uv_offset = out.uvs.len() as u32;
+        out.uvs
+            .extend(m.texcoords.chunks_exact(2).map(|t| Vec2::new(t[0], t[1])));
+        let n_offset = out.file_normals.len() as u32;
+        out.file_normals.extend(
             m.normals
                 .chunks_exact(3)
                 .map(|n| Vec3::new(n[0], n[1], n[2])),
@@ -458,7 +589,7 @@ fn build_mesh(
             return Err(internal(path, "face corners without UV indices"));
         }
         if m.normal_indices.len() != m.indices.len() {
-            use_file_normals = false;
+            out.use_file_normals = false;
         }
         for t in 0..m.indices.len() / 3 {
             let corners = [3 * t, 3 * t + 1, 3 * t + 2];
@@ -470,34 +601,64 @@ fn build_mesh(
             }
             let uv = corners.map(|c| uv_offset + m.texcoord_indices[c]);
             let normal = corners.map(|c| n_offset + m.normal_indices.get(c).copied().unwrap_or(0));
-            if uv.iter().any(|&i| i as usize >= uvs.len()) {
+            if uv.iter().any(|&i| i as usize >= out.uvs.len()) {
                 return Err(internal(path, "UV index"));
             }
-            tris.push([position, uv, normal]);
+            out.tris.push([position, uv, normal]);
         }
     }
-    // Material and face of every triangle, from the scan (same order as tobj's output).
-    let mut tri_face: Vec<usize> = Vec::with_capacity(tris.len());
+    Ok(out)
+}
+
+/// The OBJ face of every triangle.
+struct TriangleFaces<'a> {
+    scan: &'a Scan,
+    /// Per triangle, the index into the scan's faces.
+    tri_face: Vec<usize>,
+}
+
+impl TriangleFaces<'_> {
+    /// The face triangle `t` comes from.
+    fn of(&self, t: usize) -> FaceRecord {
+        self.scan.faces[self.tri_face[t]]
+    }
+}
+
+/// The face of each of the `triangles` triangles, from the scan (same order as tobj's output);
+/// an error when there are none.
+fn triangle_faces<'a>(
+    path: &Path,
+    scan: &'a Scan,
+    triangles: usize,
+) -> Result<TriangleFaces<'a>, SceneError> {
+    let mut tri_face: Vec<usize> = Vec::with_capacity(triangles);
     for (f, rec) in scan.faces.iter().enumerate() {
         tri_face.extend(std::iter::repeat_n(f, rec.triangles));
     }
-    if tri_face.len() != tris.len() {
+    if tri_face.len() != triangles {
         return Err(internal(
             path,
             &format!(
                 "{} triangles parsed, {} expected from the face statements",
-                tris.len(),
+                triangles,
                 tri_face.len()
             ),
         ));
     }
-    if tris.is_empty() {
+    if triangles == 0 {
         return Err(SceneError::ObjNoTriangles {
             path: path.to_path_buf(),
         });
     }
+    Ok(TriangleFaces { scan, tri_face })
+}
 
-    // Scale to metres.
+/// `positions` scaled to metres; an error when one overflows.
+fn to_metres(
+    path: &Path,
+    positions: &[Vec3],
+    metres_per_unit: f64,
+) -> Result<Vec<Vec3>, SceneError> {
     let positions_m: Vec<Vec3> = positions
         .iter()
         .map(|p| (p.as_dvec3() * metres_per_unit).as_vec3())
@@ -511,8 +672,17 @@ fn build_mesh(
             fix: "check metres_per_unit and the model's coordinates".into(),
         });
     }
+    Ok(positions_m)
+}
 
-    // UVs inside [0, 1].
+/// Every UV used by a triangle must lie in `[0, 1]` within [`UV_TOLERANCE`] (an error naming
+/// the first face); then all UVs are clamped to `[0, 1]`.
+fn check_uvs(
+    path: &Path,
+    faces: &TriangleFaces,
+    tris: &[[[u32; 3]; 3]],
+    uvs: &mut [Vec2],
+) -> Result<(), SceneError> {
     let mut bad_uv: Option<(usize, Vec2)> = None;
     let mut bad_uv_count = 0usize;
     for (t, tri) in tris.iter().enumerate() {
@@ -526,7 +696,7 @@ fn build_mesh(
         }
     }
     if let Some((t, uv)) = bad_uv {
-        let rec = scan.faces[tri_face[t]];
+        let rec = faces.of(t);
         return Err(SceneError::ObjUvOutOfRange {
             path: path.to_path_buf(),
             line: rec.line,
@@ -536,15 +706,25 @@ fn build_mesh(
             count: bad_uv_count,
         });
     }
-    for uv in &mut uvs {
+    for uv in uvs {
         *uv = uv.clamp(Vec2::ZERO, Vec2::ONE);
     }
+    Ok(())
+}
 
-    // Degenerate triangles.
-    let (lo, hi) = positions_m.iter().fold(
-        (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
-        |(lo, hi), p| (lo.min(*p), hi.max(*p)),
-    );
+/// The degenerate-triangle rules of the module docs: which triangles to keep (all, unless
+/// zero-world-area ones are skipped), an error for zero world area unless skipped, and
+/// warnings for skipped and zero-UV-area triangles.
+fn degenerate_triangles(
+    path: &Path,
+    options: &ObjOptions,
+    faces: &TriangleFaces,
+    tris: &[[[u32; 3]; 3]],
+    positions_m: &[Vec3],
+    uvs: &[Vec2],
+    warnings: &mut Vec<String>,
+) -> Result<Vec<bool>, SceneError> {
+    let (lo, hi) = super::aabb(positions_m);
     let diag2 = (hi.as_dvec3() - lo.as_dvec3()).length_squared();
     let world_limit = 2.0 * DEGENERATE_RELATIVE_AREA * diag2;
     let uv_limit = 2.0 * DEGENERATE_UV_AREA;
@@ -554,7 +734,7 @@ fn build_mesh(
     for (t, tri) in tris.iter().enumerate() {
         let p = tri[0].map(|i| positions_m[i as usize].as_dvec3());
         let q = tri[1].map(|i| uvs[i as usize].as_dvec2().extend(0.0));
-        let rec = scan.faces[tri_face[t]];
+        let rec = faces.of(t);
         if double_area(p[0], p[1], p[2]) <= world_limit {
             zero_world.push(rec);
             keep[t] = !options.skip_degenerate_faces;
@@ -586,25 +766,35 @@ fn build_mesh(
             list_faces(&zero_uv)
         ));
     }
+    Ok(keep)
+}
 
-    // Normals.
-    if use_file_normals
+/// Whether the file's `vn` normals are used (`usable`: every corner has one): not when one has
+/// zero length or is not finite (with a warning); a warning too when some corners lack them.
+fn file_normals_usable(
+    path: &Path,
+    usable: bool,
+    tris: &[[[u32; 3]; 3]],
+    file_normals: &[Vec3],
+    warnings: &mut Vec<String>,
+) -> Result<bool, SceneError> {
+    if usable
         && tris
             .iter()
             .any(|t| t[2].iter().any(|&i| i as usize >= file_normals.len()))
     {
         return Err(internal(path, "normal index"));
     }
-    if use_file_normals {
+    if usable {
         let bad = file_normals
             .iter()
             .any(|n| !n.is_finite() || n.length_squared() < 1e-20);
         if bad {
-            use_file_normals = false;
             warnings.push(format!(
                 "{}: some `vn` normals have zero length; computing smooth normals instead",
                 path.display()
             ));
+            return Ok(false);
         }
     } else if !file_normals.is_empty() {
         warnings.push(format!(
@@ -613,36 +803,7 @@ fn build_mesh(
             path.display()
         ));
     }
-
-    let mut triangles: Vec<MeshTriangle> = Vec::with_capacity(tris.len());
-    for (t, tri) in tris.iter().enumerate() {
-        if !keep[t] {
-            continue;
-        }
-        triangles.push(MeshTriangle {
-            position: tri[0],
-            uv: tri[1],
-            normal: if use_file_normals { tri[2] } else { tri[0] },
-            material: scan.faces[tri_face[t]].material,
-        });
-    }
-    if triangles.is_empty() {
-        return Err(SceneError::ObjNoTriangles {
-            path: path.to_path_buf(),
-        });
-    }
-    let normals = if use_file_normals {
-        file_normals.iter().map(|n| n.normalize()).collect()
-    } else {
-        smooth_normals(&positions_m, &triangles)
-    };
-    let mesh = Mesh {
-        positions_m,
-        uvs,
-        normals,
-        triangles,
-    };
-    Ok((mesh, scan.material_names.clone(), warnings))
+    Ok(usable)
 }
 
 /// Smooth area-weighted vertex normals, one per position (indexed like positions).

@@ -209,19 +209,16 @@ impl PiecewiseLinearDensity {
         Ok(())
     }
 
-    /// Whether points were inserted since the sampling tables were last built.
+    /// Whether points were inserted since the sampling tables were last built (tests).
+    #[cfg(test)]
     pub fn is_stale(&self) -> bool {
         self.stale
     }
 
-    /// Number of distinct data-point positions.
+    /// Number of distinct data-point positions (tests).
+    #[cfg(test)]
     pub fn num_points(&self) -> usize {
         self.tri.num_vertices()
-    }
-
-    /// Number of triangles of the Delaunay triangulation.
-    pub fn num_triangles(&self) -> usize {
-        self.tri.num_inner_faces()
     }
 
     /// The data points `(position, averaged weight)`, in the triangulation's vertex order.

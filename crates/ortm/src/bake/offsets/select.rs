@@ -208,6 +208,40 @@ pub fn select_importance(
     mut transference: impl FnMut(&[IVec2]) -> Vec<f64>,
     mut progress: impl FnMut(Phase, usize, usize),
 ) -> Result<Selection, OffsetError> {
+    check_selection_settings(settings, w, h)?;
+    let mut rng = ChaCha8Rng::seed_from_u64(settings.seed);
+    let mut evaluated: HashSet<IVec2> = HashSet::new();
+    let mut density = seed_density(
+        settings,
+        w,
+        h,
+        &mut evaluated,
+        &mut transference,
+        &mut progress,
+    )?;
+    refine(
+        settings,
+        (w, h),
+        &mut density,
+        &mut evaluated,
+        &mut rng,
+        &mut transference,
+        &mut progress,
+    )?;
+    let offsets = draw(settings, w, h, &density, &mut rng, &mut progress);
+    Ok(Selection {
+        offsets,
+        data_points: density.data_points(),
+        density,
+    })
+}
+
+/// The errors of [`select_importance`] that its settings and the map size alone decide.
+fn check_selection_settings(
+    settings: &SelectionSettings,
+    w: u32,
+    h: u32,
+) -> Result<(), OffsetError> {
     check_map(w, h)?;
     if settings.seed_grid < 2 {
         return Err(OffsetError::InvalidSettings {
@@ -236,40 +270,60 @@ pub fn select_importance(
             height: h,
         });
     }
-    let batch = settings.rebuild_every;
-    let mut rng = ChaCha8Rng::seed_from_u64(settings.seed);
-    let mut evaluated: HashSet<IVec2> = HashSet::new();
+    Ok(())
+}
 
-    // 1. Seed.
+/// Step 1: the density through the transference at the seed offsets (added to `evaluated`),
+/// evaluated in batches of `rebuild_every`.
+fn seed_density(
+    settings: &SelectionSettings,
+    w: u32,
+    h: u32,
+    evaluated: &mut HashSet<IVec2>,
+    transference: &mut impl FnMut(&[IVec2]) -> Vec<f64>,
+    progress: &mut impl FnMut(Phase, usize, usize),
+) -> Result<PiecewiseLinearDensity, OffsetError> {
     let seeds = seed_offsets(settings.seed_grid, w, h);
     let mut points = Vec::with_capacity(seeds.len());
-    for chunk in seeds.chunks(batch) {
-        let values = evaluate(chunk, &mut transference)?;
+    for chunk in seeds.chunks(settings.rebuild_every) {
+        let values = evaluate(chunk, transference)?;
         for (&o, v) in chunk.iter().zip(values) {
             evaluated.insert(o);
             points.push((to_point(o), v));
         }
         progress(Phase::Seeding, points.len(), seeds.len());
     }
-    let mut density = PiecewiseLinearDensity::new(&points).map_err(|e| match e {
+    PiecewiseLinearDensity::new(&points).map_err(|e| match e {
         OffsetError::ZeroMass { .. } => OffsetError::ZeroTransference { seeds: seeds.len() },
         other => other,
-    })?;
+    })
+}
 
-    // 2. Refine.
+/// Step 2: `refinement_iterations` draws from the density, in batches of `rebuild_every`;
+/// the offsets not yet `evaluated` are evaluated and inserted, then the density is rebuilt.
+fn refine(
+    settings: &SelectionSettings,
+    (w, h): (u32, u32),
+    density: &mut PiecewiseLinearDensity,
+    evaluated: &mut HashSet<IVec2>,
+    rng: &mut ChaCha8Rng,
+    transference: &mut impl FnMut(&[IVec2]) -> Vec<f64>,
+    progress: &mut impl FnMut(Phase, usize, usize),
+) -> Result<(), OffsetError> {
+    let batch = settings.rebuild_every;
     let total = settings.refinement_iterations;
     let mut done = 0;
     while done < total {
         let n = batch.min(total - done);
         let mut new = Vec::with_capacity(n);
         for _ in 0..n {
-            let o = round_offset(density.sample(&mut rng), w, h);
+            let o = round_offset(density.sample(rng), w, h);
             if evaluated.insert(o) {
                 new.push(o);
             }
         }
         if !new.is_empty() {
-            let values = evaluate(&new, &mut transference)?;
+            let values = evaluate(&new, transference)?;
             for (&o, v) in new.iter().zip(values) {
                 density.insert(to_point(o), v)?;
             }
@@ -278,8 +332,20 @@ pub fn select_importance(
         done += n;
         progress(Phase::Refining, done, total);
     }
+    Ok(())
+}
 
-    // 3. Draw.
+/// Step 3: `(0, 0)` and distinct draws from the density up to `final_count`; if the draws
+/// give up (`64·count + 1024` of them), the densest remaining offsets fill the rest.
+fn draw(
+    settings: &SelectionSettings,
+    w: u32,
+    h: u32,
+    density: &PiecewiseLinearDensity,
+    rng: &mut ChaCha8Rng,
+    progress: &mut impl FnMut(Phase, usize, usize),
+) -> Vec<IVec2> {
+    let batch = settings.rebuild_every;
     let target = settings.final_count;
     let mut offsets = vec![IVec2::ZERO];
     let mut chosen: HashSet<IVec2> = offsets.iter().copied().collect();
@@ -287,7 +353,7 @@ pub fn select_importance(
     let mut draws = 0;
     while offsets.len() < target && draws < max_draws {
         draws += 1;
-        let o = round_offset(density.sample(&mut rng), w, h);
+        let o = round_offset(density.sample(rng), w, h);
         if chosen.insert(o) {
             offsets.push(o);
             if offsets.len() % batch == 0 {
@@ -315,11 +381,7 @@ pub fn select_importance(
         );
     }
     progress(Phase::Drawing, offsets.len(), target);
-    Ok(Selection {
-        offsets,
-        data_points: density.data_points(),
-        density,
-    })
+    offsets
 }
 
 /// The paper's rejected baseline: `count` distinct offsets, one uniformly jittered integer

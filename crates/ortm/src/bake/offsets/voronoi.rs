@@ -58,6 +58,23 @@ pub fn normalise(offset: IVec2, w: u32, h: u32) -> DVec2 {
     )
 }
 
+/// The sites of a partition: `offsets` in order, then the four [`sentinel_offsets`].
+fn sites_with_sentinels(offsets: &[IVec2], w: u32, h: u32) -> Vec<IVec2> {
+    offsets
+        .iter()
+        .copied()
+        .chain(sentinel_offsets(w, h))
+        .collect()
+}
+
+/// [`sites_with_sentinels`] in normalised coordinates ([`normalise`]).
+fn normalised_sites(offsets: &[IVec2], w: u32, h: u32) -> Vec<DVec2> {
+    sites_with_sentinels(offsets, w, h)
+        .into_iter()
+        .map(|o| normalise(o, w, h))
+        .collect()
+}
+
 /// Area of a simple polygon (shoelace formula, absolute value).
 pub fn polygon_area(poly: &[DVec2]) -> f64 {
     let n = poly.len();
@@ -112,7 +129,8 @@ impl ClippedCells {
         self.real.iter().map(|p| polygon_area(p)).collect()
     }
 
-    /// Areas of the sentinels' cells.
+    /// Areas of the sentinels' cells (a test's reference).
+    #[cfg(test)]
     pub fn sentinel_areas(&self) -> Vec<f64> {
         self.sentinel.iter().map(|p| polygon_area(p)).collect()
     }
@@ -148,12 +166,7 @@ pub fn clipped_cell_polygons(
     h: u32,
 ) -> Result<ClippedCells, OffsetError> {
     validate_offsets(offsets, w, h)?;
-    let sites: Vec<DVec2> = offsets
-        .iter()
-        .copied()
-        .chain(sentinel_offsets(w, h))
-        .map(|o| normalise(o, w, h))
-        .collect();
+    let sites = normalised_sites(offsets, w, h);
     let square = vec![
         DVec2::new(-1.0, -1.0),
         DVec2::new(1.0, -1.0),
@@ -214,16 +227,6 @@ pub struct DiscreteCells {
     pub sentinel: Vec<Vec<RowRun>>,
 }
 
-impl DiscreteCells {
-    /// Number of integer offsets in each real cell.
-    pub fn real_counts(&self) -> Vec<usize> {
-        self.real
-            .iter()
-            .map(|r| r.iter().map(RowRun::len).sum())
-            .collect()
-    }
-}
-
 /// Partitions every valid integer offset (`|v.x| ≤ W−1`, `|v.y| ≤ H−1`) among `offsets`
 /// and the four sentinels by nearest site in normalised coordinates, ties to the lowest
 /// index (exact integer arithmetic; see the module docs). Cost: per row, one `O(K)` scan
@@ -232,74 +235,11 @@ impl DiscreteCells {
 /// Errors: as [`clipped_cell_polygons`].
 pub fn discrete_cells(offsets: &[IVec2], w: u32, h: u32) -> Result<DiscreteCells, OffsetError> {
     validate_offsets(offsets, w, h)?;
-    let sites: Vec<IVec2> = offsets
-        .iter()
-        .copied()
-        .chain(sentinel_offsets(w, h))
-        .collect();
-    let (wi, hi) = (w as i32, h as i32);
-    let w2 = i128::from(w) * i128::from(w);
-    let h2 = i128::from(h) * i128::from(h);
+    let sites = sites_with_sentinels(offsets, w, h);
+    let hi = h as i32;
     let rows: Vec<Vec<(usize, RowRun)>> = (-(hi - 1)..=hi - 1)
         .into_par_iter()
-        .map(|dy| {
-            // Scaled squared distance minus the common H²x² term: g_i(x) = −2H²s_x·x + c_i.
-            let slope: Vec<i128> = sites.iter().map(|s| -2 * h2 * i128::from(s.x)).collect();
-            let c: Vec<i128> = sites
-                .iter()
-                .map(|s| {
-                    let ey = i128::from(dy - s.y);
-                    h2 * i128::from(s.x) * i128::from(s.x) + w2 * ey * ey
-                })
-                .collect();
-            let mut runs = Vec::new();
-            let mut x = -(wi - 1);
-            while x < wi {
-                let xx = i128::from(x);
-                let mut best = 0usize;
-                let mut best_g = slope[0] * xx + c[0];
-                for i in 1..sites.len() {
-                    let g = slope[i] * xx + c[i];
-                    if g < best_g {
-                        best = i;
-                        best_g = g;
-                    }
-                }
-                // Largest x' ≥ x at which `best` still beats every other site.
-                let mut end = i128::from(wi - 1);
-                for j in 0..sites.len() {
-                    if j == best {
-                        continue;
-                    }
-                    // best beats j at x' iff a·x' + b < 0, or = 0 and best < j.
-                    let a = slope[best] - slope[j];
-                    let b = c[best] - c[j];
-                    if a > 0 {
-                        let n = -b;
-                        let bound = if best < j {
-                            n.div_euclid(a)
-                        } else {
-                            -((-n).div_euclid(a)) - 1
-                        };
-                        end = end.min(bound);
-                    }
-                }
-                // `best` beats everyone at x itself, so every bound is ≥ x; the max only
-                // guards against an infinite loop should that invariant ever break.
-                debug_assert!(end >= xx, "run end {end} < start {x}");
-                let end = end.max(xx) as i32;
-                runs.push((
-                    best,
-                    RowRun {
-                        dy,
-                        dx_start: x,
-                        dx_end_inclusive: end,
-                    },
-                ));
-                x = end + 1;
-            }
-            runs
-        })
+        .map(|dy| row_runs(&sites, dy, w, h))
         .collect();
     let mut cells = vec![Vec::new(); sites.len()];
     for row in rows {
@@ -312,6 +252,70 @@ pub fn discrete_cells(offsets: &[IVec2], w: u32, h: u32) -> Result<DiscreteCells
         real: cells,
         sentinel,
     })
+}
+
+/// Row `dy` of [`discrete_cells`]: maximal runs of offsets with the same nearest site (index
+/// into `sites`), left to right.
+fn row_runs(sites: &[IVec2], dy: i32, w: u32, h: u32) -> Vec<(usize, RowRun)> {
+    let wi = w as i32;
+    let w2 = i128::from(w) * i128::from(w);
+    let h2 = i128::from(h) * i128::from(h);
+    // Scaled squared distance minus the common H²x² term: g_i(x) = −2H²s_x·x + c_i.
+    let slope: Vec<i128> = sites.iter().map(|s| -2 * h2 * i128::from(s.x)).collect();
+    let c: Vec<i128> = sites
+        .iter()
+        .map(|s| {
+            let ey = i128::from(dy - s.y);
+            h2 * i128::from(s.x) * i128::from(s.x) + w2 * ey * ey
+        })
+        .collect();
+    let mut runs = Vec::new();
+    let mut x = -(wi - 1);
+    while x < wi {
+        let xx = i128::from(x);
+        let mut best = 0usize;
+        let mut best_g = slope[0] * xx + c[0];
+        for i in 1..sites.len() {
+            let g = slope[i] * xx + c[i];
+            if g < best_g {
+                best = i;
+                best_g = g;
+            }
+        }
+        // Largest x' ≥ x at which `best` still beats every other site.
+        let mut end = i128::from(wi - 1);
+        for j in 0..sites.len() {
+            if j == best {
+                continue;
+            }
+            // best beats j at x' iff a·x' + b < 0, or = 0 and best < j.
+            let a = slope[best] - slope[j];
+            let b = c[best] - c[j];
+            if a > 0 {
+                let n = -b;
+                let bound = if best < j {
+                    n.div_euclid(a)
+                } else {
+                    -((-n).div_euclid(a)) - 1
+                };
+                end = end.min(bound);
+            }
+        }
+        // `best` beats everyone at x itself, so every bound is ≥ x; the max only guards
+        // against an infinite loop should that invariant ever break.
+        debug_assert!(end >= xx, "run end {end} < start {x}");
+        let end = end.max(xx) as i32;
+        runs.push((
+            best,
+            RowRun {
+                dy,
+                dx_start: x,
+                dx_end_inclusive: end,
+            },
+        ));
+        x = end + 1;
+    }
+    runs
 }
 
 /// `TVA(t, Δt) = Σ_{v ∈ V(Δt)} A(t + v)` (Eq. 8) for every receiving texel `t` of a `W×H`
@@ -403,12 +407,7 @@ mod tests {
         assert!((total - 4.0).abs() < 1e-9, "total area {total}");
         assert!(real.iter().all(|&a| a > 0.0));
         // Brute force: nearest site on a fine grid of the square.
-        let sites: Vec<DVec2> = offsets
-            .iter()
-            .copied()
-            .chain(sentinel_offsets(w, h))
-            .map(|o| normalise(o, w, h))
-            .collect();
+        let sites = normalised_sites(&offsets, w, h);
         let n = 600;
         let mut counts = vec![0usize; sites.len()];
         for j in 0..n {
@@ -439,11 +438,7 @@ mod tests {
         for (w, h, k, seed) in [(9u32, 6u32, 12usize, 1u64), (16, 16, 40, 2), (5, 11, 7, 3)] {
             let offsets = random_offsets(w, h, k, seed);
             let cells = discrete_cells(&offsets, w, h).unwrap();
-            let sites: Vec<IVec2> = offsets
-                .iter()
-                .copied()
-                .chain(sentinel_offsets(w, h))
-                .collect();
+            let sites = sites_with_sentinels(&offsets, w, h);
             let (wi, hi) = (w as i32, h as i32);
             let mut owner = std::collections::HashMap::new();
             for (site, runs) in cells.real.iter().chain(&cells.sentinel).enumerate() {
@@ -533,11 +528,7 @@ mod tests {
                 }
             })
             .collect();
-        let sites: Vec<IVec2> = offsets
-            .iter()
-            .copied()
-            .chain(sentinel_offsets(w, h))
-            .collect();
+        let sites = sites_with_sentinels(&offsets, w, h);
         let (wi, hi) = (w as i32, h as i32);
         for (k, runs) in cells.real.iter().enumerate() {
             let tva = tva_map(&area, w, h, runs).unwrap();

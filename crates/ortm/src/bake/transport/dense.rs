@@ -8,7 +8,7 @@
 //! doubles per matrix (n = 4,000 → 128 MB each); time `O(n³)`.
 
 use faer::Mat;
-use faer::linalg::solvers::{DenseSolveCore, Solve};
+use faer::linalg::solvers::Solve;
 use glam::Vec3;
 use rayon::prelude::*;
 
@@ -181,34 +181,10 @@ impl DenseTransport {
         })
     }
 
-    /// `(I − X F)⁻¹` is well defined when every row of `X F` sums below 1; this returns the
-    /// largest row sum over channels (a diagnostic: ≥ 1 means the scene amplifies light).
-    pub fn max_row_gain(&self) -> f64 {
-        (0..3)
-            .map(|ch| {
-                let x = self.exitance(ch);
-                let m = self.system(&x);
-                (0..self.n)
-                    .map(|i| {
-                        (0..self.n)
-                            .map(|j| (if i == j { 1.0 } else { 0.0 }) - m[(i, j)])
-                            .sum::<f64>()
-                    })
-                    .fold(0.0, f64::max)
-            })
-            .fold(0.0, f64::max)
-    }
-
     /// Row sums `Σ_j F_ij` (1 inside a closed environment; less where light escapes).
     pub fn form_factor_row_sums(&self) -> Vec<f64> {
         (0..self.n)
             .map(|i| (0..self.n).map(|j| self.form_factors[(i, j)]).sum())
             .collect()
-    }
-
-    /// Inverse of `M` for one channel (used by tests on tiny systems).
-    pub fn system_inverse(&self, ch: usize) -> Mat<f64> {
-        let x = self.exitance(ch);
-        self.system(&x).partial_piv_lu().inverse()
     }
 }

@@ -50,14 +50,6 @@ fn point_kernel(pi: Vec3, ni: Vec3, pj: Vec3, nj: Vec3, denom_area: f32) -> f32 
     ci * cj / (std::f32::consts::PI * r2 + denom_area)
 }
 
-/// Point-to-disk form factor per unit sender area (m⁻²) from a receiving point (`i`'s centre and
-/// normal) to the disk of patch `j`: `cosθ_i cosθ_j / (π r² + A_j)`, no subdivision. Used for
-/// a texel seeing a whole cluster, where `j` is large and the pair is not singular.
-#[inline]
-pub fn point_to_disk(i: &FfPatch, j: &FfPatch) -> f32 {
-    point_kernel(i.position_m, i.normal, j.position_m, j.normal, j.area_m2)
-}
-
 /// Two unit vectors spanning the plane orthogonal to `n`.
 #[inline]
 pub fn tangent_frame(n: Vec3) -> (Vec3, Vec3) {

@@ -5,11 +5,12 @@
 //! Per colour channel, texel `i` turns irradiance `E` (W/m²) into radiosity `B` (W/m²) by an
 //! *exitance operator* `X`: `B_i = ρ_i E_i` for opaque diffuse texels, and
 //! `B_i = Σ_j S_ij E_j` for translucent ones, with `S_ij = R_d(|x_i − x_j|) A_j` the dipole (or
-//! exponential) profile ([`dipole`]) between texels of the same translucent material. Radiosity
-//! travels between texels by the form factors `F_ij` with visibility ([`form_factor`],
-//! [`crate::bake::raycast`]): `E_i = E_direct,i + Σ_j F_ij B_j`. So `B = X(E_d + F B)` and, with the
-//! first-order lightmap `B_o = ρ̄ E_d` (ρ̄ = the effective albedo: ρ, or the profile's total
-//! diffuse reflectance),
+//! exponential) profile ([`crate::scene::subsurface`], tabulated by [`dipole`]) between texels
+//! of the same translucent material. Radiosity travels between texels by the form factors
+//! `F_ij` with visibility ([`form_factor`], [`crate::bake::raycast`]):
+//! `E_i = E_direct,i + Σ_j F_ij B_j`. So `B = X(E_d + F B)` and, with the first-order
+//! lightmap `B_o = ρ̄ E_d` (ρ̄ = the effective albedo: ρ, or the profile's total diffuse
+//! reflectance),
 //!
 //! ```text
 //! B = B_o + R B_o,   R = (I − X F)⁻¹ X ρ̄⁻¹ − I .
@@ -44,9 +45,10 @@ use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
 use crate::bake::raycast::Visibility;
-use crate::scene::Scene;
 use crate::bake::texels::TexelGrid;
-use dipole::{Profile, RdTable};
+use crate::scene::Scene;
+use crate::scene::subsurface::Profile;
+use dipole::RdTable;
 use form_factor::{FfPatch, unoccluded_form_factor};
 
 /// Which transport effects a bake includes.
