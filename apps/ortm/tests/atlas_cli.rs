@@ -8,7 +8,8 @@ use std::process::Command;
 use glam::IVec2;
 use ortm::Lightmap;
 use ortm::atlas::{apply_atlas_set, read_atlas_set};
-use ortm::maps::{self, BakeIndex, BakeKey, LightmapSize, TransferMap, write_map_file};
+use ortm::bake_dir::{BakeIndex, BakeKey, LightmapSize, write_map_file};
+use ortm::maps::{self, TransferMap};
 
 /// A bake of `n` maps of a 40×24 lightmap, each a few rectangles of distinct values.
 fn write_bake(dir: &Path, n: u32) -> Vec<TransferMap> {

@@ -22,7 +22,7 @@ fn settings() -> BakeSettings {
 type Content = (Vec<ortm::maps::TransferMap>, Vec<(String, Vec<u8>)>);
 
 fn content(dir: &Path) -> Content {
-    let index = ortm::maps::BakeIndex::read(dir).unwrap();
+    let index = ortm::bake_dir::BakeIndex::read(dir).unwrap();
     let mut files: Vec<(String, Vec<u8>)> = std::fs::read_dir(dir)
         .unwrap()
         .map(|e| e.unwrap())

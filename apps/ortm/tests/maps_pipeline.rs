@@ -5,9 +5,8 @@
 
 use glam::IVec2;
 use ortm::Lightmap;
-use ortm::maps::{
-    BakeIndex, BakeKey, LightmapSize, TransferMap, apply, scan_finished_maps, write_map_file,
-};
+use ortm::bake_dir::{BakeIndex, BakeKey, LightmapSize, scan_finished_maps, write_map_file};
+use ortm::maps::{TransferMap, apply};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 

@@ -6,7 +6,8 @@
 use std::path::Path;
 use std::process::{Command, Output};
 
-use ortm::maps::{BakeIndex, apply};
+use ortm::bake_dir::BakeIndex;
+use ortm::maps::apply;
 use ortm::render::read_lightmap_exr;
 
 fn ortm(args: &[&str], cwd: &Path) -> Output {

@@ -10,11 +10,12 @@ use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 
 use crate::Lightmap;
-use crate::maps::{self, BakeIndex, BakeKey, LightmapSize, MapsError, TransferMap};
 use crate::bake::offsets::{self, ImportanceMetric, OffsetError, SelectionSettings};
-use crate::scene::Scene;
 use crate::bake::texels::{TexelError, TexelGrid};
 use crate::bake::transport::{Effects, Transport};
+use crate::bake_dir::{self, BakeIndex, BakeKey, LightmapSize};
+use crate::maps::{MapsError, TransferMap};
+use crate::scene::Scene;
 
 /// How offsets are chosen.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
@@ -558,7 +559,14 @@ fn write_json_atomic<T: Serialize>(path: &Path, value: &T) -> Result<(), BakeErr
         path: path.to_owned(),
         source: std::io::Error::other(e),
     })?;
-    Ok(crate::maps::exr_io::write_atomic(path, &text)?)
+    crate::io::write_atomic(path, &text).map_err(|e| {
+        MapsError::from(crate::io::FileError::io(
+            "cannot write",
+            path,
+            crate::io::DirKind::Bake,
+        )(e))
+        .into()
+    })
 }
 
 /// Bakes `scene` into `dir` (resumable; see the module docs). `cancel` is polled between maps.
@@ -581,7 +589,13 @@ pub fn bake(
     crate::io::limits::check_bake_request(w, h, settings.offsets)
         .map_err(|e| BakeError::Settings(e.to_string()))?;
     let grid = TexelGrid::build_with_size(scene, w, h)?;
-    crate::io::limits::check_bake_memory_for_grid(&grid, settings.coarse_block)
+    // The coarse solve's clusters: one per block×block tile, chart and material.
+    let block = settings.coarse_block.max(1);
+    let clusters = (grid.texels.iter())
+        .map(|t| (t.x / block, t.y / block, t.chart, t.material))
+        .collect::<std::collections::HashSet<_>>()
+        .len();
+    crate::io::limits::check_bake_memory(clusters as u64, grid.texels.len() as u64, block)
         .map_err(|e| BakeError::Settings(e.to_string()))?;
     let hash = scene_hash(scene);
     let settings_json = serde_json::to_value(settings).expect("settings serialise");
@@ -596,13 +610,16 @@ pub fn bake(
 
     // Offsets: reuse a saved selection of the same bake.
     let sel_path = dir.join("selection.json");
-    let saved: Option<SelectionRecord> =
-        crate::io::limits::read_bounded(&sel_path, crate::io::limits::MAX_JSON_BYTES, "MAX_JSON_BYTES")
-            .ok()
-            .and_then(|b| serde_json::from_slice(&b).ok())
-            .filter(|s: &SelectionRecord| {
-                s.bake_key == key.as_str() && s.is_plausible(settings.offsets, w, h)
-            });
+    let saved: Option<SelectionRecord> = crate::io::read_bounded(
+        &sel_path,
+        crate::io::limits::MAX_JSON_BYTES,
+        "MAX_JSON_BYTES",
+    )
+    .ok()
+    .and_then(|b| serde_json::from_slice(&b).ok())
+    .filter(|s: &SelectionRecord| {
+        s.bake_key == key.as_str() && s.is_plausible(settings.offsets, w, h)
+    });
     let (offset_list, points) = match saved {
         Some(s) => {
             events(BakeEvent::Message(
@@ -629,7 +646,7 @@ pub fn bake(
     let t_select = t0.elapsed().as_secs_f64() - t_transport;
 
     let mut plan = MapPlan::new(&grid, &offset_list, settings.cell_rule)?;
-    let scan = maps::scan_finished_maps(dir, &key, w, h)?;
+    let scan = bake_dir::scan_finished_maps(dir, &key, w, h)?;
     for p in &scan.stale_temp {
         let _ = std::fs::remove_file(p);
     }
@@ -656,7 +673,7 @@ pub fn bake(
     // Maps are independent: crop, encode (ZIP) and write them in parallel. Each file is written
     // atomically, so an interruption leaves only whole maps behind, whatever the order.
     let written = std::sync::atomic::AtomicUsize::new(0);
-    let results: Vec<Result<(maps::MapEntry, bool, u64), BakeError>> = offset_list
+    let results: Vec<Result<(bake_dir::MapEntry, bool, u64), BakeError>> = offset_list
         .par_iter()
         .enumerate()
         .map(|(k, &offset)| {
@@ -674,7 +691,7 @@ pub fn bake(
                 });
             }
             let map = plan.map_prepared(&transport, &grid, k)?;
-            let entry = maps::write_map_file(dir, k as u32, &map, &key)?;
+            let entry = bake_dir::write_map_file(dir, k as u32, &map, &key)?;
             written.fetch_add(1, Ordering::Relaxed);
             events(BakeEvent::Advance(1));
             Ok((entry, false, map.stored_texels()))
