@@ -142,6 +142,8 @@ impl FileError {
 }
 
 impl fmt::Display for FileError {
+    /// One match over the variants and directory kinds, one message per arm: the table of
+    /// messages reads best in one place.
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         use DirKind::{Atlas, Bake};
         match self {
