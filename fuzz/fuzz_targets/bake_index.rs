@@ -6,7 +6,7 @@
 mod common;
 
 use libfuzzer_sys::fuzz_target;
-use ortm::maps::BakeIndex;
+use ortm::bake_dir::BakeIndex;
 
 fuzz_target!(|data: &[u8]| {
     let dir = common::scratch("bake_index");

@@ -11,7 +11,8 @@ use common::{fails, ortm};
 use glam::IVec2;
 use ortm::Lightmap;
 use ortm::atlas::{apply_atlas_set, read_atlas_set};
-use ortm::maps::{self, BakeIndex, TransferMap};
+use ortm::bake_dir::BakeIndex;
+use ortm::maps::{self, TransferMap};
 
 /// A bake of `n` maps of a 40×24 lightmap, each a few rectangles of distinct values.
 fn write_bake(dir: &Path, n: u32) -> Vec<TransferMap> {

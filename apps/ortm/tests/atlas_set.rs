@@ -13,7 +13,9 @@ use ortm::atlas::{
     ATLAS_INDEX_FILE_NAME, AtlasError, AtlasSet, apply_atlas_pieces, apply_atlas_set,
     build_atlas_set, read_atlas_index, read_atlas_set, write_atlas_set,
 };
-use ortm::maps::{self, BakeIndex, BakeKey, TransferMap};
+use ortm::bake_dir::{BakeIndex, BakeKey};
+use ortm::maps::{self, TransferMap};
+use ortm::io::FileError;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -252,18 +254,24 @@ fn tampered_or_inconsistent_atlases_are_refused() {
     flipped[mid] ^= 0x40;
     fs::write(&f1, &flipped).unwrap();
     let e = read_atlas_set(d).unwrap_err();
-    assert!(matches!(e, AtlasError::Checksum { .. }), "{e}");
+    assert!(
+        matches!(e, AtlasError::File(FileError::Checksum { .. })),
+        "{e}"
+    );
     assert!(e.to_string().contains("atlas_001.exr"), "{e}");
     // Truncated: size error.
     fs::write(&f1, &original[..original.len() - 7]).unwrap();
     assert!(matches!(
         read_atlas_set(d),
-        Err(AtlasError::FileSize { .. })
+        Err(AtlasError::File(FileError::FileSize { .. }))
     ));
     // Missing.
     fs::remove_file(&f1).unwrap();
     let e = read_atlas_set(d).unwrap_err();
-    assert!(matches!(e, AtlasError::MissingFile { .. }), "{e}");
+    assert!(
+        matches!(e, AtlasError::File(FileError::MissingFile { .. })),
+        "{e}"
+    );
     assert!(e.to_string().contains("atlas_001.exr"), "{e}");
     fs::write(&f1, &original).unwrap();
     read_atlas_set(d).unwrap();
@@ -311,7 +319,10 @@ fn tampered_or_inconsistent_atlases_are_refused() {
         "sub/atlas_000.exr",
     ] {
         let e = read_after_edit(d, |v| v["atlases"][0]["file"] = bad.into());
-        assert!(matches!(e, AtlasError::BadFileName { .. }), "{bad}: {e}");
+        assert!(
+            matches!(e, AtlasError::File(FileError::BadFileName { .. })),
+            "{bad}: {e}"
+        );
         restore();
     }
     // Two atlas files swapped in the index (sizes and digests swapped too): each file is

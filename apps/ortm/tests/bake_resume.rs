@@ -24,7 +24,7 @@ fn settings() -> BakeSettings {
 type Content = (Vec<ortm::maps::TransferMap>, Vec<(String, Vec<u8>)>);
 
 fn content(dir: &Path) -> Content {
-    let index = ortm::maps::BakeIndex::read(dir).unwrap();
+    let index = ortm::bake_dir::BakeIndex::read(dir).unwrap();
     let files: Vec<(String, Vec<u8>)> = common::dir_files(dir)
         .into_iter()
         .filter(|(n, _)| n.ends_with(".exr") || n.ends_with(".json"))

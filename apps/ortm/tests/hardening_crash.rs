@@ -92,11 +92,11 @@ fn kill_when(mut child: Child, deadline: Duration, ready: &dyn Fn() -> bool) -> 
 /// and the index is either absent or fully loadable.
 fn check_bake_readers(dir: &Path) {
     for p in map_files(dir) {
-        ortm::maps::read_map_file(&p, Some((32, 32)))
+        ortm::bake_dir::read_map_file(&p, Some((32, 32)))
             .unwrap_or_else(|e| panic!("half-written map file accepted as final: {e}"));
     }
     if dir.join("index.json").exists() {
-        let index = ortm::maps::BakeIndex::read(dir).expect("index readable");
+        let index = ortm::bake_dir::BakeIndex::read(dir).expect("index readable");
         index.load_maps(dir).expect("maps of a written index load");
     }
 }

@@ -55,12 +55,12 @@ fn map_exr_regressions() {
         expect_clean(
             &name,
             "regression.exr",
-            ortm::maps::decode_map(path, &bytes, None),
+            ortm::bake_dir::decode_map(path, &bytes, None),
         );
         expect_clean(
             &name,
             "regression.exr",
-            ortm::maps::decode_map(path, &bytes, Some((32, 32))),
+            ortm::bake_dir::decode_map(path, &bytes, Some((32, 32))),
         );
     }
 }
@@ -91,7 +91,7 @@ fn bake_index_regressions() {
     for (name, bytes) in cases("bake_index") {
         let dir = scratch();
         fs::write(dir.path().join("index.json"), &bytes).unwrap();
-        let r = ortm::maps::BakeIndex::read(dir.path()).and_then(|i| i.load_maps(dir.path()));
+        let r = ortm::bake_dir::BakeIndex::read(dir.path()).and_then(|i| i.load_maps(dir.path()));
         expect_clean(&name, "index.json", r);
         // The atlas reader checks the same index.json against atlases.json: it must not panic
         // (it may accept an index whose key, size and offsets agree).

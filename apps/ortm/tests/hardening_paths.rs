@@ -12,7 +12,9 @@ use std::fs;
 use std::path::Path;
 
 use ortm::atlas::{AtlasError, read_atlas_set};
-use ortm::maps::{BakeIndex, MapsError};
+use ortm::bake_dir::BakeIndex;
+use ortm::io::FileError;
+use ortm::maps::MapsError;
 
 use common::{edit_json, fails, fixture_bake};
 
@@ -33,7 +35,10 @@ fn bake_index_absolute_path_is_refused() {
         v["maps"][0]["file"] = abs.to_string_lossy().into_owned().into();
     });
     let e = BakeIndex::read(dir.path()).unwrap_err();
-    assert!(matches!(e, MapsError::BadFileName { .. }), "{e}");
+    assert!(
+        matches!(e, MapsError::File(FileError::BadFileName { .. })),
+        "{e}"
+    );
 }
 
 #[test]
@@ -43,7 +48,10 @@ fn bake_index_dotdot_is_refused() {
         v["maps"][0]["file"] = "../map_00000_+0_+0.exr".into();
     });
     let e = BakeIndex::read(dir.path()).unwrap_err();
-    assert!(matches!(e, MapsError::BadFileName { .. }), "{e}");
+    assert!(
+        matches!(e, MapsError::File(FileError::BadFileName { .. })),
+        "{e}"
+    );
 }
 
 #[test]
@@ -57,7 +65,10 @@ fn bake_index_symlink_escape_is_refused() {
     fs::rename(dir.path().join(name), &target).unwrap();
     std::os::unix::fs::symlink(&target, dir.path().join(name)).unwrap();
     let e = BakeIndex::read(dir.path()).unwrap_err();
-    assert!(matches!(e, MapsError::PathEscape { .. }), "{e}");
+    assert!(
+        matches!(e, MapsError::File(FileError::PathEscape { .. })),
+        "{e}"
+    );
     assert!(e.to_string().contains("outside the bake directory"), "{e}");
     // A link that stays inside the directory is fine.
     fs::remove_file(dir.path().join(name)).unwrap();
@@ -66,8 +77,8 @@ fn bake_index_symlink_escape_is_refused() {
     let index = BakeIndex::read(dir.path()).unwrap();
     index.load_maps(dir.path()).unwrap();
     // A resumed bake never reuses a linked map file.
-    let key = ortm::maps::BakeKey::new(&index.scene_hash, &index.settings);
-    let scan = ortm::maps::scan_finished_maps(dir.path(), &key, 32, 32).unwrap();
+    let key = ortm::bake_dir::BakeKey::new(&index.scene_hash, &index.settings);
+    let scan = ortm::bake_dir::scan_finished_maps(dir.path(), &key, 32, 32).unwrap();
     assert!(!scan.finished.contains_key(&1));
     assert!(scan.rejected.iter().any(|(p, _)| p.ends_with(name)));
 }
@@ -80,7 +91,10 @@ fn bake_index_naming_a_directory_or_device_is_refused() {
         v["maps"][0]["file"] = "sub.exr".into();
     });
     let e = BakeIndex::read(dir.path()).unwrap_err();
-    assert!(matches!(e, MapsError::PathEscape { .. }), "{e}");
+    assert!(
+        matches!(e, MapsError::File(FileError::PathEscape { .. })),
+        "{e}"
+    );
 }
 
 #[test]
@@ -91,7 +105,10 @@ fn atlas_index_absolute_path_is_refused() {
         v["atlases"][0]["file"] = abs.to_string_lossy().into_owned().into();
     });
     let e = read_atlas_set(dir.path()).unwrap_err();
-    assert!(matches!(e, AtlasError::BadFileName { .. }), "{e}");
+    assert!(
+        matches!(e, AtlasError::File(FileError::BadFileName { .. })),
+        "{e}"
+    );
 }
 
 #[test]
@@ -101,7 +118,10 @@ fn atlas_index_dotdot_is_refused() {
         v["atlases"][0]["file"] = "../atlas_000.exr".into();
     });
     let e = read_atlas_set(dir.path()).unwrap_err();
-    assert!(matches!(e, AtlasError::BadFileName { .. }), "{e}");
+    assert!(
+        matches!(e, AtlasError::File(FileError::BadFileName { .. })),
+        "{e}"
+    );
 }
 
 #[test]
@@ -112,7 +132,10 @@ fn atlas_index_symlink_escape_is_refused() {
     fs::rename(dir.path().join("atlas_000.exr"), &target).unwrap();
     std::os::unix::fs::symlink(&target, dir.path().join("atlas_000.exr")).unwrap();
     let e = read_atlas_set(dir.path()).unwrap_err();
-    assert!(matches!(e, AtlasError::PathEscape { .. }), "{e}");
+    assert!(
+        matches!(e, AtlasError::File(FileError::PathEscape { .. })),
+        "{e}"
+    );
     assert!(e.to_string().contains("outside the atlas directory"), "{e}");
 }
 

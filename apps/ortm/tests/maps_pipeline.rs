@@ -6,7 +6,8 @@
 mod common;
 
 use ortm::Lightmap;
-use ortm::maps::{BakeIndex, BakeKey, LightmapSize, apply, scan_finished_maps, write_map_file};
+use ortm::bake_dir::{BakeIndex, BakeKey, LightmapSize, scan_finished_maps, write_map_file};
+use ortm::maps::apply;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 

@@ -8,7 +8,8 @@ mod common;
 use std::path::Path;
 
 use common::{fails, ok, ortm, tiny_cornell_bake};
-use ortm::maps::{BakeIndex, apply};
+use ortm::bake_dir::BakeIndex;
+use ortm::maps::apply;
 use ortm::render::read_lightmap_exr;
 
 /// `final.exr` must equal `maps::apply(maps, first.exr)`: 1e-3 relative plus 1e-6 of the

@@ -3,7 +3,7 @@
 //! A Rust implementation of Sunshine-Hill & Faloutsos, *Photorealistic Lighting with Offset
 //! Radiance Transfer Mapping* (I3D 2006). The pipeline, one module family per stage:
 //!
-//! 1. **Bake** (offline): [`scene`] → [`texels`] → [`transport`] → [`offsets`] → [`maps`].
+//! 1. **Bake** (offline): [`scene`] → [`bake`] → [`maps`], stored by [`bake_dir`].
 //! 2. **Bin**: the `binning` crate packs cropped maps into atlases.
 //! 3. **Render**: the `passes` crate (wgpu).
 //!
@@ -12,6 +12,7 @@
 
 pub mod atlas;
 pub mod bake;
+pub mod bake_dir;
 pub mod io;
 pub mod lightmap;
 pub mod maps;

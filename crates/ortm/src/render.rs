@@ -41,9 +41,10 @@ use passes::{AlbedoMap, AtlasData, LightDesc, MeshData, PassError, TexelImage, T
 
 use crate::Lightmap;
 use crate::atlas::{ATLAS_INDEX_FILE_NAME, AtlasError, AtlasSet};
-use crate::maps::{BakeIndex, INDEX_FILE_NAME, MapsError, TransferMap};
-use crate::scene::{Light, Mesh, Scene};
 use crate::bake::texels::TexelGrid;
+use crate::bake_dir::{BakeIndex, INDEX_FILE_NAME};
+use crate::maps::{MapsError, TransferMap};
+use crate::scene::{Light, Mesh, Scene};
 
 /// Everything that can go wrong in the render glue.
 #[derive(Debug, thiserror::Error)]
@@ -673,8 +674,8 @@ pub fn parse_size(spec: &str) -> Result<(u32, u32), RenderError> {
     Ok((p(w)?, p(h)?))
 }
 
-/// Writes `map` as a linear RGB f32 OpenEXR file (see the module docs), atomically: a
-/// temporary `.<name>.tmp.exr` in the same folder, then a rename.
+/// Writes `map` as a linear RGB f32 OpenEXR file (see the module docs), atomically
+/// ([`crate::io::write_atomic`]).
 pub fn write_lightmap_exr(path: &Path, map: &Lightmap) -> Result<(), RenderError> {
     let (w, h) = (map.width as usize, map.height as usize);
     if map.data.len() != w * h || w == 0 || h == 0 {
@@ -685,30 +686,21 @@ pub fn write_lightmap_exr(path: &Path, map: &Lightmap) -> Result<(), RenderError
             len: map.data.len(),
         });
     }
-    let name = path
-        .file_name()
-        .map_or_else(|| "lightmap".into(), |n| n.to_string_lossy().into_owned());
-    let tmp = path.with_file_name(format!(".{name}.{}.tmp.exr", std::process::id()));
-    let result = exr::prelude::write_rgb_file(&tmp, w, h, |x, y| {
-        let v = map.data[y * w + x];
-        (v[0], v[1], v[2])
-    });
-    if let Err(source) = result {
-        let _ = std::fs::remove_file(&tmp);
-        return Err(RenderError::Exr {
-            op: "write",
-            path: path.to_owned(),
-            source,
+    let exr_err = |source| RenderError::Exr {
+        op: "write",
+        path: path.to_owned(),
+        source,
+    };
+    let channels =
+        exr::prelude::SpecificChannels::rgb(|exr::math::Vec2(x, y): exr::math::Vec2<usize>| {
+            let v = map.data[y * w + x];
+            (v[0], v[1], v[2])
         });
-    }
-    std::fs::rename(&tmp, path).map_err(|source| {
-        let _ = std::fs::remove_file(&tmp);
-        RenderError::Io {
-            op: "rename the finished lightmap to",
-            path: path.to_owned(),
-            source,
-        }
-    })
+    let mut bytes = std::io::Cursor::new(Vec::new());
+    exr::prelude::WritableImage::write(&exr::prelude::Image::from_channels((w, h), channels))
+        .to_buffered(&mut bytes)
+        .map_err(exr_err)?;
+    crate::io::write_atomic(path, bytes.get_ref()).map_err(|e| exr_err(e.into()))
 }
 
 /// Reads the first RGB(A) layer of an OpenEXR file as a lightmap (alpha ignored; a missing

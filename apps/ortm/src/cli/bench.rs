@@ -10,11 +10,11 @@ use std::time::Instant;
 
 use anyhow::Result;
 use glam::Vec3;
-use ortm::bake::{self, BakeSettings};
 use ortm::bake::raycast::Visibility;
 use ortm::bake::texels::TexelGrid;
 use ortm::bake::transport::dense::DenseTransport;
 use ortm::bake::transport::{Effects, Kernels, Transport, texel_patches};
+use ortm::bake::{self, BakeSettings};
 use rand::{RngExt, SeedableRng};
 
 /// Arguments of `ortm bench`.
@@ -202,7 +202,7 @@ fn bake_table(rows: usize) -> Result<()> {
         let cancel = std::sync::atomic::AtomicBool::new(false);
         let s = bake::bake(&scene, &settings, &dir, &|_| {}, &cancel)?;
         let total = t.elapsed().as_secs_f64();
-        let maps = ortm::maps::BakeIndex::read(&dir)?.load_maps(&dir)?;
+        let maps = ortm::bake_dir::BakeIndex::read(&dir)?.load_maps(&dir)?;
         let (set, _) = ortm::atlas::build_atlas_set_with_stats(&maps, 1024, 1024)?;
         let st = set.stats();
         let _ = std::fs::remove_dir_all(&dir);

@@ -1,7 +1,7 @@
 //! `ortm bin DIR [--atlas 1024] [-o OUT]`: packs a bake's transfer maps into texture atlases
 //! (paper Sec. 5.2).
 //!
-//! Data flow: `DIR/index.json` and the map files ([`ortm::maps::BakeIndex`]); every crop
+//! Data flow: `DIR/index.json` and the map files ([`ortm::bake_dir::BakeIndex`]); every crop
 //! rectangle packed by the `binning` crate ([`ortm::atlas::build_atlas_set_with_stats`]);
 //! `OUT/atlas_NNN.exr` and `OUT/atlases.json` ([`ortm::atlas::write_atlas_set`], format in
 //! `docs/atlas-format.md`); pictures `OUT/atlas_NNN.png` (the packing: one colour per map,
@@ -14,7 +14,7 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result, bail};
 use ortm::atlas::{self, AtlasSet};
-use ortm::maps::{BakeIndex, INDEX_FILE_NAME};
+use ortm::bake_dir::{BakeIndex, INDEX_FILE_NAME};
 
 /// Paper Table 1 (1024² atlases): (map side, number of offsets, number of bins).
 const PAPER_TABLE: [(u32, usize, usize); 8] = [

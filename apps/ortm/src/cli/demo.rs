@@ -242,11 +242,9 @@ fn face(a: &Args) -> Result<()> {
     Ok(())
 }
 
-/// Writes a text file atomically (temporary name, then rename).
+/// Writes a text file atomically ([`ortm::io::write_atomic`]).
 fn write_text(path: &Path, text: &str) -> Result<()> {
-    let tmp = path.with_extension(format!("tmp{}", std::process::id()));
-    std::fs::write(&tmp, text)
-        .and_then(|()| std::fs::rename(&tmp, path))
+    ortm::io::write_atomic(path, text.as_bytes())
         .with_context(|| format!("cannot write '{}'", path.display()))
 }
 

@@ -110,8 +110,9 @@ pub fn load_scene(arg: &str, size: Option<u32>) -> Result<Scene> {
             .with_context(|| format!("loading scene '{path}'"))?,
     };
     if let Some(s) = size {
-        if s == 0 || s > 8192 {
-            anyhow::bail!("--size {s} is out of range: use 1..=8192 texels");
+        let max = ortm::io::limits::MAX_LIGHTMAP_SIDE;
+        if s == 0 || s > max {
+            anyhow::bail!("--size {s} is out of range: use 1..={max} texels");
         }
         scene.lightmap_size = (s, s);
     }

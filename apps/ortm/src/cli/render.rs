@@ -18,11 +18,11 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
+use ortm::bake::texels::TexelGrid;
 use ortm::render::{
     self, AtlasSource, CAMERA_SYNTAX, DEFAULT_ATLAS_SIDE, LIGHT_SYNTAX, to_lightmap,
     write_lightmap_exr,
 };
-use ortm::bake::texels::TexelGrid;
 use passes::display::{Camera, DisplayOptions};
 use passes::first_order::FirstOrderOptions;
 use passes::frame::{FrameParams, Renderer, RendererOptions};
@@ -89,27 +89,17 @@ pub struct Args {
     first_order_out: Option<PathBuf>,
 }
 
-/// Saves a PNG atomically (temporary name in the same folder, then rename).
+/// Saves a PNG atomically ([`ortm::io::write_png_atomic`]), naming the file on failure.
 pub fn save_png_atomic(img: &image::RgbaImage, path: &Path) -> Result<()> {
-    let name = path
-        .file_name()
-        .map_or_else(|| "frame.png".into(), |n| n.to_string_lossy().into_owned());
-    let tmp = path.with_file_name(format!(".{name}.{}.tmp", std::process::id()));
-    let res = img
-        .save_with_format(&tmp, image::ImageFormat::Png)
-        .map_err(anyhow::Error::from)
-        .and_then(|()| std::fs::rename(&tmp, path).map_err(anyhow::Error::from));
-    if res.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    res.with_context(|| format!("cannot write image '{}'", path.display()))
+    ortm::io::write_png_atomic(img, path)
+        .with_context(|| format!("cannot write image '{}'", path.display()))
 }
 
 /// A bake directory's atlases (built from its maps when `ortm bin` was not run) and its scene:
 /// `scene` when given, else the one the bake recorded; the scene is checked against the bake.
 pub(crate) struct BakeAndScene {
     /// The bake index, when the directory has one.
-    pub index: Option<ortm::maps::BakeIndex>,
+    pub index: Option<ortm::bake_dir::BakeIndex>,
     /// The atlases.
     pub set: ortm::atlas::AtlasSet,
     /// Where the atlases came from.

@@ -25,8 +25,8 @@ use std::path::PathBuf;
 
 use glam::Vec3;
 use ortm::atlas::AtlasSet;
-use ortm::scene::{Light, Scene};
 use ortm::bake::texels::TexelGrid;
+use ortm::scene::{Light, Scene};
 use passes::{AtlasData, TransferPiece};
 
 pub use window::run;
@@ -143,7 +143,7 @@ impl ViewerInput {
 
 /// Map indices with pieces, by decreasing importance (ties and maps missing from `index`
 /// by map index).
-pub fn importance_order(set: &AtlasSet, index: Option<&ortm::maps::index::BakeIndex>) -> Vec<u32> {
+pub fn importance_order(set: &AtlasSet, index: Option<&ortm::bake_dir::BakeIndex>) -> Vec<u32> {
     let mut maps: Vec<u32> = set.pieces.iter().map(|p| p.map_index).collect();
     maps.sort_unstable();
     maps.dedup();

@@ -663,9 +663,9 @@ impl Running {
                  W/m²).\n\n{}",
                 ortm::scene::file::lights_to_toml(&self.app.lights)
             );
-            self.app.status = match write_atomic(&p, text.as_bytes()) {
+            self.app.status = match ortm::io::write_atomic(&p, text.as_bytes()) {
                 Ok(()) => format!("saved {} lights to {}", self.app.lights.len(), p.display()),
-                Err(e) => format!("{e:#}"),
+                Err(e) => format!("cannot write '{}': {e}", p.display()),
             };
         }
         if req.load_lights {
@@ -730,18 +730,4 @@ fn copy_to_buffer(
         },
     );
     (buffer, padded)
-}
-
-/// Writes `bytes` to `path` through a temporary file in the same folder and a rename.
-fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    let name = path.file_name().map_or_else(
-        || "lights.toml".into(),
-        |n| n.to_string_lossy().into_owned(),
-    );
-    let tmp = path.with_file_name(format!(".{name}.{}.tmp", std::process::id()));
-    let res = std::fs::write(&tmp, bytes).and_then(|()| std::fs::rename(&tmp, path));
-    if res.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    res.with_context(|| format!("cannot write '{}'", path.display()))
 }

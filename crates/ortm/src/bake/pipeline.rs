@@ -12,7 +12,8 @@ use crate::Lightmap;
 use crate::bake::offsets::{self, ImportanceMetric, OffsetError, SelectionSettings};
 use crate::bake::texels::{TexelError, TexelGrid};
 use crate::bake::transport::{Effects, Transport};
-use crate::maps::{self, BakeIndex, BakeKey, LightmapSize, MapsError, TransferMap};
+use crate::bake_dir::{self, BakeIndex, BakeKey, LightmapSize};
+use crate::maps::{MapsError, TransferMap};
 use crate::scene::{Scene, scene_hash};
 
 /// How offsets are chosen.
@@ -522,7 +523,14 @@ fn write_json_atomic<T: Serialize>(path: &Path, value: &T) -> Result<(), BakeErr
         path: path.to_owned(),
         source: std::io::Error::other(e),
     })?;
-    Ok(crate::maps::exr_io::write_atomic(path, &text)?)
+    crate::io::write_atomic(path, &text).map_err(|e| {
+        MapsError::from(crate::io::FileError::io(
+            "cannot write",
+            path,
+            crate::io::DirKind::Bake,
+        )(e))
+        .into()
+    })
 }
 
 /// Bakes `scene` into `dir` (resumable; see the module docs). `cancel` is polled between maps.
@@ -545,7 +553,9 @@ pub fn bake(
     crate::io::limits::check_bake_request(w, h, settings.offsets)
         .map_err(|e| BakeError::Settings(e.to_string()))?;
     let grid = TexelGrid::build_with_size(scene, w, h)?;
-    crate::io::limits::check_bake_memory_for_grid(&grid, settings.coarse_block)
+    let block = settings.coarse_block.max(1);
+    let clusters = crate::bake::transport::coarse::cluster_count(&grid, block);
+    crate::io::limits::check_bake_memory(clusters as u64, grid.texels.len() as u64, block)
         .map_err(|e| BakeError::Settings(e.to_string()))?;
     let hash = scene_hash(scene);
     let settings_json = serde_json::to_value(settings).expect("settings serialise");
@@ -606,7 +616,7 @@ fn saved_or_new_selection(
 ) -> Result<(Vec<IVec2>, Vec<[f64; 3]>), BakeError> {
     let (w, h) = settings.size;
     let sel_path = dir.join("selection.json");
-    let saved: Option<SelectionRecord> = crate::io::limits::read_bounded(
+    let saved: Option<SelectionRecord> = crate::io::read_bounded(
         &sel_path,
         crate::io::limits::MAX_JSON_BYTES,
         "MAX_JSON_BYTES",
@@ -640,7 +650,7 @@ fn saved_or_new_selection(
 /// The maps of a bake directory after [`write_maps`].
 struct WrittenMaps {
     /// Index entries, in offset order.
-    entries: Vec<maps::MapEntry>,
+    entries: Vec<bake_dir::MapEntry>,
     /// Maps kept from an earlier run.
     reused: usize,
     /// Stored (cropped) texels over all maps.
@@ -661,7 +671,7 @@ fn write_maps(
     cancel: &AtomicBool,
 ) -> Result<WrittenMaps, BakeError> {
     let offset_list = plan.offsets.clone();
-    let scan = maps::scan_finished_maps(dir, key, grid.width, grid.height)?;
+    let scan = bake_dir::scan_finished_maps(dir, key, grid.width, grid.height)?;
     for p in &scan.stale_temp {
         let _ = std::fs::remove_file(p);
     }
@@ -686,7 +696,7 @@ fn write_maps(
         total: total as u64,
     });
     let written = std::sync::atomic::AtomicUsize::new(0);
-    let results: Vec<Result<(maps::MapEntry, bool, u64), BakeError>> = offset_list
+    let results: Vec<Result<(bake_dir::MapEntry, bool, u64), BakeError>> = offset_list
         .par_iter()
         .enumerate()
         .map(|(k, &offset)| {
@@ -704,7 +714,7 @@ fn write_maps(
                 });
             }
             let map = plan.map_prepared(transport, grid, k)?;
-            let entry = maps::write_map_file(dir, k as u32, &map, key)?;
+            let entry = bake_dir::write_map_file(dir, k as u32, &map, key)?;
             written.fetch_add(1, Ordering::Relaxed);
             events(BakeEvent::Advance(1));
             Ok((entry, false, map.stored_texels()))
@@ -716,7 +726,7 @@ fn write_maps(
 /// Joins the per-map results of [`write_maps`] (in offset order). A failed map's error comes
 /// first; else an interruption anywhere is reported with the `written` count.
 fn gather_written(
-    results: Vec<Result<(maps::MapEntry, bool, u64), BakeError>>,
+    results: Vec<Result<(bake_dir::MapEntry, bool, u64), BakeError>>,
     written: usize,
     total: usize,
 ) -> Result<WrittenMaps, BakeError> {

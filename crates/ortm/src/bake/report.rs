@@ -27,10 +27,7 @@ pub fn save_png(img: &RgbImage, path: &Path) -> Result<(), ReportError> {
         path: path.display().to_string(),
         source: e,
     };
-    let tmp = path.with_extension("png.tmp");
-    img.save_with_format(&tmp, image::ImageFormat::Png)
-        .map_err(|e| err(Box::new(e)))?;
-    std::fs::rename(&tmp, path).map_err(|e| err(Box::new(e)))
+    crate::io::write_png_atomic(img, path).map_err(|e| err(Box::new(e)))
 }
 
 /// Linear → sRGB-encoded 8-bit.

@@ -3,7 +3,8 @@
 //!
 //! Scene files, meshes, bake directories and atlas directories come from users and other
 //! machines: sizes declared inside a file are checked against these limits *before* anything of
-//! that size is allocated, and files are checked against a byte limit before they are read.
+//! that size is allocated, and files are checked against a byte limit before they are read
+//! ([`crate::io::read_bounded`]).
 //! Settings that would need more memory than the machine has (a bake's coarse transport solve)
 //! are refused up front with the number of bytes they would need. Every error built here names
 //! the limit, the value found and the value it would need.
@@ -22,8 +23,6 @@
 //! | memory | physical memory, or `ORTM_MEMORY_LIMIT_BYTES` | a bake's transport ([`bake_memory_bytes`]), `ortm bin`'s atlases ([`atlas_memory_bytes`]) |
 
 use std::fs;
-use std::io::Read;
-use std::path::Path;
 
 /// Largest lightmap, map or atlas, in texels (`width·height`). At 12 bytes per texel (RGB f32)
 /// one such image is 3 GiB; the limit also keeps texel indices and counts inside `u32`.
@@ -82,39 +81,6 @@ pub struct LimitError {
     pub fix: String,
 }
 
-/// Reads a whole file of at most `limit` bytes: refuses anything that is not a regular file
-/// (a FIFO, a device such as `/dev/zero`, a directory) and files larger than `limit`, before
-/// reading; a file that grows while being read is cut at `limit + 1` bytes and refused.
-///
-/// # Errors
-/// The `std::io::Error` of opening or reading; a file over the limit or not a regular file
-/// gives an error of kind `InvalidData` whose message names the limit (`limit_name`).
-pub fn read_bounded(path: &Path, limit: u64, limit_name: &str) -> std::io::Result<Vec<u8>> {
-    let file = fs::File::open(path)?;
-    let meta = file.metadata()?;
-    if !meta.is_file() {
-        return Err(std::io::Error::new(
-            std::io::ErrorKind::InvalidData,
-            "not a regular file",
-        ));
-    }
-    let too_large = |size: u64| {
-        std::io::Error::new(
-            std::io::ErrorKind::InvalidData,
-            format!("{size} bytes exceeds the limit {limit_name} = {limit} bytes"),
-        )
-    };
-    if meta.len() > limit {
-        return Err(too_large(meta.len()));
-    }
-    let mut bytes = Vec::with_capacity(meta.len() as usize);
-    file.take(limit + 1).read_to_end(&mut bytes)?;
-    if bytes.len() as u64 > limit {
-        return Err(too_large(bytes.len() as u64));
-    }
-    Ok(bytes)
-}
-
 /// Checks that the pixels an OpenEXR file declares (`texels`, each 12 bytes) are plausible for
 /// a file of `file_bytes` bytes ([`MAX_EXR_EXPANSION`]) and at most [`MAX_TEXELS`].
 ///
@@ -164,7 +130,7 @@ pub fn check_bake_request(width: u32, height: u32, offsets: usize) -> Result<(),
                 found: format!("{side} texels"),
                 limit_name: "MAX_LIGHTMAP_SIDE",
                 limit: format!("1..={MAX_LIGHTMAP_SIDE} texels"),
-                fix: "; choose --size between 1 and 8192 (e.g. 256 or 512)".into(),
+                fix: format!("; choose --size between 1 and {MAX_LIGHTMAP_SIDE} (e.g. 256 or 512)"),
             });
         }
     }
@@ -229,7 +195,8 @@ pub fn memory_limit_bytes() -> Result<Option<u64>, LimitError> {
 }
 
 /// Refuses a bake whose transport would need more memory than [`memory_limit_bytes`], naming
-/// the bytes it would need ([`bake_memory_bytes`]).
+/// the bytes it would need ([`bake_memory_bytes`]). `clusters` is the number of clusters the
+/// coarse solve forms (one per `coarse_block²` tile, chart and material of the covered texels).
 ///
 /// # Errors
 /// A [`LimitError`] with the bytes needed and the limit.
@@ -252,37 +219,6 @@ pub fn check_bake_memory(
         }),
         _ => Ok(()),
     }
-}
-
-/// Why a file name from an index does not resolve to a regular file inside its directory.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub enum Unresolved {
-    /// The file does not exist (or cannot be inspected).
-    Missing,
-    /// The name resolves (through a symbolic link) to this path outside the directory.
-    Escapes(std::path::PathBuf),
-    /// The name resolves to something that is not a regular file (directory, device, pipe).
-    NotRegular,
-}
-
-/// Resolves the plain file `name` (already checked: one normal path component) inside `dir`,
-/// following symbolic links, and refuses anything whose real path is not a regular file inside
-/// the real path of `dir`. Returns `dir.join(name)` (the path to open) and its size in bytes.
-///
-/// # Errors
-/// [`Unresolved`] saying why.
-pub fn resolve_in_dir(dir: &Path, name: &str) -> Result<(std::path::PathBuf, u64), Unresolved> {
-    let path = dir.join(name);
-    let real = fs::canonicalize(&path).map_err(|_| Unresolved::Missing)?;
-    let real_dir = fs::canonicalize(dir).map_err(|_| Unresolved::Missing)?;
-    if real == real_dir || !real.starts_with(&real_dir) {
-        return Err(Unresolved::Escapes(real));
-    }
-    let meta = fs::metadata(&real).map_err(|_| Unresolved::Missing)?;
-    if !meta.is_file() {
-        return Err(Unresolved::NotRegular);
-    }
-    Ok((path, meta.len()))
 }
 
 /// Bytes `ortm bin` needs to pack `stored_texels` map texels into `aw×ah` atlases: the maps
@@ -326,25 +262,6 @@ pub fn check_atlas_request(aw: u32, ah: u32, stored_texels: u64) -> Result<(), L
     }
 }
 
-/// [`check_bake_memory`] for a rasterized lightmap: counts the clusters the coarse solve will
-/// form (one per `block×block` tile, chart and material, as `transport::coarse` does).
-///
-/// # Errors
-/// A [`LimitError`] with the bytes needed and the limit.
-pub fn check_bake_memory_for_grid(
-    grid: &crate::bake::texels::TexelGrid,
-    coarse_block: u32,
-) -> Result<(), LimitError> {
-    let b = coarse_block.max(1);
-    let clusters = grid
-        .texels
-        .iter()
-        .map(|t| (t.x / b, t.y / b, t.chart, t.material))
-        .collect::<std::collections::HashSet<_>>()
-        .len();
-    check_bake_memory(clusters as u64, grid.texels.len() as u64, b)
-}
-
 fn gib(bytes: u64) -> f64 {
     bytes as f64 / (1024.0 * 1024.0 * 1024.0)
 }
@@ -352,25 +269,6 @@ fn gib(bytes: u64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn read_bounded_refuses_large_and_special_files() {
-        let dir = tempfile::tempdir().unwrap();
-        let p = dir.path().join("f");
-        fs::write(&p, vec![7u8; 100]).unwrap();
-        assert_eq!(read_bounded(&p, 100, "L").unwrap().len(), 100);
-        let e = read_bounded(&p, 99, "L").unwrap_err();
-        assert!(
-            e.to_string().contains("100 bytes exceeds the limit L = 99"),
-            "{e}"
-        );
-        // A directory and a device are not regular files (and /dev/zero would never end).
-        assert!(read_bounded(dir.path(), 1 << 20, "L").is_err());
-        if Path::new("/dev/zero").exists() {
-            let e = read_bounded(Path::new("/dev/zero"), 1 << 20, "L").unwrap_err();
-            assert!(e.to_string().contains("not a regular file"), "{e}");
-        }
-    }
 
     #[test]
     fn exr_pixel_bound_follows_the_deflate_ratio() {

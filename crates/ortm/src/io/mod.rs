@@ -1,4 +1,29 @@
-//! File and resource utilities shared by every stage: limits on untrusted inputs and resources
-//! ([`limits`]).
+//! File and resource utilities shared by every stage.
+//!
+//! - [`limits`]: every limit on untrusted inputs and on the memory a request may need.
+//! - Reading ([`read_bounded`], [`resolve_listed`], [`read_listed`]): a byte bound before
+//!   anything is read, plain names resolved inside their directory, and a listed file checked
+//!   against the size and SHA-256 its index recorded.
+//! - Writing ([`write_atomic`], [`write_png_atomic`]): temporary file in the same directory,
+//!   `fsync`, rename; readers never see a half-written file.
+//! - Digests ([`sha256_hex`], [`is_hex_digest`]): SHA-256 as lower-case hex, as the indexes
+//!   record it.
+//! - [`FileError`]: the failures shared by bake directories (`docs/bake-format.md`) and atlas
+//!   directories (`docs/atlas-format.md`), worded for each by [`DirKind`].
+//! - [`exr`]: the OpenEXR pieces shared by the map and atlas file codecs (the `ortmMeta`
+//!   attribute, accepted compressions, RGB f32 channels).
 
+mod atomic;
+mod digest;
+mod error;
+pub mod exr;
 pub mod limits;
+mod read;
+
+pub use atomic::{write_atomic, write_png_atomic};
+pub use digest::{hex, is_hex_digest, sha256_hex};
+pub use error::{DirKind, FileError};
+pub use read::{
+    ListedFile, Unresolved, plain_file_name, read_bounded, read_listed, resolve_in_dir,
+    resolve_listed,
+};

@@ -1,18 +1,14 @@
-//! Offset transfer maps (paper Sec. 3, Eq. 9–10, and Sec. 5.1): in-memory storage, cropping with
-//! axial slicing, OpenEXR files, the bake index, and the CPU reference for applying the maps.
+//! Offset transfer maps in memory (paper Sec. 3, Eq. 9–10, and Sec. 5.1): storage, cropping
+//! with axial slicing, and the CPU reference for applying the maps. Their files and the bake
+//! index are [`crate::bake_dir`].
 //!
 //! # Data flow
 //! 1. The bake computes, for each chosen offset `Δt`, a full `W×H` image of
 //!    `TR(t, t+Δt)·TVA(t, Δt)` (Eq. 10, dimensionless RGB) and hands it to
 //!    [`TransferMap::from_full`], which crops it to a few disjoint rectangles ([`crop`]).
-//! 2. Each map is written to its own OpenEXR file with [`write_map_file`] (atomic; deterministic
-//!    file name from the map index and offset), which returns the [`MapEntry`] for the index.
-//!    After all maps, the bake writes `index.json` with [`BakeIndex::write`]. A rerun can skip
-//!    maps already on disk with [`scan_finished_maps`].
-//! 3. Consumers read the index with [`BakeIndex::read`] and the maps with
-//!    [`BakeIndex::load_maps`] (size and SHA-256 checked), or a single file with
-//!    [`read_map_file`].
-//! 4. [`apply()`] evaluates `B(t) = B_o(t) + Σ_maps map(t)·B_o(t+Δt)` (Eq. 9 plus the first-order
+//! 2. [`crate::bake_dir`] writes each map to its own OpenEXR file and the bake index, and reads
+//!    them back.
+//! 3. [`apply()`] evaluates `B(t) = B_o(t) + Σ_maps map(t)·B_o(t+Δt)` (Eq. 9 plus the first-order
 //!    term) on the CPU; it is the reference the GPU renderer is checked against.
 //!
 //! # Units and conventions
@@ -30,19 +26,12 @@
 
 pub mod apply;
 pub mod crop;
-pub mod exr_io;
-pub mod index;
 pub mod transfer_map;
 
 use std::path::PathBuf;
 
 pub use apply::{apply, apply_indirect};
 pub use crop::{CropOptions, CropRect, crop_rects};
-pub use exr_io::{MapFile, decode_map, encode_map, read_map_file, write_map_file};
-pub use index::{
-    BakeIndex, BakeKey, INDEX_FILE_NAME, INDEX_FORMAT, INDEX_VERSION, LightmapSize, MapEntry,
-    ResumeScan, map_file_name, scan_finished_maps,
-};
 pub use transfer_map::{Crop, TransferMap};
 
 /// Largest lightmap (width × height, in texels) this module accepts: 2²⁸ texels, e.g. 16384²
@@ -123,18 +112,6 @@ pub enum MapsError {
         reason: String,
     },
 
-    /// A file-system operation failed.
-    #[error("{op} {}: {source}; check that the directory exists, is writable and has free space", path.display())]
-    Io {
-        /// What was being done ("cannot read", "cannot create", …).
-        op: &'static str,
-        /// The file or directory.
-        path: PathBuf,
-        /// The underlying error.
-        #[source]
-        source: std::io::Error,
-    },
-
     /// The file does not start with the OpenEXR magic number.
     #[error(
         "{} is not an OpenEXR file (wrong magic number); delete it and re-run the bake to \
@@ -144,22 +121,6 @@ pub enum MapsError {
     NotExr {
         /// The file.
         path: PathBuf,
-    },
-
-    /// The OpenEXR decoder or encoder failed (corrupt or truncated file, unsupported feature).
-    #[error(
-        "cannot {op} OpenEXR file {}: {source}; the file is corrupt or truncated, delete it and \
-         re-run the bake to regenerate it",
-        path.display()
-    )]
-    Exr {
-        /// "decode" or "encode".
-        op: &'static str,
-        /// The file.
-        path: PathBuf,
-        /// The decoder's error.
-        #[source]
-        source: exr::error::Error,
     },
 
     /// The OpenEXR file decodes but is not a valid ortm transfer-map file.
@@ -191,13 +152,15 @@ pub enum MapsError {
 
     /// `index.json` has the wrong `format` field.
     #[error(
-        "{}: field \"format\" is {found:?}, expected \"{INDEX_FORMAT}\"; this is not an ortm bake \
+        "{}: field \"format\" is {found:?}, expected \"{expected}\"; this is not an ortm bake \
          index",
         path.display()
     )]
     IndexFormat {
         /// The index file.
         path: PathBuf,
+        /// The format this build reads ([`crate::bake_dir::INDEX_FORMAT`]).
+        expected: &'static str,
         /// The value found (or `<missing>`).
         found: String,
     },
@@ -205,12 +168,14 @@ pub enum MapsError {
     /// `index.json` has an unsupported `version`.
     #[error(
         "{}: bake index version {found} is not supported, this build reads version \
-         {INDEX_VERSION}; re-bake with this version of ortm",
+         {expected}; re-bake with this version of ortm",
         path.display()
     )]
     IndexVersion {
         /// The index file.
         path: PathBuf,
+        /// The version this build reads ([`crate::bake_dir::INDEX_VERSION`]).
+        expected: u32,
         /// The version found (as written, or `<missing>`).
         found: String,
     },
@@ -222,74 +187,6 @@ pub enum MapsError {
         path: PathBuf,
         /// What is wrong (names the map entry / field).
         reason: String,
-    },
-
-    /// A file name in the index (or one to be written) is not a plain file name.
-    #[error(
-        "{}: map file name {name:?} is not allowed (it must be a plain file name inside the bake \
-         directory: no '/', '\\', '..', drive or absolute path); regenerate the index",
-        index.display()
-    )]
-    BadFileName {
-        /// The index (or directory) naming the file.
-        index: PathBuf,
-        /// The rejected name.
-        name: String,
-    },
-
-    /// A file named in an index resolves (through a symbolic link) outside its directory, or is
-    /// not a regular file.
-    #[error(
-        "{} named in the index {problem}; a bake directory must hold its files itself (copy the \
-         file into the directory instead of linking to it)",
-        path.display()
-    )]
-    PathEscape {
-        /// The path named by the index.
-        path: PathBuf,
-        /// What is wrong (where it resolves to).
-        problem: String,
-    },
-
-    /// A map file listed in the index does not exist.
-    #[error(
-        "map file {} listed in the index is missing; copy the complete bake directory or re-run \
-         the bake",
-        path.display()
-    )]
-    MissingFile {
-        /// The missing file.
-        path: PathBuf,
-    },
-
-    /// A map file's size differs from the index.
-    #[error(
-        "map file {} has {found} bytes but the index says {expected}; the file is truncated or \
-         was replaced, re-run the bake",
-        path.display()
-    )]
-    FileSize {
-        /// The file.
-        path: PathBuf,
-        /// Size recorded in the index.
-        expected: u64,
-        /// Size on disk.
-        found: u64,
-    },
-
-    /// A map file's SHA-256 differs from the index.
-    #[error(
-        "map file {} has SHA-256 {found} but the index says {expected}; the file is corrupt or \
-         was replaced, re-run the bake",
-        path.display()
-    )]
-    Checksum {
-        /// The file.
-        path: PathBuf,
-        /// Hex digest recorded in the index.
-        expected: String,
-        /// Hex digest of the file on disk.
-        found: String,
     },
 
     /// A map file's own header disagrees with its index entry or the bake key.
@@ -304,4 +201,9 @@ pub enum MapsError {
         /// What differs.
         reason: String,
     },
+
+    /// A file of the bake directory cannot be read, written or trusted (missing, wrong size or
+    /// SHA-256, a name or link leading outside the directory, an OpenEXR codec failure).
+    #[error(transparent)]
+    File(#[from] crate::io::FileError),
 }

@@ -12,7 +12,7 @@ use glam::Vec3;
 
 use super::dense::DenseTransport;
 use super::{Kernels, Patch};
-use crate::bake::texels::TexelGrid;
+use crate::bake::texels::{Texel, TexelGrid};
 
 /// The higher-order remainder at the coarse level.
 pub struct Remainder {
@@ -29,6 +29,21 @@ pub struct Remainder {
     pub block: u32,
 }
 
+/// The cluster a texel belongs to: its `block × block` tile, chart and material.
+fn cluster_key(t: &Texel, block: u32) -> (u32, u32, u32, u32) {
+    (t.x / block, t.y / block, t.chart, t.material)
+}
+
+/// The number of clusters [`cluster_texels`] makes of `grid` (the bake's memory check sizes the
+/// coarse solve with it before building anything).
+pub fn cluster_count(grid: &TexelGrid, block: u32) -> usize {
+    let block = block.max(1);
+    (grid.texels.iter())
+        .map(|t| cluster_key(t, block))
+        .collect::<std::collections::HashSet<_>>()
+        .len()
+}
+
 /// Groups texels into clusters: one per (tile of `block × block` texels, chart, material).
 pub fn cluster_texels(grid: &TexelGrid, patches: &[Patch], block: u32) -> (Vec<u32>, Vec<Patch>) {
     let block = block.max(1);
@@ -36,7 +51,7 @@ pub fn cluster_texels(grid: &TexelGrid, patches: &[Patch], block: u32) -> (Vec<u
     let mut cluster_of = Vec::with_capacity(grid.texels.len());
     let mut acc: Vec<(f64, Vec3, Vec3, Vec3, Vec3, u32)> = Vec::new();
     for (t, p) in grid.texels.iter().zip(patches) {
-        let key = (t.x / block, t.y / block, t.chart, t.material);
+        let key = cluster_key(t, block);
         let n = ids.len() as u32;
         let id = *ids.entry(key).or_insert_with(|| {
             acc.push((

@@ -1,5 +1,5 @@
-//! The bake index `index.json` and the resumable-bake helpers (paper Sec. 5.1: "an index file
-//! which describes the images and their offsets is written").
+//! The bake index `index.json` (paper Sec. 5.1: "an index file which describes the images and
+//! their offsets is written") and the writer of map files that returns their index entries.
 //!
 //! # Format (version 1; full description in `docs/bake-format.md`)
 //! ```json
@@ -20,31 +20,29 @@
 //! Offsets are texels, `+y` down the image; rects are lightmap texels (row 0 = `v = 1`). File
 //! names are plain names inside the bake directory (no separators, no `..`, not absolute).
 //!
-//! # Resumable bake
-//! The bake writes each map with [`crate::maps::write_map_file`] as soon as it is done (atomic,
-//! file name [`map_file_name`]`(index, offset)`), stamped with a [`BakeKey`] derived from the
-//! scene hash and the settings. `index.json` is written last with [`BakeIndex::write`]. On a
-//! rerun, [`scan_finished_maps`] returns the maps already on disk that decode, pass their content
-//! hash, and carry the same bake key and lightmap size, so the bake can skip them (it should also
-//! check that each returned entry's offset is the one it planned for that index).
+//! # Writing and reading
+//! The bake writes each map with [`write_map_file`] as soon as it is done (atomic, file name
+//! [`map_file_name`]`(index, offset)`), stamped with a [`BakeKey`] derived from the scene hash
+//! and the settings, and collects the returned [`MapEntry`]s. `index.json` is written last with
+//! [`BakeIndex::write`]. Consumers call [`BakeIndex::read`], then [`BakeIndex::load_maps`].
 //!
 //! # Float precision
 //! `voronoi_area` and `importance` are informational copies; the authoritative values are in
 //! each OpenEXR header (exact f64). [`BakeIndex::load_maps`] compares them with a relative
 //! tolerance of 1e-12 because JSON parsing of f64 is not guaranteed to be bit-exact here.
 
-use std::collections::{BTreeMap, HashMap, HashSet};
+use std::collections::HashSet;
 use std::fs;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
-use glam::IVec2;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use super::MapsError;
-use super::crop::CropRect;
-use super::exr_io::{decode_map, sha256_hex, write_atomic};
-use super::transfer_map::{TransferMap, check_rects, check_size};
+use super::key::{BakeKey, map_file_name};
+use super::map_file::{decode_map, encode_map};
+use crate::io::{DirKind, FileError, is_hex_digest, sha256_hex};
+use crate::maps::transfer_map::{check_rects, check_size};
+use crate::maps::{CropRect, MapsError, TransferMap};
 
 /// File name of the index inside a bake directory.
 pub const INDEX_FILE_NAME: &str = "index.json";
@@ -55,62 +53,6 @@ pub const INDEX_VERSION: u32 = 1;
 
 /// Relative tolerance when comparing the index's f64 copies with the file headers.
 const F64_REL_TOL: f64 = 1e-12;
-
-/// Identifies one bake configuration: SHA-256 (hex) of the scene hash and the canonical JSON of
-/// the settings. Files stamped with a different key belong to another bake.
-#[derive(Clone, Debug, PartialEq, Eq, Hash)]
-pub struct BakeKey(String);
-
-impl BakeKey {
-    /// Key of `(scene_hash, settings)`. Object keys of `settings` are sorted recursively before
-    /// hashing, so key order does not matter; number formatting follows `serde_json`.
-    pub fn new(scene_hash: &str, settings: &serde_json::Value) -> Self {
-        let mut canon = String::new();
-        canonical_json(settings, &mut canon);
-        let mut bytes = b"ortm-bake-key-v1\0".to_vec();
-        bytes.extend_from_slice(&(scene_hash.len() as u64).to_le_bytes());
-        bytes.extend_from_slice(scene_hash.as_bytes());
-        bytes.extend_from_slice(canon.as_bytes());
-        Self(sha256_hex(&bytes))
-    }
-
-    /// The key as 64 lower-case hex digits.
-    pub fn as_str(&self) -> &str {
-        &self.0
-    }
-}
-
-/// Serialises `v` with object keys sorted at every level.
-fn canonical_json(v: &serde_json::Value, out: &mut String) {
-    use serde_json::Value;
-    match v {
-        Value::Object(map) => {
-            let mut keys: Vec<&String> = map.keys().collect();
-            keys.sort();
-            out.push('{');
-            for (i, k) in keys.into_iter().enumerate() {
-                if i > 0 {
-                    out.push(',');
-                }
-                out.push_str(&Value::String(k.clone()).to_string());
-                out.push(':');
-                canonical_json(&map[k], out);
-            }
-            out.push('}');
-        }
-        Value::Array(items) => {
-            out.push('[');
-            for (i, item) in items.iter().enumerate() {
-                if i > 0 {
-                    out.push(',');
-                }
-                canonical_json(item, out);
-            }
-            out.push(']');
-        }
-        scalar => out.push_str(&scalar.to_string()),
-    }
-}
 
 /// Lightmap size in texels.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -174,73 +116,6 @@ pub struct BakeIndex {
     pub maps: Vec<MapEntry>,
 }
 
-/// Deterministic file name of map `index` with `offset`: `map_<index:05>_<±dx>_<±dy>.exr`,
-/// e.g. `map_00012_+3_-17.exr`.
-pub fn map_file_name(index: u32, offset: IVec2) -> String {
-    format!("map_{index:05}_{:+}_{:+}.exr", offset.x, offset.y)
-}
-
-/// Inverse of [`map_file_name`]; `None` unless `name` is exactly such a name.
-fn parse_map_file_name(name: &str) -> Option<(u32, IVec2)> {
-    let stem = name.strip_prefix("map_")?.strip_suffix(".exr")?;
-    let mut it = stem.split('_');
-    let index: u32 = it.next()?.parse().ok()?;
-    let dx: i32 = it.next()?.parse().ok()?;
-    let dy: i32 = it.next()?.parse().ok()?;
-    let offset = IVec2::new(dx, dy);
-    (it.next().is_none() && map_file_name(index, offset) == name).then_some((index, offset))
-}
-
-/// Checks that `name` is a plain file name (one normal path component, no `..`).
-fn check_file_name(index: &Path, name: &str) -> Result<(), MapsError> {
-    let plain = !name.is_empty()
-        && !name.contains(['/', '\\', ':', '\0'])
-        && !name.contains("..")
-        && !name.chars().any(char::is_control)
-        && matches!(
-            Path::new(name).components().collect::<Vec<_>>().as_slice(),
-            [std::path::Component::Normal(_)]
-        );
-    if plain {
-        Ok(())
-    } else {
-        Err(MapsError::BadFileName {
-            index: index.to_owned(),
-            name: name.to_owned(),
-        })
-    }
-}
-
-/// Resolves the index's file `name` inside `dir` ([`crate::io::limits::resolve_in_dir`]): a plain
-/// name whose real path is a regular file inside the real bake directory. Returns the path and
-/// the file's size in bytes.
-fn resolve(dir: &Path, name: &str) -> Result<(PathBuf, u64), MapsError> {
-    use crate::io::limits::Unresolved;
-    check_file_name(&dir.join(INDEX_FILE_NAME), name)?;
-    let path = dir.join(name);
-    crate::io::limits::resolve_in_dir(dir, name).map_err(|e| match e {
-        Unresolved::Missing => MapsError::MissingFile { path: path.clone() },
-        Unresolved::Escapes(real) => MapsError::PathEscape {
-            path: path.clone(),
-            problem: format!(
-                "resolves to {}, outside the bake directory {}",
-                real.display(),
-                dir.display()
-            ),
-        },
-        Unresolved::NotRegular => MapsError::PathEscape {
-            path: path.clone(),
-            problem: "is not a regular file".into(),
-        },
-    })
-}
-
-fn is_hex_digest(s: &str) -> bool {
-    s.len() == 64
-        && s.bytes()
-            .all(|b| b.is_ascii_digit() || (b'a'..=b'f').contains(&b))
-}
-
 fn close(a: f64, b: f64) -> bool {
     a == b || (a - b).abs() <= F64_REL_TOL * a.abs().max(b.abs())
 }
@@ -253,7 +128,7 @@ impl BakeIndex {
         settings: serde_json::Value,
         maps: Vec<MapEntry>,
     ) -> Self {
-        let bake_key = BakeKey::new(&scene_hash, &settings).0;
+        let bake_key = BakeKey::new(&scene_hash, &settings).into_string();
         Self {
             lightmap,
             scene_hash,
@@ -282,7 +157,14 @@ impl BakeIndex {
         let mut indices = HashSet::new();
         let mut files = HashSet::new();
         for (n, m) in self.maps.iter().enumerate() {
-            check_file_name(path, &m.file)?;
+            if !crate::io::plain_file_name(&m.file) {
+                return Err(FileError::BadFileName {
+                    index: path.to_owned(),
+                    name: m.file.clone(),
+                    kind: DirKind::Bake,
+                }
+                .into());
+            }
             if !indices.insert(m.index) {
                 return Err(bad(format!(
                     "maps[{n}]: map index {} appears twice",
@@ -324,8 +206,8 @@ impl BakeIndex {
     /// Writes `dir/index.json` atomically (pretty-printed), after validating the index.
     ///
     /// # Errors
-    /// [`MapsError::BadIndex`] / [`MapsError::BadFileName`] / [`MapsError::InvalidCrop`] /
-    /// [`MapsError::LightmapSize`] for an inconsistent index, [`MapsError::Io`] on write failure.
+    /// [`MapsError::BadIndex`] / [`FileError::BadFileName`] / [`MapsError::InvalidCrop`] /
+    /// [`MapsError::LightmapSize`] for an inconsistent index, [`FileError::Io`] on write failure.
     pub fn write(&self, dir: &Path) -> Result<(), MapsError> {
         let path = dir.join(INDEX_FILE_NAME);
         self.validate(&path)?;
@@ -346,7 +228,8 @@ impl BakeIndex {
             source,
         })?;
         text.push('\n');
-        write_atomic(&path, text.as_bytes())
+        crate::io::write_atomic(&path, text.as_bytes())
+            .map_err(|e| FileError::io("cannot write", &path, DirKind::Bake)(e).into())
     }
 
     /// Reads `dir/index.json`: checks `format` and `version` first, then the schema and the
@@ -354,19 +237,19 @@ impl BakeIndex {
     /// are verified by [`BakeIndex::load_maps`].
     ///
     /// # Errors
-    /// [`MapsError::Io`], [`MapsError::Json`], [`MapsError::IndexFormat`],
-    /// [`MapsError::IndexVersion`], [`MapsError::BadIndex`], [`MapsError::BadFileName`],
-    /// [`MapsError::InvalidCrop`], [`MapsError::LightmapSize`], [`MapsError::MissingFile`],
-    /// [`MapsError::FileSize`].
+    /// [`FileError::Io`], [`MapsError::Json`], [`MapsError::IndexFormat`],
+    /// [`MapsError::IndexVersion`], [`MapsError::BadIndex`], [`FileError::BadFileName`],
+    /// [`MapsError::InvalidCrop`], [`MapsError::LightmapSize`], [`FileError::MissingFile`],
+    /// [`FileError::FileSize`].
     pub fn read(dir: &Path) -> Result<Self, MapsError> {
         let path = dir.join(INDEX_FILE_NAME);
         let text =
-            crate::io::limits::read_bounded(&path, crate::io::limits::MAX_JSON_BYTES, "MAX_JSON_BYTES")
-                .map_err(|source| MapsError::Io {
-                    op: "cannot read bake index",
-                    path: path.clone(),
-                    source,
-                })?;
+            crate::io::read_bounded(&path, crate::io::limits::MAX_JSON_BYTES, "MAX_JSON_BYTES")
+                .map_err(FileError::io(
+                    "cannot read bake index",
+                    &path,
+                    DirKind::Bake,
+                ))?;
         let json_err = |source| MapsError::Json {
             path: path.clone(),
             source,
@@ -381,6 +264,7 @@ impl BakeIndex {
             other => {
                 return Err(MapsError::IndexFormat {
                     path,
+                    expected: INDEX_FORMAT,
                     found: other.map_or_else(|| "<missing>".into(), |v| v.to_string()),
                 });
             }
@@ -390,6 +274,7 @@ impl BakeIndex {
             other => {
                 return Err(MapsError::IndexVersion {
                     path,
+                    expected: INDEX_VERSION,
                     found: other.map_or_else(|| "<missing>".into(), |v| v.to_string()),
                 });
             }
@@ -397,27 +282,29 @@ impl BakeIndex {
         let index: BakeIndex = serde_json::from_value(value).map_err(json_err)?;
         index.validate(&path)?;
         for m in &index.maps {
-            let (file, len) = resolve(dir, &m.file)?;
+            let (file, len) =
+                crate::io::resolve_listed(dir, INDEX_FILE_NAME, &m.file, DirKind::Bake)?;
             if len != m.bytes {
-                return Err(MapsError::FileSize {
+                return Err(FileError::FileSize {
                     path: file,
                     expected: m.bytes,
                     found: len,
-                });
+                    kind: DirKind::Bake,
+                }
+                .into());
             }
         }
         Ok(index)
     }
 
     /// Loads every map listed in the index (in parallel), in index order. Each file must have
-    /// the recorded size and SHA-256, decode and validate ([`crate::maps::decode_map`]), have
+    /// the recorded size and SHA-256, decode and validate ([`crate::bake_dir::decode_map`]), have
     /// the index's lightmap size, and match its entry (map index, offset, rectangles, area and
     /// importance) and the index's bake key. On several failures the first entry's error is
     /// returned.
     ///
     /// # Errors
-    /// [`MapsError::Io`], [`MapsError::FileSize`], [`MapsError::Checksum`],
-    /// [`MapsError::EntryMismatch`], and the decoding errors of [`crate::maps::decode_map`].
+    /// The [`FileError`]s of [`crate::io::read_listed`], [`MapsError::EntryMismatch`], and the decoding errors of [`crate::bake_dir::decode_map`].
     pub fn load_maps(&self, dir: &Path) -> Result<Vec<TransferMap>, MapsError> {
         let size = (self.lightmap.width, self.lightmap.height);
         let results: Vec<Result<TransferMap, MapsError>> = self
@@ -434,41 +321,14 @@ impl BakeIndex {
         m: &MapEntry,
         size: (u32, u32),
     ) -> Result<TransferMap, MapsError> {
-        let (path, len) = resolve(dir, &m.file)?;
-        if len != m.bytes {
-            return Err(MapsError::FileSize {
-                path,
-                expected: m.bytes,
-                found: len,
-            });
-        }
-        let bytes = crate::io::limits::read_bounded(&path, m.bytes, "the size recorded in the index")
-            .map_err(|source| {
-            if source.kind() == std::io::ErrorKind::NotFound {
-                MapsError::MissingFile { path: path.clone() }
-            } else {
-                MapsError::Io {
-                    op: "cannot read",
-                    path: path.clone(),
-                    source,
-                }
-            }
-        })?;
-        if bytes.len() as u64 != m.bytes {
-            return Err(MapsError::FileSize {
-                path,
-                expected: m.bytes,
-                found: bytes.len() as u64,
-            });
-        }
-        let digest = sha256_hex(&bytes);
-        if digest != m.sha256 {
-            return Err(MapsError::Checksum {
-                path,
-                expected: m.sha256.clone(),
-                found: digest,
-            });
-        }
+        let crate::io::ListedFile { path, bytes } = crate::io::read_listed(
+            dir,
+            INDEX_FILE_NAME,
+            &m.file,
+            m.bytes,
+            &m.sha256,
+            DirKind::Bake,
+        )?;
         let f = decode_map(&path, &bytes, Some(size))?;
         let mismatch = |reason: String| MapsError::EntryMismatch {
             path: path.clone(),
@@ -506,133 +366,36 @@ impl BakeIndex {
     }
 }
 
-/// What [`scan_finished_maps`] found in a bake directory.
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct ResumeScan {
-    /// Valid, complete maps with the expected bake key and lightmap size, by map index. Their
-    /// entries are ready for the index (size and SHA-256 computed from the file).
-    pub finished: BTreeMap<u32, MapEntry>,
-    /// Map files that cannot be reused (corrupt, other bake key, other size, duplicate index),
-    /// with the reason. The bake should rewrite these maps (the atomic writer overwrites them).
-    pub rejected: Vec<(PathBuf, String)>,
-    /// Leftover temporary files of interrupted writes (`.*.tmp`); safe to delete.
-    pub stale_temp: Vec<PathBuf>,
-}
-
-/// Scans `dir` for map files a resumed bake can keep: names of the form [`map_file_name`] whose
-/// file decodes, passes its content hash, was stamped with `key`, has the given lightmap size,
-/// and whose header index/offset match its name. A missing `dir` gives an empty scan. Files are
-/// never deleted here.
+/// Encodes map `index` and writes it atomically to `dir/`[`map_file_name`]`(index, offset)`
+/// (creating `dir` if needed). Returns the index entry (file name, byte size, SHA-256) for
+/// [`BakeIndex`].
 ///
 /// # Errors
-/// [`MapsError::Io`] if `dir` exists but cannot be listed. Bad individual files are reported in
-/// [`ResumeScan::rejected`], not as errors.
-pub fn scan_finished_maps(
+/// [`FileError::Io`] if the directory or file cannot be written, [`FileError::Exr`] if encoding
+/// fails.
+pub fn write_map_file(
     dir: &Path,
-    key: &BakeKey,
-    width: u32,
-    height: u32,
-) -> Result<ResumeScan, MapsError> {
-    let mut scan = ResumeScan::default();
-    let entries = match fs::read_dir(dir) {
-        Ok(entries) => entries,
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(scan),
-        Err(source) => {
-            return Err(MapsError::Io {
-                op: "cannot list",
-                path: dir.to_owned(),
-                source,
-            });
-        }
-    };
-    let mut candidates = Vec::new();
-    for entry in entries {
-        let entry = entry.map_err(|source| MapsError::Io {
-            op: "cannot list",
-            path: dir.to_owned(),
-            source,
-        })?;
-        let Ok(name) = entry.file_name().into_string() else {
-            continue;
-        };
-        // Symbolic links are never reused (they could point outside the bake directory).
-        let regular = entry.file_type().is_ok_and(|t| t.is_file());
-        if name.starts_with('.') && name.ends_with(".tmp") {
-            if regular {
-                scan.stale_temp.push(entry.path());
-            }
-        } else if let Some((index, offset)) = parse_map_file_name(&name) {
-            if regular {
-                candidates.push((index, offset, name));
-            } else {
-                scan.rejected
-                    .push((entry.path(), "not a regular file (a link?)".into()));
-            }
-        }
-    }
-    candidates.sort_by(|a, b| (a.0, a.1.to_array(), &a.2).cmp(&(b.0, b.1.to_array(), &b.2)));
-    scan.stale_temp.sort();
-    let checked: Vec<(PathBuf, Result<MapEntry, String>)> = candidates
-        .into_par_iter()
-        .map(|(index, offset, name)| {
-            let path = dir.join(&name);
-            let result = check_finished(&path, index, offset, name, key, (width, height));
-            (path, result)
-        })
-        .collect();
-    let mut by_index: HashMap<u32, Vec<(PathBuf, MapEntry)>> = HashMap::new();
-    for (path, result) in checked {
-        match result {
-            Ok(e) => by_index.entry(e.index).or_default().push((path, e)),
-            Err(reason) => scan.rejected.push((path, reason)),
-        }
-    }
-    for (index, mut found) in by_index {
-        if found.len() == 1 {
-            let (_, e) = found.pop().unwrap_or_else(|| unreachable!("len checked"));
-            scan.finished.insert(index, e);
-        } else {
-            for (path, _) in found {
-                scan.rejected
-                    .push((path, format!("several valid files claim map index {index}")));
-            }
-        }
-    }
-    scan.rejected.sort();
-    Ok(scan)
-}
-
-/// Decodes and checks one candidate file for [`scan_finished_maps`].
-fn check_finished(
-    path: &Path,
     index: u32,
-    offset: IVec2,
-    name: String,
+    map: &TransferMap,
     key: &BakeKey,
-    size: (u32, u32),
-) -> Result<MapEntry, String> {
-    let bytes = crate::io::limits::read_bounded(path, crate::io::limits::MAX_EXR_BYTES, "MAX_EXR_BYTES")
-        .map_err(|e| format!("cannot read: {e}"))?;
-    let f = decode_map(path, &bytes, Some(size)).map_err(|e| e.to_string())?;
-    if f.bake_key != key.as_str() {
-        return Err(format!(
-            "stamped with bake key {}, expected {}",
-            f.bake_key,
-            key.as_str()
-        ));
-    }
-    if f.index != index || f.map.offset != offset {
-        return Err(format!(
-            "header says map {} offset {:?}, name says map {index} offset {:?}",
-            f.index,
-            f.map.offset.to_array(),
-            offset.to_array()
-        ));
-    }
+) -> Result<MapEntry, MapsError> {
+    fs::create_dir_all(dir).map_err(FileError::io(
+        "cannot create directory",
+        dir,
+        DirKind::Bake,
+    ))?;
+    let bytes = encode_map(index, map, key)?;
+    let file = map_file_name(index, map.offset);
+    let path = dir.join(&file);
+    crate::io::write_atomic(&path, &bytes).map_err(FileError::io(
+        "cannot write",
+        &path,
+        DirKind::Bake,
+    ))?;
     Ok(MapEntry::new(
         index,
-        &f.map,
-        name,
+        map,
+        file,
         bytes.len() as u64,
         sha256_hex(&bytes),
     ))
@@ -642,7 +405,7 @@ fn check_finished(
 mod tests {
     use super::*;
     use crate::Lightmap;
-    use crate::maps::write_map_file;
+    use glam::IVec2;
 
     fn settings() -> serde_json::Value {
         serde_json::json!({"offsets": 3, "seed": 42, "nested": {"b": [1, 2.5], "a": "x"}})
@@ -680,56 +443,6 @@ mod tests {
         );
         idx.write(dir).unwrap();
         idx
-    }
-
-    #[test]
-    fn file_names_round_trip_and_reject_paths() {
-        for (i, o) in [
-            (0, IVec2::ZERO),
-            (12, IVec2::new(3, -17)),
-            (123456, IVec2::new(-9, 0)),
-        ] {
-            let n = map_file_name(i, o);
-            assert_eq!(parse_map_file_name(&n), Some((i, o)), "{n}");
-            check_file_name(Path::new("i"), &n).unwrap();
-        }
-        assert_eq!(
-            map_file_name(12, IVec2::new(3, -17)),
-            "map_00012_+3_-17.exr"
-        );
-        for bad in [
-            "map_1_+0_+0.exr",
-            "map_00001_0_+0.exr",
-            "map_00001_+0_+0.png",
-            "x.exr",
-        ] {
-            assert_eq!(parse_map_file_name(bad), None, "{bad}");
-        }
-        for bad in [
-            "", ".", "..", "../a.exr", "a/b.exr", "/abs.exr", "a\\b.exr", "C:x.exr",
-        ] {
-            assert!(
-                check_file_name(Path::new("i"), bad).is_err(),
-                "{bad:?} accepted"
-            );
-        }
-    }
-
-    #[test]
-    fn bake_key_ignores_key_order_but_not_values() {
-        let a = serde_json::json!({"x": 1, "y": {"p": true, "q": [1, 2]}});
-        let b: serde_json::Value =
-            serde_json::from_str(r#"{"y": {"q": [1, 2], "p": true}, "x": 1}"#).unwrap();
-        assert_eq!(BakeKey::new("s", &a), BakeKey::new("s", &b));
-        assert_ne!(BakeKey::new("s", &a), BakeKey::new("t", &a));
-        let c = serde_json::json!({"x": 2, "y": {"p": true, "q": [1, 2]}});
-        assert_ne!(BakeKey::new("s", &a), BakeKey::new("s", &c));
-        // Scene hash and settings are length-separated: shifting text between them differs.
-        assert_ne!(
-            BakeKey::new("a", &serde_json::json!("b")),
-            BakeKey::new("a\"", &serde_json::json!(""))
-        );
-        assert!(is_hex_digest(BakeKey::new("s", &a).as_str()));
     }
 
     #[test]
@@ -782,13 +495,25 @@ mod tests {
         let e = try_with(&|v| v["format"] = "something-else".into());
         assert!(matches!(e, MapsError::IndexFormat { .. }));
         let e = try_with(&|v| v["maps"][0]["file"] = "../escape.exr".into());
-        assert!(matches!(e, MapsError::BadFileName { .. }), "{e}");
+        assert!(
+            matches!(e, MapsError::File(FileError::BadFileName { .. })),
+            "{e}"
+        );
         let e = try_with(&|v| v["maps"][0]["file"] = "/etc/passwd".into());
-        assert!(matches!(e, MapsError::BadFileName { .. }), "{e}");
+        assert!(
+            matches!(e, MapsError::File(FileError::BadFileName { .. })),
+            "{e}"
+        );
         let e = try_with(&|v| v["maps"][1]["file"] = "missing.exr".into());
-        assert!(matches!(e, MapsError::MissingFile { .. }), "{e}");
+        assert!(
+            matches!(e, MapsError::File(FileError::MissingFile { .. })),
+            "{e}"
+        );
         let e = try_with(&|v| v["maps"][0]["bytes"] = 3.into());
-        assert!(matches!(e, MapsError::FileSize { .. }), "{e}");
+        assert!(
+            matches!(e, MapsError::File(FileError::FileSize { .. })),
+            "{e}"
+        );
         let e = try_with(&|v| v["maps"][2]["index"] = 0.into());
         assert!(matches!(e, MapsError::BadIndex { .. }), "{e}");
         let e = try_with(&|v| v["maps"][0]["rects"][0]["x"] = 100.into());
@@ -803,7 +528,7 @@ mod tests {
         fs::remove_file(&path).unwrap();
         assert!(matches!(
             BakeIndex::read(dir.path()),
-            Err(MapsError::Io { .. })
+            Err(MapsError::File(FileError::Io { .. }))
         ));
     }
 
@@ -820,13 +545,13 @@ mod tests {
         fs::write(&f0, &flipped).unwrap();
         assert!(matches!(
             idx.load_maps(dir.path()),
-            Err(MapsError::Checksum { .. })
+            Err(MapsError::File(FileError::Checksum { .. }))
         ));
         // Truncated: size error.
         fs::write(&f0, &original[..original.len() - 10]).unwrap();
         assert!(matches!(
             idx.load_maps(dir.path()),
-            Err(MapsError::FileSize { .. })
+            Err(MapsError::File(FileError::FileSize { .. }))
         ));
         fs::write(&f0, &original).unwrap();
         idx.load_maps(dir.path()).unwrap();
@@ -847,46 +572,5 @@ mod tests {
             swapped.load_maps(dir.path()),
             Err(MapsError::EntryMismatch { .. })
         ));
-    }
-
-    #[test]
-    fn resume_scan_keeps_only_valid_files_of_this_bake() {
-        let dir = tempfile::tempdir().unwrap();
-        let key = BakeKey::new("scene", &settings());
-        let ms = maps();
-        let mut entries = Vec::new();
-        for (i, m) in ms.iter().enumerate() {
-            entries.push(write_map_file(dir.path(), i as u32, m, &key).unwrap());
-        }
-        // Map 3 from another bake; map 1's file corrupted; a stale temp file; an unrelated file.
-        let other = BakeKey::new("scene", &serde_json::json!({"offsets": 4}));
-        let e3 = write_map_file(dir.path(), 3, &ms[0], &other).unwrap();
-        let p1 = dir.path().join(&entries[1].file);
-        let mut b = fs::read(&p1).unwrap();
-        b.truncate(b.len() / 2);
-        fs::write(&p1, b).unwrap();
-        fs::write(
-            dir.path().join(".map_00004_+0_+0.exr.123-0.tmp"),
-            b"partial",
-        )
-        .unwrap();
-        fs::write(dir.path().join("notes.txt"), b"hello").unwrap();
-
-        let scan = scan_finished_maps(dir.path(), &key, 16, 8).unwrap();
-        assert_eq!(
-            scan.finished.keys().copied().collect::<Vec<_>>(),
-            vec![0, 2]
-        );
-        assert_eq!(scan.finished[&0], entries[0]);
-        assert_eq!(scan.finished[&2], entries[2]);
-        let rejected: Vec<PathBuf> = scan.rejected.iter().map(|(p, _)| p.clone()).collect();
-        assert_eq!(rejected, vec![p1, dir.path().join(&e3.file)]);
-        assert_eq!(scan.stale_temp.len(), 1);
-        // Wrong lightmap size rejects everything.
-        let scan = scan_finished_maps(dir.path(), &key, 16, 9).unwrap();
-        assert!(scan.finished.is_empty());
-        // A missing directory is an empty scan.
-        let scan = scan_finished_maps(&dir.path().join("nope"), &key, 16, 8).unwrap();
-        assert_eq!(scan, ResumeScan::default());
     }
 }

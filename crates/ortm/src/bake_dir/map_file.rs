@@ -1,5 +1,7 @@
-//! OpenEXR files for transfer maps: one file per map, one *part* per crop rectangle
-//! (paper Sec. 5.1: "written to disk as separate OpenEXR files").
+//! The transfer-map file codec: one OpenEXR file per map, one *part* per crop rectangle
+//! (paper Sec. 5.1: "written to disk as separate OpenEXR files"). Encoding and decoding work on
+//! bytes in memory; [`crate::bake_dir::write_map_file`] writes a file and returns its index
+//! entry, [`read_map_file`] reads one. Format description in `docs/bake-format.md`.
 //!
 //! # Layout
 //! - **Multi-part scan-line file** (OpenEXR 2.0+; `exrheader`, `exrinfo` and every OpenEXR ≥ 2
@@ -20,7 +22,7 @@
 //!   [`BakeKey`]) and `ortmContentSha256` (SHA-256 of the map content, see below). One attribute,
 //!   because the `exr` crate writes custom attributes in hash-map order: with several, two
 //!   identical maps would not be byte-identical files. This makes each file self-describing,
-//!   which the resumable bake ([`crate::maps::scan_finished_maps`]) relies on.
+//!   which the resumable bake ([`crate::bake_dir::scan_finished_maps`]) relies on.
 //!
 //! # Why f32 and not f16
 //! Transfer values span ≈1e-6…1. Half floats have a relative rounding error of 2⁻¹¹ ≈ 4.9e-4 in
@@ -39,32 +41,32 @@
 //! stores the SHA-256 of the whole file.
 //!
 //! # Robustness
-//! Files are written atomically (temporary name in the same directory, `fsync`, rename). The
-//! reader first parses and validates the headers (magic number, display window ≤
-//! [`MAX_TEXELS`](super::MAX_TEXELS), parts, channels, data windows inside the display window)
-//! before it decodes (allocates) any pixels; truncated or corrupt files give
-//! [`MapsError::Exr`] or [`MapsError::BadMapFile`], never a panic.
+//! Files are written atomically ([`crate::io::write_atomic`]). The reader first parses and
+//! validates the headers (magic number, display window ≤ [`MAX_TEXELS`](crate::maps::MAX_TEXELS),
+//! parts, channels, data windows inside the display window) before it decodes (allocates) any
+//! pixels; truncated or corrupt files give [`FileError::Exr`] or [`MapsError::BadMapFile`],
+//! never a panic.
 
-use std::collections::HashMap;
-use std::fs;
-use std::io::{Cursor, Write};
+use std::io::Cursor;
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicU64, Ordering};
 
-use exr::image::read::read;
-use exr::image::{AnyChannel, AnyChannels, Blocks, Encoding, FlatSamples, Image, Layer};
+use exr::image::{AnyChannels, FlatSamples, Layer};
 use exr::math::Vec2;
-use exr::meta::attribute::{AttributeValue, IntegerBounds, SampleType, Text};
-use exr::meta::header::{Header, ImageAttributes, LayerAttributes};
-use exr::meta::{BlockDescription, MetaData};
-use exr::prelude::traits::{ReadChannels, ReadLayers, WritableImage};
-use exr::prelude::{Compression, LineOrder, SmallVec};
+use exr::meta::BlockDescription;
+use exr::meta::MetaData;
+use exr::meta::attribute::{IntegerBounds, SampleType};
+use exr::meta::header::{Header, LayerAttributes};
 use glam::IVec2;
 use sha2::{Digest, Sha256};
 
-use super::MapsError;
-use super::index::{BakeKey, MapEntry, map_file_name};
-use super::transfer_map::{Crop, TransferMap, check_size};
+use super::key::{BakeKey, map_file_name};
+use crate::io::exr::{
+    A_META, Meta, ZIP_SCAN_LINES, check_compression, decode_layers, encode_layers, has_magic,
+    meta_attribute, parse_meta, rgb_channels, rgb_values, text,
+};
+use crate::io::{DirKind, FileError};
+use crate::maps::transfer_map::check_size;
+use crate::maps::{Crop, CropRect, MapsError, TransferMap};
 
 /// Value of the `ortmFormat` attribute.
 const FILE_FORMAT: &str = "ortm-transfer-map";
@@ -73,8 +75,6 @@ const FILE_VERSION: i32 = 1;
 /// Name of the placeholder part of an empty map.
 const EMPTY_PART: &str = "ortm-empty";
 
-/// The single custom attribute holding every metadata field below as `name=value` lines.
-pub(crate) const A_META: &str = "ortmMeta";
 const A_FORMAT: &str = "ortmFormat";
 const A_VERSION: &str = "ortmVersion";
 const A_INDEX: &str = "ortmMapIndex";
@@ -94,19 +94,6 @@ pub struct MapFile {
     pub bake_key: String,
     /// The map itself.
     pub map: TransferMap,
-}
-
-/// Lower-case hex SHA-256 of `bytes`.
-pub(crate) fn sha256_hex(bytes: &[u8]) -> String {
-    hex(&Sha256::digest(bytes))
-}
-
-fn hex(digest: &[u8]) -> String {
-    use std::fmt::Write as _;
-    digest.iter().fold(String::with_capacity(64), |mut s, b| {
-        let _ = write!(s, "{b:02x}");
-        s
-    })
 }
 
 /// SHA-256 of the canonical content of map `index` (see the module doc).
@@ -136,39 +123,20 @@ pub(crate) fn content_hash(index: u32, bake_key: &str, map: &TransferMap) -> Str
         );
         h.update(&buf);
     }
-    hex(&h.finalize())
-}
-
-/// Text attribute value; the caller guarantees ASCII.
-pub(crate) fn text(s: &str) -> Text {
-    Text::from_slice_unchecked(s.as_bytes())
+    crate::io::hex(&h.finalize())
 }
 
 /// Encodes map `index` as an OpenEXR file in memory (layout in the module doc).
 ///
 /// # Errors
-/// [`MapsError::Exr`] if the encoder fails (not expected for a valid map).
+/// [`FileError::Exr`] if the encoder fails (not expected for a valid map).
 pub fn encode_map(index: u32, map: &TransferMap, key: &BakeKey) -> Result<Vec<u8>, MapsError> {
-    let path = PathBuf::from(map_file_name(index, map.offset));
-    let encoding = Encoding {
-        compression: Compression::ZIP16,
-        blocks: Blocks::ScanLines,
-        line_order: LineOrder::Increasing,
-    };
-    let channels = |data: &[[f32; 3]]| {
-        let chan = |c: usize| FlatSamples::F32(data.iter().map(|v| v[c]).collect());
-        AnyChannels::sort(SmallVec::from_vec(vec![
-            AnyChannel::new("R", chan(0)),
-            AnyChannel::new("G", chan(1)),
-            AnyChannel::new("B", chan(2)),
-        ]))
-    };
     let mut layers: Vec<Layer<AnyChannels<FlatSamples>>> = if map.crops().is_empty() {
         vec![Layer::new(
             Vec2(1, 1),
             LayerAttributes::named(EMPTY_PART),
-            encoding,
-            channels(&[[0.0; 3]]),
+            ZIP_SCAN_LINES,
+            rgb_channels(&[[0.0; 3]]),
         )]
     } else {
         map.crops()
@@ -180,13 +148,12 @@ pub fn encode_map(index: u32, map: &TransferMap, key: &BakeKey) -> Result<Vec<u8
                 Layer::new(
                     Vec2(c.rect.w as usize, c.rect.h as usize),
                     attrs,
-                    encoding,
-                    channels(&c.data),
+                    ZIP_SCAN_LINES,
+                    rgb_channels(&c.data),
                 )
             })
             .collect()
     };
-    // All metadata goes into ONE text attribute (see `meta_attribute`).
     let meta = meta_attribute(&[
         (A_FORMAT, FILE_FORMAT.to_owned()),
         (A_VERSION, FILE_VERSION.to_string()),
@@ -199,134 +166,123 @@ pub fn encode_map(index: u32, map: &TransferMap, key: &BakeKey) -> Result<Vec<u8
         (A_HASH, content_hash(index, key.as_str(), map)),
     ]);
     layers[0].attributes.other.insert(text(A_META), meta);
-
-    let display = IntegerBounds::from_dimensions(Vec2(map.width() as usize, map.height() as usize));
-    let image = Image::from_layers(ImageAttributes::new(display), layers);
-    let mut bytes = Vec::new();
-    image
-        .write()
-        .non_parallel()
-        .to_buffered(Cursor::new(&mut bytes))
-        .map_err(|source| MapsError::Exr {
+    encode_layers((map.width(), map.height()), layers).map_err(|source| {
+        MapsError::from(FileError::Exr {
             op: "encode",
-            path,
+            path: PathBuf::from(map_file_name(index, map.offset)),
             source,
-        })?;
-    Ok(bytes)
-}
-
-/// Monotonic counter that keeps temporary names unique within the process.
-static TMP_COUNTER: AtomicU64 = AtomicU64::new(0);
-
-/// Writes `bytes` to `path` atomically: a temporary `.<name>.<pid>-<n>.tmp` in the same
-/// directory, `fsync`, then rename. On failure the temporary file is removed.
-pub(crate) fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), MapsError> {
-    let dir = path.parent().unwrap_or(Path::new("."));
-    let name = path.file_name().map_or_else(
-        || "unnamed".to_owned(),
-        |n| n.to_string_lossy().into_owned(),
-    );
-    let n = TMP_COUNTER.fetch_add(1, Ordering::Relaxed);
-    let tmp = dir.join(format!(".{name}.{}-{n}.tmp", std::process::id()));
-    let result = (|| {
-        let mut f = fs::File::create(&tmp)?;
-        f.write_all(bytes)?;
-        f.sync_all()?;
-        drop(f);
-        fs::rename(&tmp, path)
-    })();
-    result.map_err(|source| {
-        let _ = fs::remove_file(&tmp);
-        MapsError::Io {
-            op: "cannot write",
-            path: path.to_owned(),
-            source,
-        }
+            kind: DirKind::Bake,
+        })
     })
-}
-
-/// Encodes map `index` and writes it atomically to `dir/`[`map_file_name`]`(index, offset)`
-/// (creating `dir` if needed). Returns the index entry (file name, byte size, SHA-256) for
-/// [`crate::maps::BakeIndex`].
-///
-/// # Errors
-/// [`MapsError::Io`] if the directory or file cannot be written, [`MapsError::Exr`] if encoding
-/// fails.
-pub fn write_map_file(
-    dir: &Path,
-    index: u32,
-    map: &TransferMap,
-    key: &BakeKey,
-) -> Result<MapEntry, MapsError> {
-    fs::create_dir_all(dir).map_err(|source| MapsError::Io {
-        op: "cannot create directory",
-        path: dir.to_owned(),
-        source,
-    })?;
-    let bytes = encode_map(index, map, key)?;
-    let file = map_file_name(index, map.offset);
-    write_atomic(&dir.join(&file), &bytes)?;
-    Ok(MapEntry::new(
-        index,
-        map,
-        file,
-        bytes.len() as u64,
-        sha256_hex(&bytes),
-    ))
 }
 
 /// Reads and fully validates one map file. If `expected_size` is given, the lightmap size
 /// stored in the file must equal it.
 ///
 /// # Errors
-/// [`MapsError::Io`], [`MapsError::NotExr`], [`MapsError::Exr`], [`MapsError::BadMapFile`],
-/// [`MapsError::SizeMismatch`] (see [`decode_map`]).
+/// [`FileError::Io`], and those of [`decode_map`].
 pub fn read_map_file(path: &Path, expected_size: Option<(u32, u32)>) -> Result<MapFile, MapsError> {
-    let bytes = crate::io::limits::read_bounded(path, crate::io::limits::MAX_EXR_BYTES, "MAX_EXR_BYTES")
-        .map_err(|source| MapsError::Io {
-            op: "cannot read",
-            path: path.to_owned(),
-            source,
-        })?;
+    let bytes = crate::io::read_bounded(path, crate::io::limits::MAX_EXR_BYTES, "MAX_EXR_BYTES")
+        .map_err(FileError::io("cannot read", path, DirKind::Bake))?;
     decode_map(path, &bytes, expected_size)
+}
+
+/// The `ortmMeta` fields of a map file's first part, parsed.
+struct MapHeader {
+    index: u32,
+    offset: IVec2,
+    area: f64,
+    importance: f64,
+    rect_count: usize,
+    bake_key: String,
+    stored_hash: String,
 }
 
 /// Decodes and validates a map file held in memory; `path` is only used in error messages.
 ///
 /// Checks: OpenEXR magic number; headers parse (pedantic); display window at the origin, non-
-/// empty, ≤ [`MAX_TEXELS`](super::MAX_TEXELS), the same in every part and equal to
+/// empty, ≤ [`MAX_TEXELS`](crate::maps::MAX_TEXELS), the same in every part and equal to
 /// `expected_size` if given; scan-line, non-deep parts named `rect0, rect1, …` (or the single
 /// `ortm-empty` placeholder) with exactly `B, G, R` f32 channels; data windows inside the display
 /// window and disjoint; all `ortm*` attributes present with the right types; finite values; and
-/// finally the content hash.
+/// finally the content hash. The headers are checked ([`check_headers`]) before any pixel is
+/// decoded ([`decode_crops`]).
 ///
 /// # Errors
-/// [`MapsError::NotExr`], [`MapsError::Exr`] (decoder failure: truncated/corrupt),
+/// [`MapsError::NotExr`], [`FileError::Exr`] (decoder failure: truncated/corrupt),
 /// [`MapsError::BadMapFile`] (anything else listed above), [`MapsError::SizeMismatch`].
 pub fn decode_map(
     path: &Path,
     bytes: &[u8],
     expected_size: Option<(u32, u32)>,
 ) -> Result<MapFile, MapsError> {
-    const MAGIC: [u8; 4] = [0x76, 0x2f, 0x31, 0x01];
-    if bytes.len() < 4 || bytes[..4] != MAGIC {
+    if !has_magic(bytes) {
         return Err(MapsError::NotExr {
             path: path.to_owned(),
         });
     }
-    let exr_err = |source| MapsError::Exr {
-        op: "decode",
-        path: path.to_owned(),
-        source,
-    };
     let bad = |reason: String| MapsError::BadMapFile {
         path: path.to_owned(),
         reason,
     };
+    let (header, (width, height)) = check_headers(path, bytes, expected_size)?;
+    // The placeholder part of an empty map is decoded too: a corrupt one is refused.
+    let image = decode_layers(bytes).map_err(exr_error(path))?;
+    let crops = if header.rect_count > 0 {
+        decode_crops(&image.layer_data).map_err(&bad)?
+    } else {
+        Vec::new()
+    };
+    let map = TransferMap::from_crops(
+        &path.display().to_string(),
+        header.offset,
+        header.area,
+        header.importance,
+        width,
+        height,
+        crops,
+    )
+    .map_err(|e| bad(e.to_string()))?;
+    let hash = content_hash(header.index, &header.bake_key, &map);
+    if hash != header.stored_hash {
+        return Err(bad(format!(
+            "content SHA-256 is {hash} but {A_HASH} says {} (data or metadata corrupted)",
+            header.stored_hash
+        )));
+    }
+    Ok(MapFile {
+        index: header.index,
+        bake_key: header.bake_key,
+        map,
+    })
+}
 
-    // Phase 1: headers only, validated before any pixel allocation.
-    let meta = MetaData::read_from_buffered(Cursor::new(bytes), true).map_err(exr_err)?;
-    MetaData::validate(&meta.headers, true).map_err(exr_err)?;
+/// The decoder's error on `path`, as [`FileError::Exr`].
+fn exr_error(path: &Path) -> impl Fn(exr::error::Error) -> MapsError + '_ {
+    move |source| {
+        MapsError::from(FileError::Exr {
+            op: "decode",
+            path: path.to_owned(),
+            source,
+            kind: DirKind::Bake,
+        })
+    }
+}
+
+/// Phase 1 of [`decode_map`]: parses and validates every header (display window, metadata,
+/// parts, declared pixels against the file size) without allocating pixels. Returns the
+/// metadata and the lightmap size.
+fn check_headers(
+    path: &Path,
+    bytes: &[u8],
+    expected_size: Option<(u32, u32)>,
+) -> Result<(MapHeader, (u32, u32)), MapsError> {
+    let bad = |reason: String| MapsError::BadMapFile {
+        path: path.to_owned(),
+        reason,
+    };
+    let meta = MetaData::read_from_buffered(Cursor::new(bytes), true).map_err(exr_error(path))?;
+    MetaData::validate(&meta.headers, true).map_err(exr_error(path))?;
     let headers = &meta.headers;
     let first = headers
         .first()
@@ -352,31 +308,10 @@ pub fn decode_map(
             found: (width, height),
         });
     }
-    let attrs = &parse_meta(&first.own_attributes.other).map_err(&bad)?;
-    let format = get_text(attrs, A_FORMAT).map_err(&bad)?;
-    if format != FILE_FORMAT {
-        return Err(bad(format!(
-            "{A_FORMAT} is {format:?}, expected {FILE_FORMAT:?}"
-        )));
-    }
-    let version = get_i32(attrs, A_VERSION).map_err(&bad)?;
-    if version != FILE_VERSION {
-        return Err(bad(format!(
-            "file version {version} is not supported, this build reads version {FILE_VERSION}"
-        )));
-    }
-    let index = u32::try_from(get_i32(attrs, A_INDEX).map_err(&bad)?)
-        .map_err(|_| bad(format!("{A_INDEX} is negative")))?;
-    let offset = get_offset(attrs, A_OFFSET).map_err(&bad)?;
-    let area = get_f64(attrs, A_AREA).map_err(&bad)?;
-    let importance = get_f64(attrs, A_IMPORTANCE).map_err(&bad)?;
-    let rect_count = usize::try_from(get_i32(attrs, A_RECTS).map_err(&bad)?)
-        .map_err(|_| bad(format!("{A_RECTS} is negative")))?;
-    let bake_key = get_text(attrs, A_KEY).map_err(&bad)?;
-    let stored_hash = get_text(attrs, A_HASH).map_err(&bad)?;
-
-    let expected_parts = rect_count.max(1);
-    if headers.len() != expected_parts {
+    let header =
+        parse_map_header(&parse_meta(&first.own_attributes.other).map_err(&bad)?).map_err(&bad)?;
+    let rect_count = header.rect_count;
+    if headers.len() != rect_count.max(1) {
         return Err(bad(format!(
             "{} parts but {A_RECTS} = {rect_count}",
             headers.len()
@@ -393,64 +328,57 @@ pub fn decode_map(
         bytes.len() as u64,
     )
     .map_err(|e| bad(e.to_string()))?;
+    Ok((header, (width, height)))
+}
 
-    // Phase 2: pixels.
-    let image = read()
-        .no_deep_data()
-        .largest_resolution_level()
-        .all_channels()
-        .all_layers()
-        .all_attributes()
-        .pedantic()
-        .non_parallel()
-        .from_buffered(Cursor::new(bytes))
-        .map_err(exr_err)?;
-    let mut crops = Vec::with_capacity(rect_count);
-    if rect_count > 0 {
-        for (i, layer) in image.layer_data.iter().enumerate() {
+/// Reads the `ortmMeta` fields: format and version first, then every field of [`MapHeader`].
+fn parse_map_header(attrs: &Meta) -> Result<MapHeader, String> {
+    let format = get_text(attrs, A_FORMAT)?;
+    if format != FILE_FORMAT {
+        return Err(format!(
+            "{A_FORMAT} is {format:?}, expected {FILE_FORMAT:?}"
+        ));
+    }
+    let version = get_i32(attrs, A_VERSION)?;
+    if version != FILE_VERSION {
+        return Err(format!(
+            "file version {version} is not supported, this build reads version {FILE_VERSION}"
+        ));
+    }
+    Ok(MapHeader {
+        index: u32::try_from(get_i32(attrs, A_INDEX)?)
+            .map_err(|_| format!("{A_INDEX} is negative"))?,
+        offset: get_offset(attrs, A_OFFSET)?,
+        area: get_f64(attrs, A_AREA)?,
+        importance: get_f64(attrs, A_IMPORTANCE)?,
+        rect_count: usize::try_from(get_i32(attrs, A_RECTS)?)
+            .map_err(|_| format!("{A_RECTS} is negative"))?,
+        bake_key: get_text(attrs, A_KEY)?,
+        stored_hash: get_text(attrs, A_HASH)?,
+    })
+}
+
+/// Phase 2 of [`decode_map`]: one crop per decoded part, at the part's data window.
+fn decode_crops(layers: &[Layer<AnyChannels<FlatSamples>>]) -> Result<Vec<Crop>, String> {
+    layers
+        .iter()
+        .enumerate()
+        .map(|(i, layer)| {
             let (w, h) = (layer.size.0, layer.size.1);
             let pos = layer.attributes.layer_position;
-            let list = &layer.channel_data.list;
-            let samples = |c: usize| match list.get(c).map(|ch| &ch.sample_data) {
-                Some(FlatSamples::F32(v)) if v.len() == w * h => Ok(v),
-                _ => Err(bad(format!(
-                    "part {i}: channel data is not {w}×{h} f32 samples"
-                ))),
-            };
-            let (b, g, r) = (samples(0)?, samples(1)?, samples(2)?);
-            let data = (0..w * h).map(|k| [r[k], g[k], b[k]]).collect();
-            crops.push(Crop {
-                rect: super::CropRect {
+            let data = rgb_values(layer, w * h)
+                .ok_or_else(|| format!("part {i}: channel data is not {w}×{h} f32 samples"))?;
+            Ok(Crop {
+                rect: CropRect {
                     x: pos.0 as u32,
                     y: pos.1 as u32,
                     w: w as u32,
                     h: h as u32,
                 },
                 data,
-            });
-        }
-    }
-    let map = TransferMap::from_crops(
-        &path.display().to_string(),
-        offset,
-        area,
-        importance,
-        width,
-        height,
-        crops,
-    )
-    .map_err(|e| bad(e.to_string()))?;
-    let hash = content_hash(index, &bake_key, &map);
-    if hash != stored_hash {
-        return Err(bad(format!(
-            "content SHA-256 is {hash} but {A_HASH} says {stored_hash} (data or metadata corrupted)"
-        )));
-    }
-    Ok(MapFile {
-        index,
-        bake_key,
-        map,
-    })
+            })
+        })
+        .collect()
 }
 
 /// Validates part `i`'s header against the layout (name, channels, blocks, data window).
@@ -511,45 +439,6 @@ fn check_header(
     Ok(())
 }
 
-/// Accepts the lossless compressions whose expansion is bounded by deflate's (`ZIP`, `ZIPS`,
-/// `RLE`, none), so [`crate::io::limits::check_exr_pixels`] bounds the decoded size. ortm writes ZIP.
-pub(crate) fn check_compression(c: Compression) -> Result<(), String> {
-    match c {
-        Compression::Uncompressed | Compression::RLE | Compression::ZIP1 | Compression::ZIP16 => {
-            Ok(())
-        }
-        other => Err(format!(
-            "compression {other:?} is not supported (ortm reads ZIP, RLE or uncompressed files)"
-        )),
-    }
-}
-
-/// The metadata fields of the `ortmMeta` attribute.
-pub(crate) type Meta = std::collections::BTreeMap<String, String>;
-
-/// The `ortmMeta` attribute value: one `name=value` line per field, in the given order. Map and
-/// atlas files keep all their metadata in this one attribute because the `exr` crate writes
-/// custom attributes in hash-map order (several would make identical files differ).
-pub(crate) fn meta_attribute(fields: &[(&str, String)]) -> AttributeValue {
-    let lines: String = fields.iter().map(|(k, v)| format!("{k}={v}\n")).collect();
-    AttributeValue::Text(text(&lines))
-}
-
-/// Parses the `ortmMeta` attribute of a part (see [`meta_attribute`]).
-pub(crate) fn parse_meta(attrs: &HashMap<Text, AttributeValue>) -> Result<Meta, String> {
-    let Some(AttributeValue::Text(t)) = attrs.get(A_META.as_bytes()) else {
-        return Err(format!("attribute {A_META} (string) is missing"));
-    };
-    let mut meta = Meta::new();
-    for line in t.to_string().lines() {
-        let (k, v) = line
-            .split_once('=')
-            .ok_or_else(|| format!("{A_META}: line {line:?} is not name=value"))?;
-        meta.insert(k.to_owned(), v.to_owned());
-    }
-    Ok(meta)
-}
-
 fn get_text(meta: &Meta, name: &str) -> Result<String, String> {
     meta.get(name)
         .cloned()
@@ -585,8 +474,11 @@ fn get_offset(meta: &Meta, name: &str) -> Result<IVec2, String> {
 mod tests {
     use super::*;
     use crate::Lightmap;
+    use crate::bake_dir::write_map_file;
+    use crate::io::sha256_hex;
     use rand::{RngExt, SeedableRng};
     use rand_chacha::ChaCha8Rng;
+    use std::fs;
 
     fn key() -> BakeKey {
         BakeKey::new("scene-abc", &serde_json::json!({"maps": 3}))
@@ -731,16 +623,7 @@ mod tests {
         fs::write(&blocker, b"x").unwrap();
         assert!(matches!(
             write_map_file(&blocker, 0, &map, &key()),
-            Err(MapsError::Io { .. })
+            Err(MapsError::File(FileError::Io { .. }))
         ));
-    }
-
-    #[test]
-    fn sha256_matches_known_vector() {
-        // FIPS 180-2 test vector.
-        assert_eq!(
-            sha256_hex(b"abc"),
-            "ba7816bf8f01cfea414140de5dae2223b00361a396177a9cb410ff61f20015ad"
-        );
     }
 }

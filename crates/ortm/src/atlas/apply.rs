@@ -1,0 +1,78 @@
+//! The CPU reference of the renderer's transfer pass, evaluated from atlas pieces (paper Eq. 9
+//! plus the first-order term; module doc of [`crate::atlas`], step 4).
+
+use super::{AtlasError, AtlasPiece, AtlasSet};
+use crate::Lightmap;
+
+/// CPU reference of the renderer's transfer pass from the pieces (paper Eq. 9 plus the
+/// first-order term): `B[t] = B_o[t] + Σ_pieces atlas[src+(i,j)]·B_o[dst+(i,j)+Δt]`, per RGB
+/// channel, with `B_o = 0` outside the lightmap.
+///
+/// Each texel is accumulated in f64, starting at `B_o`, adding the pieces' terms in increasing
+/// `map_index` (a map's pieces are disjoint in the lightmap, so each map adds at most one term
+/// per texel), and rounded to f32 once. That is exactly the order and arithmetic of
+/// [`crate::maps::apply()`], so for a set built from `maps` the result is bit-identical to
+/// `maps::apply(maps, first_order)`.
+///
+/// # Errors
+/// [`AtlasError::InvalidSet`] if the set is inconsistent, [`AtlasError::FirstOrderSize`] if
+/// `first_order` does not have the set's lightmap size.
+pub fn apply_atlas_set(set: &AtlasSet, first_order: &Lightmap) -> Result<Lightmap, AtlasError> {
+    apply_atlas_pieces(set, |_| true, first_order)
+}
+
+/// [`apply_atlas_set`] with only the pieces for which `keep` is true (e.g. the maps of one
+/// offset, or the first K maps by importance, as `ortm view` shows them); same order and
+/// arithmetic.
+///
+/// # Errors
+/// As [`apply_atlas_set`].
+pub fn apply_atlas_pieces(
+    set: &AtlasSet,
+    keep: impl Fn(&AtlasPiece) -> bool,
+    first_order: &Lightmap,
+) -> Result<Lightmap, AtlasError> {
+    set.validate()?;
+    let (w, h) = set.lightmap_size;
+    if (first_order.width, first_order.height) != (w, h)
+        || first_order.data.len() != w as usize * h as usize
+    {
+        return Err(AtlasError::FirstOrderSize {
+            expected: (w, h),
+            found: (first_order.width, first_order.height),
+            len: first_order.data.len(),
+        });
+    }
+    let mut acc: Vec<[f64; 3]> = first_order.data.iter().map(|v| v.map(f64::from)).collect();
+    let mut order: Vec<&AtlasPiece> = set.pieces.iter().filter(|p| keep(p)).collect();
+    order.sort_by_key(|p| p.map_index); // stable: ties keep atlas order
+    let aw = set.atlas_size.0 as usize;
+    for p in order {
+        let atlas = &set.atlases[p.atlas as usize];
+        for j in 0..p.h {
+            let y = i64::from(p.dst_y + j);
+            let sy = y + i64::from(p.offset[1]);
+            if sy < 0 || sy >= i64::from(h) {
+                continue;
+            }
+            for i in 0..p.w {
+                let x = i64::from(p.dst_x + i);
+                let sx = x + i64::from(p.offset[0]);
+                if sx < 0 || sx >= i64::from(w) {
+                    continue;
+                }
+                let v = atlas[(p.src_y + j) as usize * aw + (p.src_x + i) as usize];
+                let s = first_order.data[sy as usize * w as usize + sx as usize];
+                let a = &mut acc[y as usize * w as usize + x as usize];
+                for c in 0..3 {
+                    a[c] += f64::from(v[c]) * f64::from(s[c]);
+                }
+            }
+        }
+    }
+    Ok(Lightmap {
+        width: w,
+        height: h,
+        data: acc.into_iter().map(|a| a.map(|v| v as f32)).collect(),
+    })
+}

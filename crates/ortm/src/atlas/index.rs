@@ -1,0 +1,406 @@
+//! The atlas index `atlases.json` (format in `docs/atlas-format.md`) and the directory it
+//! describes: [`write_atlas_set`] writes the atlas files and then the index, [`read_atlas_index`]
+//! and [`read_atlas_set`] read them back with every check a renderer needs (module doc of
+//! [`crate::atlas`], steps 2 and 3).
+
+use std::collections::HashSet;
+use std::fs;
+use std::path::Path;
+
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use super::file::{atlas_file_name, decode_atlas, encode_atlas};
+use super::validate::check_geometry;
+use super::{AtlasError, AtlasPiece, AtlasSet};
+use crate::bake_dir::{INDEX_FILE_NAME, INDEX_FORMAT, LightmapSize};
+use crate::io::DirKind::Atlas;
+use crate::io::limits::MAX_JSON_BYTES;
+use crate::io::{FileError, is_hex_digest, plain_file_name, sha256_hex, write_atomic};
+
+/// File name of the atlas index inside an atlas directory.
+pub const ATLAS_INDEX_FILE_NAME: &str = "atlases.json";
+
+/// Value of the atlas index's `format` field.
+pub const ATLAS_INDEX_FORMAT: &str = "ortm-atlases";
+
+/// The atlas index version this build writes and reads.
+pub const ATLAS_INDEX_VERSION: u32 = 1;
+
+/// One atlas file of the index.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct AtlasFileEntry {
+    /// Plain file name inside the atlas directory, e.g. `atlas_000.exr`.
+    pub file: String,
+    /// File size in bytes.
+    pub bytes: u64,
+    /// Lower-case hex SHA-256 of the whole file.
+    pub sha256: String,
+}
+
+/// The contents of `atlases.json` (without `format` and `version`).
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct AtlasIndex {
+    /// Atlas size, texels.
+    pub atlas_size: LightmapSize,
+    /// Lightmap size, texels.
+    pub lightmap: LightmapSize,
+    /// Bake key of the bake whose maps were packed (64 lower-case hex digits).
+    pub bake_key: String,
+    /// One entry per atlas, in atlas order.
+    pub atlases: Vec<AtlasFileEntry>,
+    /// Every piece, sorted by `(atlas, src_y, src_x)`.
+    pub pieces: Vec<AtlasPiece>,
+}
+
+/// Removes temporary files an interrupted `write_atlas_set` left (`.atlas_*.tmp`,
+/// `.atlases.json.*.tmp`: never read, since final names are only created by rename).
+fn remove_stale_temp_files(dir: &Path) {
+    let Ok(entries) = fs::read_dir(dir) else {
+        return;
+    };
+    for e in entries.flatten() {
+        let name = e.file_name();
+        let name = name.to_string_lossy();
+        let ours = name.starts_with(".atlas_") || name.starts_with(".atlases.json.");
+        if ours && name.ends_with(".tmp") && e.file_type().is_ok_and(|t| t.is_file()) {
+            let _ = fs::remove_file(e.path());
+        }
+    }
+}
+
+/// Writes `set` into `dir` (created if needed): one OpenEXR file per atlas
+/// ([`atlas_file_name`]) and then `atlases.json`, each atomically (temporary name, `fsync`,
+/// rename). An existing `atlases.json` is removed first, so an interrupted run never leaves an
+/// index that points at half-replaced atlases. Files from an earlier run that the new index does
+/// not list are left alone (and ignored by readers). Returns the index written.
+///
+/// `bake_key` is the key of the bake the maps came from (`BakeIndex::bake_key`, 64 lower-case
+/// hex digits); [`read_atlas_set`] compares it with the bake's `index.json`.
+///
+/// # Errors
+/// [`AtlasError::InvalidSet`] for an inconsistent set or a malformed key, [`FileError::Io`],
+/// [`FileError::Exr`].
+pub fn write_atlas_set(
+    dir: &Path,
+    set: &AtlasSet,
+    bake_key: &str,
+) -> Result<AtlasIndex, AtlasError> {
+    set.validate()?;
+    if !is_hex_digest(bake_key) {
+        return Err(AtlasError::InvalidSet {
+            reason: format!("bake key {bake_key:?} is not 64 lower-case hex digits"),
+        });
+    }
+    let atlas_count = u32::try_from(set.atlases.len()).map_err(|_| AtlasError::InvalidSet {
+        reason: format!("{} atlases is too many", set.atlases.len()),
+    })?;
+    fs::create_dir_all(dir).map_err(FileError::io("cannot create directory", dir, Atlas))?;
+    remove_stale_temp_files(dir);
+    let index_path = dir.join(ATLAS_INDEX_FILE_NAME);
+    match fs::remove_file(&index_path) {
+        Ok(()) => {}
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+        Err(e) => {
+            return Err(
+                FileError::io("cannot remove the old atlas index", &index_path, Atlas)(e).into(),
+            );
+        }
+    }
+    let entries: Vec<Result<AtlasFileEntry, AtlasError>> = (0..atlas_count)
+        .into_par_iter()
+        .map(|i| {
+            let file = atlas_file_name(i);
+            let path = dir.join(&file);
+            let bytes = encode_atlas(&path, i, set.atlas_size, &set.atlases[i as usize], bake_key)?;
+            write_atomic(&path, &bytes).map_err(FileError::io("cannot write", &path, Atlas))?;
+            Ok(AtlasFileEntry {
+                file,
+                bytes: bytes.len() as u64,
+                sha256: sha256_hex(&bytes),
+            })
+        })
+        .collect();
+    let index = AtlasIndex {
+        atlas_size: LightmapSize {
+            width: set.atlas_size.0,
+            height: set.atlas_size.1,
+        },
+        lightmap: LightmapSize {
+            width: set.lightmap_size.0,
+            height: set.lightmap_size.1,
+        },
+        bake_key: bake_key.to_owned(),
+        atlases: entries.into_iter().collect::<Result<_, _>>()?,
+        pieces: set.pieces.clone(),
+    };
+    #[derive(Serialize)]
+    struct Wire<'a> {
+        format: &'static str,
+        version: u32,
+        #[serde(flatten)]
+        body: &'a AtlasIndex,
+    }
+    let wire = Wire {
+        format: ATLAS_INDEX_FORMAT,
+        version: ATLAS_INDEX_VERSION,
+        body: &index,
+    };
+    let mut json = serde_json::to_string_pretty(&wire).map_err(|source| AtlasError::Json {
+        path: index_path.clone(),
+        source,
+    })?;
+    json.push('\n');
+    write_atomic(&index_path, json.as_bytes()).map_err(FileError::io(
+        "cannot write",
+        &index_path,
+        Atlas,
+    ))?;
+    Ok(index)
+}
+
+/// Reads and validates `dir/atlases.json` (format, version, schema, sizes, file names, digest
+/// syntax, piece geometry) and, if `dir/index.json` exists, checks that it is the bake the
+/// atlases were packed from (same bake key and lightmap size). Atlas files are not opened.
+///
+/// # Errors
+/// [`AtlasError::MissingIndex`], [`FileError::Io`], [`AtlasError::Json`],
+/// [`AtlasError::Format`], [`AtlasError::Version`], [`AtlasError::BadIndex`],
+/// [`FileError::BadFileName`], [`AtlasError::BakeIndex`], [`AtlasError::BakeMismatch`].
+pub fn read_atlas_index(dir: &Path) -> Result<AtlasIndex, AtlasError> {
+    let path = dir.join(ATLAS_INDEX_FILE_NAME);
+    let text = match crate::io::read_bounded(&path, MAX_JSON_BYTES, "MAX_JSON_BYTES") {
+        Ok(t) => t,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+            return Err(AtlasError::MissingIndex { path });
+        }
+        Err(e) => return Err(FileError::io("cannot read atlas index", &path, Atlas)(e).into()),
+    };
+    let index = parse_atlas_index(&path, &text)?;
+    check_entries(&path, &index)?;
+    check_files(dir, &path, &index)?;
+    check_geometry(
+        (index.atlas_size.width, index.atlas_size.height),
+        (index.lightmap.width, index.lightmap.height),
+        index.atlases.len(),
+        &index.pieces,
+    )
+    .map_err(|reason| AtlasError::BadIndex {
+        path: path.clone(),
+        reason,
+    })?;
+    check_bake(dir, &path, &index)?;
+    Ok(index)
+}
+
+/// Parses the JSON of the atlas index at `path`: `format` and `version` first, then the schema.
+fn parse_atlas_index(path: &Path, text: &[u8]) -> Result<AtlasIndex, AtlasError> {
+    let json_err = |source| AtlasError::Json {
+        path: path.to_owned(),
+        source,
+    };
+    let mut value: serde_json::Value = serde_json::from_slice(text).map_err(json_err)?;
+    let obj = value.as_object_mut().ok_or_else(|| AtlasError::BadIndex {
+        path: path.to_owned(),
+        reason: "the top level is not a JSON object".into(),
+    })?;
+    let found =
+        |v: Option<serde_json::Value>| v.map_or_else(|| "<missing>".into(), |v| v.to_string());
+    match obj.remove("format") {
+        Some(serde_json::Value::String(f)) if f == ATLAS_INDEX_FORMAT => {}
+        other => {
+            return Err(AtlasError::Format {
+                path: path.to_owned(),
+                found: found(other),
+            });
+        }
+    }
+    match obj.remove("version") {
+        Some(v) if v.as_u64() == Some(u64::from(ATLAS_INDEX_VERSION)) => {}
+        other => {
+            return Err(AtlasError::Version {
+                path: path.to_owned(),
+                found: found(other),
+            });
+        }
+    }
+    serde_json::from_value(value).map_err(json_err)
+}
+
+/// The bake key and every file entry's name (plain, unique) and digest are well-formed.
+fn check_entries(path: &Path, index: &AtlasIndex) -> Result<(), AtlasError> {
+    let bad = |reason: String| AtlasError::BadIndex {
+        path: path.to_owned(),
+        reason,
+    };
+    if !is_hex_digest(&index.bake_key) {
+        return Err(bad(format!(
+            "bake_key {:?} is not 64 lower-case hex digits",
+            index.bake_key
+        )));
+    }
+    let mut names = HashSet::new();
+    for (i, a) in index.atlases.iter().enumerate() {
+        if !plain_file_name(&a.file) {
+            return Err(FileError::BadFileName {
+                index: path.to_owned(),
+                name: a.file.clone(),
+                kind: Atlas,
+            }
+            .into());
+        }
+        if !names.insert(a.file.as_str()) {
+            return Err(bad(format!(
+                "atlases[{i}]: file {:?} appears twice",
+                a.file
+            )));
+        }
+        if !is_hex_digest(&a.sha256) {
+            return Err(bad(format!(
+                "atlases[{i}]: sha256 {:?} is not 64 lower-case hex digits",
+                a.sha256
+            )));
+        }
+    }
+    Ok(())
+}
+
+/// The atlas files exist inside `dir` with the recorded sizes, and those sizes can hold the
+/// declared atlas size: this bounds the work of the geometry checks by the files on disk, not
+/// by numbers in the JSON.
+fn check_files(dir: &Path, path: &Path, index: &AtlasIndex) -> Result<(), AtlasError> {
+    let atlas_texels = u64::from(index.atlas_size.width) * u64::from(index.atlas_size.height);
+    for a in &index.atlases {
+        let (file, len) = crate::io::resolve_listed(dir, ATLAS_INDEX_FILE_NAME, &a.file, Atlas)?;
+        if len != a.bytes {
+            return Err(FileError::FileSize {
+                path: file,
+                expected: a.bytes,
+                found: len,
+                kind: Atlas,
+            }
+            .into());
+        }
+        crate::io::limits::check_exr_pixels(
+            &format!("atlas size in {} for {}", path.display(), file.display()),
+            atlas_texels,
+            len,
+        )
+        .map_err(|e| AtlasError::BadIndex {
+            path: path.to_owned(),
+            reason: e.to_string(),
+        })?;
+    }
+    Ok(())
+}
+
+/// If `dir/index.json` exists, checks its bake key and lightmap size against the atlas index,
+/// and that every piece's map exists in it with the piece's offset.
+fn check_bake(dir: &Path, atlas_index: &Path, index: &AtlasIndex) -> Result<(), AtlasError> {
+    let path = dir.join(INDEX_FILE_NAME);
+    let text = match crate::io::read_bounded(&path, MAX_JSON_BYTES, "MAX_JSON_BYTES") {
+        Ok(t) => t,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(()),
+        Err(e) => return Err(FileError::io("cannot read bake index", &path, Atlas)(e).into()),
+    };
+    let bad = |reason: String| AtlasError::BakeIndex {
+        path: path.clone(),
+        reason,
+    };
+    let v: serde_json::Value =
+        serde_json::from_slice(&text).map_err(|e| bad(format!("not valid JSON ({e})")))?;
+    if v.get("format").and_then(|f| f.as_str()) != Some(INDEX_FORMAT) {
+        return Err(bad(format!("field \"format\" is not \"{INDEX_FORMAT}\"")));
+    }
+    let key = v
+        .get("bake_key")
+        .and_then(|k| k.as_str())
+        .ok_or_else(|| bad("field \"bake_key\" is missing".into()))?;
+    let lightmap: LightmapSize = v
+        .get("lightmap")
+        .and_then(|l| serde_json::from_value(l.clone()).ok())
+        .ok_or_else(|| bad("field \"lightmap\" is missing or malformed".into()))?;
+    let mismatch = |what| AtlasError::BakeMismatch {
+        index: atlas_index.to_owned(),
+        bake: path.clone(),
+        atlas_key: index.bake_key.clone(),
+        bake_key: key.to_owned(),
+        what,
+    };
+    if key != index.bake_key {
+        return Err(mismatch("bake key"));
+    }
+    if lightmap != index.lightmap {
+        return Err(mismatch("lightmap size"));
+    }
+    // Every piece's map is in the bake index with the piece's offset.
+    let offsets: Vec<Option<[i32; 2]>> = v
+        .get("maps")
+        .and_then(|m| m.as_array())
+        .ok_or_else(|| bad("field \"maps\" is missing or not an array".into()))?
+        .iter()
+        .map(|m| {
+            m.get("offset")
+                .and_then(|o| serde_json::from_value(o.clone()).ok())
+        })
+        .collect();
+    for (i, p) in index.pieces.iter().enumerate() {
+        match offsets.get(p.map_index as usize) {
+            Some(Some(o)) if *o == p.offset => {}
+            found => {
+                return Err(AtlasError::BadIndex {
+                    path: atlas_index.to_owned(),
+                    reason: format!(
+                        "piece {i} is map {} with offset {:?}, but the bake index {} has {}; the \
+                         atlases were packed from another bake: re-run `ortm bin`",
+                        p.map_index,
+                        p.offset,
+                        path.display(),
+                        match found {
+                            None => format!("{} maps", offsets.len()),
+                            Some(o) => format!("offset {o:?} for that map"),
+                        }
+                    ),
+                });
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Reads an atlas directory written by [`write_atlas_set`]: [`read_atlas_index`]'s checks, then
+/// every atlas file (in parallel): present, recorded size and SHA-256
+/// ([`crate::io::read_listed`]), a single-part `B, G, R` f32 OpenEXR image of the atlas size
+/// stamped with its atlas number and the bake key, finite values. On several bad files the
+/// first atlas's error is returned.
+///
+/// # Errors
+/// Those of [`read_atlas_index`], and [`FileError::MissingFile`], [`FileError::FileSize`],
+/// [`FileError::Checksum`], [`FileError::Exr`], [`AtlasError::BadAtlasFile`],
+/// [`FileError::Io`].
+pub fn read_atlas_set(dir: &Path) -> Result<AtlasSet, AtlasError> {
+    let index = read_atlas_index(dir)?;
+    let size = (index.atlas_size.width, index.atlas_size.height);
+    let atlases: Vec<Result<Vec<[f32; 3]>, AtlasError>> = index
+        .atlases
+        .par_iter()
+        .enumerate()
+        .map(|(i, a)| {
+            let f = crate::io::read_listed(
+                dir,
+                ATLAS_INDEX_FILE_NAME,
+                &a.file,
+                a.bytes,
+                &a.sha256,
+                Atlas,
+            )?;
+            decode_atlas(&f.path, &f.bytes, i as u32, size, &index.bake_key)
+        })
+        .collect();
+    Ok(AtlasSet {
+        atlas_size: size,
+        lightmap_size: (index.lightmap.width, index.lightmap.height),
+        atlases: atlases.into_iter().collect::<Result<_, _>>()?,
+        pieces: index.pieces,
+    })
+}

@@ -1,0 +1,183 @@
+//! The invariants of a valid [`AtlasSet`] (module doc of [`crate::atlas`], "Invariants"),
+//! checked when a set is written, read or applied.
+
+use std::collections::HashMap;
+
+use super::{AtlasError, AtlasPiece, AtlasSet};
+use crate::maps::MAX_TEXELS;
+
+impl AtlasSet {
+    /// Checks every invariant listed in the module doc.
+    ///
+    /// # Errors
+    /// [`AtlasError::InvalidSet`] naming the first violation.
+    pub fn validate(&self) -> Result<(), AtlasError> {
+        let invalid = |reason: String| AtlasError::InvalidSet { reason };
+        check_geometry(
+            self.atlas_size,
+            self.lightmap_size,
+            self.atlases.len(),
+            &self.pieces,
+        )
+        .map_err(invalid)?;
+        let texels = self.atlas_size.0 as usize * self.atlas_size.1 as usize;
+        for (i, a) in self.atlases.iter().enumerate() {
+            if a.len() != texels {
+                return Err(invalid(format!(
+                    "atlas {i} holds {} texels, expected {}×{} = {texels}",
+                    a.len(),
+                    self.atlas_size.0,
+                    self.atlas_size.1
+                )));
+            }
+            if let Some(k) = a.iter().position(|v| v.iter().any(|c| !c.is_finite())) {
+                return Err(invalid(format!(
+                    "atlas {i} texel ({}, {}) is {:?}",
+                    k % self.atlas_size.0 as usize,
+                    k / self.atlas_size.0 as usize,
+                    a[k]
+                )));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// `1 ≤ w, h` and `w·h ≤ MAX_TEXELS`.
+fn size_ok(w: u32, h: u32) -> bool {
+    w >= 1 && h >= 1 && u64::from(w) * u64::from(h) <= MAX_TEXELS
+}
+
+/// Checks sizes and piece geometry (module doc, "Invariants"), except the atlas data: the
+/// sizes ([`check_sizes`]), each piece on its own ([`check_piece`]), then the pieces together
+/// ([`check_disjoint`]).
+pub(super) fn check_geometry(
+    atlas_size: (u32, u32),
+    lightmap_size: (u32, u32),
+    atlas_count: usize,
+    pieces: &[AtlasPiece],
+) -> Result<(), String> {
+    check_sizes(atlas_size, lightmap_size)?;
+    let mut offsets: HashMap<u32, [i32; 2]> = HashMap::new();
+    for (i, p) in pieces.iter().enumerate() {
+        check_piece(i, pieces, atlas_size, lightmap_size, atlas_count)?;
+        if let Some(o) = offsets.insert(p.map_index, p.offset)
+            && o != p.offset
+        {
+            return Err(format!(
+                "piece {i} of map {} has offset {:?} but another piece of that map has {o:?}",
+                p.map_index, p.offset
+            ));
+        }
+    }
+    check_disjoint(pieces, atlas_size, atlas_count)
+}
+
+/// Atlas sides are powers of two `≤ binning::MAX_ATLAS_SIDE`, both sizes non-empty and at most
+/// [`MAX_TEXELS`] texels.
+fn check_sizes(atlas_size: (u32, u32), lightmap_size: (u32, u32)) -> Result<(), String> {
+    let (aw, ah) = atlas_size;
+    let side_ok = |s: u32| s.is_power_of_two() && s <= binning::MAX_ATLAS_SIDE;
+    if !side_ok(aw) || !side_ok(ah) || !size_ok(aw, ah) {
+        return Err(format!(
+            "atlas size {aw}×{ah} is invalid (sides must be powers of two ≤ {}, at most {MAX_TEXELS} \
+             texels)",
+            binning::MAX_ATLAS_SIDE
+        ));
+    }
+    let (lw, lh) = lightmap_size;
+    if !size_ok(lw, lh) {
+        return Err(format!(
+            "lightmap size {lw}×{lh} is invalid (sides ≥ 1, at most {MAX_TEXELS} texels)"
+        ));
+    }
+    Ok(())
+}
+
+/// Piece `i` is non-empty, names an existing atlas, lies inside it and (at `dst`) inside the
+/// lightmap, and comes after piece `i − 1` in `(atlas, src_y, src_x)` order.
+fn check_piece(
+    i: usize,
+    pieces: &[AtlasPiece],
+    (aw, ah): (u32, u32),
+    (lw, lh): (u32, u32),
+    atlas_count: usize,
+) -> Result<(), String> {
+    let p = &pieces[i];
+    let inside = |o: u32, len: u32, size: u32| u64::from(o) + u64::from(len) <= u64::from(size);
+    if p.w == 0 || p.h == 0 {
+        return Err(format!("piece {i} is empty ({}×{})", p.w, p.h));
+    }
+    if p.atlas as usize >= atlas_count {
+        return Err(format!(
+            "piece {i} names atlas {} but there are {atlas_count} atlases",
+            p.atlas
+        ));
+    }
+    if !inside(p.src_x, p.w, aw) || !inside(p.src_y, p.h, ah) {
+        return Err(format!(
+            "piece {i} ({}×{} at ({}, {}) of atlas {}) lies outside the {aw}×{ah} atlas",
+            p.w, p.h, p.src_x, p.src_y, p.atlas
+        ));
+    }
+    if !inside(p.dst_x, p.w, lw) || !inside(p.dst_y, p.h, lh) {
+        return Err(format!(
+            "piece {i} ({}×{} at lightmap ({}, {})) lies outside the {lw}×{lh} lightmap",
+            p.w, p.h, p.dst_x, p.dst_y
+        ));
+    }
+    if i > 0 {
+        let q = &pieces[i - 1];
+        if (q.atlas, q.src_y, q.src_x) >= (p.atlas, p.src_y, p.src_x) {
+            return Err(format!(
+                "pieces {} and {i} are not sorted by (atlas, src_y, src_x)",
+                i - 1
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// The pieces are pairwise disjoint in their atlases, and the pieces of one map pairwise
+/// disjoint in the lightmap.
+fn check_disjoint(
+    pieces: &[AtlasPiece],
+    (aw, ah): (u32, u32),
+    atlas_count: usize,
+) -> Result<(), String> {
+    // Σ piece areas ≤ the atlases' texels (necessary for disjointness); this also bounds the
+    // memory and time of the span checks below by the atlases, not by the piece list.
+    let capacity = atlas_count as u64 * u64::from(aw) * u64::from(ah);
+    let area: u64 = pieces.iter().map(|p| u64::from(p.w) * u64::from(p.h)).sum();
+    if area > capacity {
+        return Err(format!(
+            "the pieces cover {area} texels but {atlas_count} atlases of {aw}×{ah} hold only \
+             {capacity}: pieces overlap"
+        ));
+    }
+    // Disjoint in the atlases: row spans (atlas, row, x0, x1, piece) sorted; two spans of one
+    // row overlap iff some consecutive pair does.
+    let spans = |key: &dyn Fn(&AtlasPiece) -> (u32, u32, u32)| {
+        let mut s: Vec<(u32, u32, u32, u32, usize)> = Vec::new();
+        for (i, p) in pieces.iter().enumerate() {
+            let (group, x, y) = key(p);
+            s.extend((y..y + p.h).map(|row| (group, row, x, x + p.w, i)));
+        }
+        s.sort_unstable();
+        s.windows(2)
+            .find(|w| w[0].0 == w[1].0 && w[0].1 == w[1].1 && w[1].2 < w[0].3)
+            .map(|w| (w[1].4, w[1].0, w[1].1))
+    };
+    if let Some((i, atlas, y)) = spans(&|p| (p.atlas, p.src_x, p.src_y)) {
+        return Err(format!(
+            "piece {i} overlaps another piece in atlas {atlas} at row {y}"
+        ));
+    }
+    // The pieces of one map are disjoint in the lightmap.
+    if let Some((i, map, y)) = spans(&|p| (p.map_index, p.dst_x, p.dst_y)) {
+        return Err(format!(
+            "piece {i} of map {map} overlaps another piece of the same map at lightmap row {y}"
+        ));
+    }
+    Ok(())
+}

@@ -1,0 +1,90 @@
+//! Atomic file writes: a reader never sees a half-written file under the final name.
+
+use std::fs;
+use std::io::{Cursor, Write};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+
+/// Monotonic counter that keeps temporary names unique within the process.
+static TMP_COUNTER: AtomicU64 = AtomicU64::new(0);
+
+/// The temporary name [`write_atomic`] writes `path` under: `.<name>.<pid>-<n>.tmp` in the same
+/// directory (hidden, unique per process and call). Readers of bake and atlas directories treat
+/// `.*.tmp` files as leftovers of interrupted writes.
+fn temp_path(path: &Path) -> PathBuf {
+    let dir = path.parent().unwrap_or(Path::new("."));
+    let name = path.file_name().map_or_else(
+        || "unnamed".to_owned(),
+        |n| n.to_string_lossy().into_owned(),
+    );
+    let n = TMP_COUNTER.fetch_add(1, Ordering::Relaxed);
+    dir.join(format!(".{name}.{}-{n}.tmp", std::process::id()))
+}
+
+/// Writes `bytes` to `path` atomically: a temporary file in the same directory (so the rename
+/// stays on one file system), `fsync`, then rename over `path`. On failure the temporary file
+/// is removed and `path` is untouched.
+///
+/// # Errors
+/// The `std::io::Error` of creating, writing, syncing or renaming.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
+    let tmp = temp_path(path);
+    let result = (|| {
+        let mut f = fs::File::create(&tmp)?;
+        f.write_all(bytes)?;
+        f.sync_all()?;
+        drop(f);
+        fs::rename(&tmp, path)
+    })();
+    if result.is_err() {
+        let _ = fs::remove_file(&tmp);
+    }
+    result
+}
+
+/// Encodes `img` as PNG in memory and writes it with [`write_atomic`].
+///
+/// # Errors
+/// The encoder's error (as [`std::io::ErrorKind::Other`]) or the write's.
+pub fn write_png_atomic<P, C>(img: &image::ImageBuffer<P, C>, path: &Path) -> std::io::Result<()>
+where
+    P: image::PixelWithColorType,
+    [P::Subpixel]: image::EncodableLayout,
+    C: std::ops::Deref<Target = [P::Subpixel]>,
+{
+    let mut bytes = Cursor::new(Vec::new());
+    img.write_to(&mut bytes, image::ImageFormat::Png)
+        .map_err(std::io::Error::other)?;
+    write_atomic(path, bytes.get_ref())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn writes_replace_whole_files_and_leave_no_temporaries() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("f.txt");
+        write_atomic(&p, b"first").unwrap();
+        write_atomic(&p, b"second").unwrap();
+        assert_eq!(fs::read(&p).unwrap(), b"second");
+        let names: Vec<_> = fs::read_dir(dir.path())
+            .unwrap()
+            .map(|d| d.unwrap().file_name())
+            .collect();
+        assert_eq!(names, vec![std::ffi::OsString::from("f.txt")]);
+        // A parent that is a file: the write fails and nothing is left behind.
+        assert!(write_atomic(&p.join("x"), b"y").is_err());
+        assert_eq!(fs::read_dir(dir.path()).unwrap().count(), 1);
+    }
+
+    #[test]
+    fn png_round_trips() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("i.png");
+        let img = image::RgbImage::from_pixel(3, 2, image::Rgb([1, 2, 3]));
+        write_png_atomic(&img, &p).unwrap();
+        assert_eq!(image::open(&p).unwrap().to_rgb8(), img);
+    }
+}

@@ -1,0 +1,244 @@
+//! Reading files that come from users and other machines: a byte bound before anything is
+//! read, plain names resolved inside their directory, and the size and SHA-256 an index
+//! recorded for a file checked before its content is trusted.
+
+use std::fs;
+use std::io::Read;
+use std::path::{Component, Path, PathBuf};
+
+use super::digest::sha256_hex;
+use super::error::{DirKind, FileError};
+
+/// Reads a whole file of at most `limit` bytes: refuses anything that is not a regular file
+/// (a FIFO, a device such as `/dev/zero`, a directory) and files larger than `limit`, before
+/// reading; a file that grows while being read is cut at `limit + 1` bytes and refused.
+///
+/// # Errors
+/// The `std::io::Error` of opening or reading; a file over the limit or not a regular file
+/// gives an error of kind `InvalidData` whose message names the limit (`limit_name`).
+pub fn read_bounded(path: &Path, limit: u64, limit_name: &str) -> std::io::Result<Vec<u8>> {
+    let file = fs::File::open(path)?;
+    let meta = file.metadata()?;
+    if !meta.is_file() {
+        return Err(std::io::Error::new(
+            std::io::ErrorKind::InvalidData,
+            "not a regular file",
+        ));
+    }
+    let too_large = |size: u64| {
+        std::io::Error::new(
+            std::io::ErrorKind::InvalidData,
+            format!("{size} bytes exceeds the limit {limit_name} = {limit} bytes"),
+        )
+    };
+    if meta.len() > limit {
+        return Err(too_large(meta.len()));
+    }
+    let mut bytes = Vec::with_capacity(meta.len() as usize);
+    file.take(limit + 1).read_to_end(&mut bytes)?;
+    if bytes.len() as u64 > limit {
+        return Err(too_large(bytes.len() as u64));
+    }
+    Ok(bytes)
+}
+
+/// Whether `name` is a plain file name: one normal path component, no separators (`/`, `\`),
+/// no drive (`:`), no `..`, no control characters.
+pub fn plain_file_name(name: &str) -> bool {
+    !name.is_empty()
+        && !name.contains(['/', '\\', ':', '\0'])
+        && !name.contains("..")
+        && !name.chars().any(char::is_control)
+        && matches!(
+            Path::new(name).components().collect::<Vec<_>>().as_slice(),
+            [Component::Normal(_)]
+        )
+}
+
+/// Why a file name from an index does not resolve to a regular file inside its directory.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Unresolved {
+    /// The file does not exist (or cannot be inspected).
+    Missing,
+    /// The name resolves (through a symbolic link) to this path outside the directory.
+    Escapes(PathBuf),
+    /// The name resolves to something that is not a regular file (directory, device, pipe).
+    NotRegular,
+}
+
+/// Resolves the plain file `name` (already checked: one normal path component) inside `dir`,
+/// following symbolic links, and refuses anything whose real path is not a regular file inside
+/// the real path of `dir`. Returns `dir.join(name)` (the path to open) and its size in bytes.
+///
+/// # Errors
+/// [`Unresolved`] saying why.
+pub fn resolve_in_dir(dir: &Path, name: &str) -> Result<(PathBuf, u64), Unresolved> {
+    let path = dir.join(name);
+    let real = fs::canonicalize(&path).map_err(|_| Unresolved::Missing)?;
+    let real_dir = fs::canonicalize(dir).map_err(|_| Unresolved::Missing)?;
+    if real == real_dir || !real.starts_with(&real_dir) {
+        return Err(Unresolved::Escapes(real));
+    }
+    let meta = fs::metadata(&real).map_err(|_| Unresolved::Missing)?;
+    if !meta.is_file() {
+        return Err(Unresolved::NotRegular);
+    }
+    Ok((path, meta.len()))
+}
+
+/// Resolves the file `name` that the index `dir/index_name` lists: a [`plain_file_name`] whose
+/// real path is a regular file inside the real `dir` ([`resolve_in_dir`]). Returns the path to
+/// open and the file's size in bytes.
+///
+/// # Errors
+/// [`FileError::BadFileName`], [`FileError::MissingFile`], [`FileError::PathEscape`].
+pub fn resolve_listed(
+    dir: &Path,
+    index_name: &str,
+    name: &str,
+    kind: DirKind,
+) -> Result<(PathBuf, u64), FileError> {
+    if !plain_file_name(name) {
+        return Err(FileError::BadFileName {
+            index: dir.join(index_name),
+            name: name.to_owned(),
+            kind,
+        });
+    }
+    let path = dir.join(name);
+    resolve_in_dir(dir, name).map_err(|e| match e {
+        Unresolved::Missing => FileError::MissingFile { path, kind },
+        Unresolved::Escapes(real) => FileError::PathEscape {
+            problem: format!(
+                "resolves to {}, outside the {} directory {}",
+                real.display(),
+                match kind {
+                    DirKind::Bake => "bake",
+                    DirKind::Atlas => "atlas",
+                },
+                dir.display()
+            ),
+            path,
+            kind,
+        },
+        Unresolved::NotRegular => FileError::PathEscape {
+            path,
+            problem: "is not a regular file".into(),
+            kind,
+        },
+    })
+}
+
+/// A file listed in an index, read and checked against the index's record.
+#[derive(Debug)]
+pub struct ListedFile {
+    /// The path it was read from (`dir/name`).
+    pub path: PathBuf,
+    /// Its content: exactly the recorded size, with the recorded SHA-256.
+    pub bytes: Vec<u8>,
+}
+
+/// Reads the file `name` listed in the index `dir/index_name` with the recorded size `bytes`
+/// and SHA-256 `sha256` ([`resolve_listed`], then at most `bytes` bytes, then the digest).
+///
+/// # Errors
+/// Those of [`resolve_listed`]; [`FileError::FileSize`] or [`FileError::Checksum`] when the
+/// file differs from the record; [`FileError::Io`] when it cannot be read.
+pub fn read_listed(
+    dir: &Path,
+    index_name: &str,
+    name: &str,
+    bytes: u64,
+    sha256: &str,
+    kind: DirKind,
+) -> Result<ListedFile, FileError> {
+    let (path, len) = resolve_listed(dir, index_name, name, kind)?;
+    let size_error = |path: PathBuf, found: u64| FileError::FileSize {
+        path,
+        expected: bytes,
+        found,
+        kind,
+    };
+    if len != bytes {
+        return Err(size_error(path, len));
+    }
+    let limit_name = match kind {
+        DirKind::Bake => "the size recorded in the index",
+        DirKind::Atlas => "the size recorded in the atlas index",
+    };
+    let content = match read_bounded(&path, bytes, limit_name) {
+        Ok(b) => b,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+            return Err(FileError::MissingFile { path, kind });
+        }
+        Err(e) => return Err(FileError::io("cannot read", &path, kind)(e)),
+    };
+    if content.len() as u64 != bytes {
+        return Err(size_error(path, content.len() as u64));
+    }
+    let digest = sha256_hex(&content);
+    if digest != sha256 {
+        return Err(FileError::Checksum {
+            path,
+            expected: sha256.to_owned(),
+            found: digest,
+            kind,
+        });
+    }
+    Ok(ListedFile {
+        path,
+        bytes: content,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn read_bounded_refuses_large_and_special_files() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("f");
+        fs::write(&p, vec![7u8; 100]).unwrap();
+        assert_eq!(read_bounded(&p, 100, "L").unwrap().len(), 100);
+        let e = read_bounded(&p, 99, "L").unwrap_err();
+        assert!(
+            e.to_string().contains("100 bytes exceeds the limit L = 99"),
+            "{e}"
+        );
+        // A directory and a device are not regular files (and /dev/zero would never end).
+        assert!(read_bounded(dir.path(), 1 << 20, "L").is_err());
+        if Path::new("/dev/zero").exists() {
+            let e = read_bounded(Path::new("/dev/zero"), 1 << 20, "L").unwrap_err();
+            assert!(e.to_string().contains("not a regular file"), "{e}");
+        }
+    }
+
+    #[test]
+    fn plain_names_only() {
+        assert!(plain_file_name("map_00012_+3_-17.exr"));
+        for bad in [
+            "", ".", "..", "../a.exr", "a/b.exr", "/abs.exr", "a\\b.exr", "C:x.exr", "a\nb",
+        ] {
+            assert!(!plain_file_name(bad), "{bad:?} accepted");
+        }
+    }
+
+    #[test]
+    fn listed_files_are_checked_against_their_record() {
+        let dir = tempfile::tempdir().unwrap();
+        fs::write(dir.path().join("a"), b"abc").unwrap();
+        let digest = sha256_hex(b"abc");
+        let d = dir.path();
+        let ok = read_listed(d, "i.json", "a", 3, &digest, DirKind::Atlas).unwrap();
+        assert_eq!(ok.bytes, b"abc");
+        let e = read_listed(d, "i.json", "a", 4, &digest, DirKind::Atlas).unwrap_err();
+        assert!(matches!(e, FileError::FileSize { found: 3, .. }), "{e}");
+        let e = read_listed(d, "i.json", "a", 3, &"0".repeat(64), DirKind::Bake).unwrap_err();
+        assert!(matches!(e, FileError::Checksum { .. }), "{e}");
+        let e = read_listed(d, "i.json", "b", 3, &digest, DirKind::Bake).unwrap_err();
+        assert!(matches!(e, FileError::MissingFile { .. }), "{e}");
+        let e = read_listed(d, "i.json", "../a", 3, &digest, DirKind::Bake).unwrap_err();
+        assert!(matches!(e, FileError::BadFileName { .. }), "{e}");
+    }
+}
