@@ -28,8 +28,8 @@ use glam::{Vec2, Vec3};
 use thiserror::Error;
 
 use crate::lightmap::uv_to_texel_space;
-use crate::scene::subsurface::Profile;
 use crate::scene::Scene;
+use crate::scene::subsurface::Profile;
 
 /// Marker for an uncovered lightmap slot.
 pub const NO_TEXEL: u32 = u32::MAX;
