@@ -126,7 +126,7 @@ fn backlit_ear_glows_with_subsurface_scattering() {
     let e = lighting::irradiance(&grid, &lights, &vis);
     let b_o = exitance(&grid, &e);
     // Ear-rim texels the light does not reach directly.
-    let ear = ortm::scene::head::ear_texels(&grid);
+    let ear = ortm::bake::eval::ear_texels(&grid);
     let dark: Vec<u32> = ear
         .iter()
         .copied()

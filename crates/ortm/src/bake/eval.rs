@@ -2,7 +2,8 @@
 //! `B − B_o` produced by a set of transfer maps (Eq. 9, [`crate::maps::apply`]) versus the dense
 //! solution ([`crate::bake::transport::dense`]), averaged over random light set-ups.
 //!
-//! Used by the convergence tests and by `ortm bench bake`.
+//! Used by the convergence tests and by `ortm bench bake`. [`ear_texels`] picks the head's ear
+//! rims for the back-lit ear check.
 
 use glam::Vec3;
 use rand::{RngExt, SeedableRng};
@@ -100,4 +101,16 @@ impl Reference {
         }
         total / self.first_order.len().max(1) as f64
     }
+}
+
+/// Indices of the covered texels of `grid` that lie on the ear rims of the head
+/// ([`faces::head::is_ear_point`]): the texels of the back-lit ear check of
+/// [`crate::scene::head`].
+pub fn ear_texels(grid: &TexelGrid) -> Vec<u32> {
+    grid.texels
+        .iter()
+        .enumerate()
+        .filter(|(_, t)| faces::head::is_ear_point(t.position_m))
+        .map(|(i, _)| i as u32)
+        .collect()
 }

@@ -28,8 +28,8 @@ use glam::{Vec2, Vec3};
 use thiserror::Error;
 
 use crate::lightmap::uv_to_texel_space;
+use crate::scene::Scene;
 use crate::scene::subsurface::Profile;
-use crate::scene::{Albedo, AlbedoTexture, Scene};
 
 /// Marker for an uncovered lightmap slot.
 pub const NO_TEXEL: u32 = u32::MAX;
@@ -150,18 +150,6 @@ fn is_top_left(a: (f64, f64), b: (f64, f64)) -> bool {
     // With edge functions E = (b−a)×(p−a) > 0 inside (clockwise on screen, y down):
     // a "top" edge is horizontal with the interior below it, a "left" edge goes upwards.
     (dy == 0.0 && dx > 0.0) || dy < 0.0
-}
-
-fn sample_texture(t: &AlbedoTexture, uv: Vec2) -> Vec3 {
-    let fx = (uv.x * t.width as f32 - 0.5).clamp(0.0, t.width as f32 - 1.0);
-    let fy = ((1.0 - uv.y) * t.height as f32 - 0.5).clamp(0.0, t.height as f32 - 1.0);
-    let (x0, y0) = (fx.floor() as u32, fy.floor() as u32);
-    let (x1, y1) = ((x0 + 1).min(t.width - 1), (y0 + 1).min(t.height - 1));
-    let (ax, ay) = (fx - x0 as f32, fy - y0 as f32);
-    let px = |x: u32, y: u32| t.data[(y * t.width + x) as usize];
-    let top = px(x0, y0) * (1.0 - ax) + px(x1, y0) * ax;
-    let bot = px(x0, y1) * (1.0 - ax) + px(x1, y1) * ax;
-    top * (1.0 - ay) + bot * ay
 }
 
 /// Connected UV islands: triangles sharing an edge with the same positions and UVs.
@@ -335,13 +323,9 @@ fn texel_patch(
     let area_m2 = world_area / texel_area;
     let uv = uvs[0] * b[0] + uvs[1] * b[1] + uvs[2] * b[2];
     let material = tri.material;
-    let mat = &scene.materials[material as usize];
     let albedo = match &profiles[material as usize] {
         Some(p) => p.total_reflectance(),
-        None => match &mat.albedo {
-            Albedo::Constant(c) => *c,
-            Albedo::Texture(tex) => sample_texture(tex, uv),
-        },
+        None => scene.materials[material as usize].albedo.at(uv),
     };
     Texel {
         x,

@@ -5,14 +5,12 @@
 //!   `../shared/faces/head.obj`) at [`faces::HEAD_METRES_PER_UNIT`] metres per unit, one skin
 //!   material (Jensen et al. 2001 "skin1", dipole or exponential falloff), a 256² lightmap and
 //!   the light of the paper's Fig. 5 as its default light;
-//! - [`light`] / [`figure_lights`]: a figure's lights in ortm's types (metres, W/sr, W/m²);
-//! - [`ear_texels`]: the covered texels on the ear rims (the back-lit ear check).
+//! - [`light`] / [`figure_lights`]: a figure's lights in ortm's types (metres, W/sr, W/m²).
 //!
 //! Images made from the head must carry [`faces::HEAD_CREDIT`].
 
 use glam::Vec3;
 
-use crate::bake::texels::TexelGrid;
 use crate::scene::presets::{from_measured, model_of};
 use crate::scene::{Albedo, Light, Material, Scene, SceneError};
 
@@ -80,15 +78,4 @@ pub fn light(l: &faces::FigLight) -> Light {
 /// All lights of a figure.
 pub fn figure_lights(f: &faces::Figure) -> Vec<Light> {
     f.lights.iter().map(light).collect()
-}
-
-/// Indices of the covered texels of `grid` that lie on the ear rims of the head
-/// ([`faces::head::is_ear_point`]).
-pub fn ear_texels(grid: &TexelGrid) -> Vec<u32> {
-    grid.texels
-        .iter()
-        .enumerate()
-        .filter(|(_, t)| faces::head::is_ear_point(t.position_m))
-        .map(|(i, _)| i as u32)
-        .collect()
 }
