@@ -134,23 +134,11 @@ pub fn write_atlas_set(
         atlases: entries.into_iter().collect::<Result<_, _>>()?,
         pieces: set.pieces.clone(),
     };
-    #[derive(Serialize)]
-    struct Wire<'a> {
-        format: &'static str,
-        version: u32,
-        #[serde(flatten)]
-        body: &'a AtlasIndex,
-    }
-    let wire = Wire {
-        format: ATLAS_INDEX_FORMAT,
-        version: ATLAS_INDEX_VERSION,
-        body: &index,
-    };
-    let mut json = serde_json::to_string_pretty(&wire).map_err(|source| AtlasError::Json {
-        path: index_path.clone(),
-        source,
-    })?;
-    json.push('\n');
+    let json = crate::io::to_versioned_json(ATLAS_INDEX_FORMAT, ATLAS_INDEX_VERSION, &index)
+        .map_err(|source| AtlasError::Json {
+            path: index_path.clone(),
+            source,
+        })?;
     write_atomic(&index_path, json.as_bytes()).map_err(FileError::io(
         "cannot write",
         &index_path,
@@ -193,38 +181,22 @@ pub fn read_atlas_index(dir: &Path) -> Result<AtlasIndex, AtlasError> {
     Ok(index)
 }
 
-/// Parses the JSON of the atlas index at `path`: `format` and `version` first, then the schema.
+/// Parses the JSON of the atlas index at `path`: `format` and `version` first, then the schema
+/// ([`crate::io::from_versioned_json`]).
 fn parse_atlas_index(path: &Path, text: &[u8]) -> Result<AtlasIndex, AtlasError> {
-    let json_err = |source| AtlasError::Json {
-        path: path.to_owned(),
-        source,
-    };
-    let mut value: serde_json::Value = serde_json::from_slice(text).map_err(json_err)?;
-    let obj = value.as_object_mut().ok_or_else(|| AtlasError::BadIndex {
-        path: path.to_owned(),
-        reason: "the top level is not a JSON object".into(),
-    })?;
-    let found =
-        |v: Option<serde_json::Value>| v.map_or_else(|| "<missing>".into(), |v| v.to_string());
-    match obj.remove("format") {
-        Some(serde_json::Value::String(f)) if f == ATLAS_INDEX_FORMAT => {}
-        other => {
-            return Err(AtlasError::Format {
-                path: path.to_owned(),
-                found: found(other),
-            });
+    use crate::io::VersionedError as V;
+    crate::io::from_versioned_json(text, ATLAS_INDEX_FORMAT, ATLAS_INDEX_VERSION).map_err(|e| {
+        let path = path.to_owned();
+        match e {
+            V::Json(source) => AtlasError::Json { path, source },
+            V::NotObject => AtlasError::BadIndex {
+                path,
+                reason: "the top level is not a JSON object".into(),
+            },
+            V::Format(found) => AtlasError::Format { path, found },
+            V::Version(found) => AtlasError::Version { path, found },
         }
-    }
-    match obj.remove("version") {
-        Some(v) if v.as_u64() == Some(u64::from(ATLAS_INDEX_VERSION)) => {}
-        other => {
-            return Err(AtlasError::Version {
-                path: path.to_owned(),
-                found: found(other),
-            });
-        }
-    }
-    serde_json::from_value(value).map_err(json_err)
+    })
 }
 
 /// The bake key and every file entry's name (plain, unique) and digest are well-formed.

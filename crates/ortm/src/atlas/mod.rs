@@ -4,7 +4,7 @@
 //! pieces, and pictures of the packing.
 //!
 //! # Modules
-//! [`build`] (packing), [`validate`] (the invariants below), [`file`] (the atlas OpenEXR codec),
+//! [`build`] (packing), [`validate`] (the invariants below), [`file`](mod@file) (the atlas OpenEXR codec),
 //! [`index`] (`atlases.json` and reading/writing a directory), [`apply`] (CPU Eq. 9),
 //! [`pictures`] (PNG pictures), [`error`]. Everything public is re-exported here.
 //!

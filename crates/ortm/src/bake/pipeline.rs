@@ -517,7 +517,7 @@ impl MapPlan {
     }
 }
 
-/// Writes `value` as pretty JSON through the maps' atomic writer (temporary file, fsync, rename).
+/// Writes `value` as pretty JSON with [`crate::io::write_atomic`] (temporary file, fsync, rename).
 fn write_json_atomic<T: Serialize>(path: &Path, value: &T) -> Result<(), BakeError> {
     let text = serde_json::to_vec_pretty(value).map_err(|e| BakeError::Io {
         path: path.to_owned(),

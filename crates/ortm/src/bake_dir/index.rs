@@ -211,23 +211,13 @@ impl BakeIndex {
     pub fn write(&self, dir: &Path) -> Result<(), MapsError> {
         let path = dir.join(INDEX_FILE_NAME);
         self.validate(&path)?;
-        #[derive(Serialize)]
-        struct Wire<'a> {
-            format: &'static str,
-            version: u32,
-            #[serde(flatten)]
-            body: &'a BakeIndex,
-        }
-        let wire = Wire {
-            format: INDEX_FORMAT,
-            version: INDEX_VERSION,
-            body: self,
-        };
-        let mut text = serde_json::to_string_pretty(&wire).map_err(|source| MapsError::Json {
-            path: path.clone(),
-            source,
-        })?;
-        text.push('\n');
+        let text =
+            crate::io::to_versioned_json(INDEX_FORMAT, INDEX_VERSION, self).map_err(|source| {
+                MapsError::Json {
+                    path: path.clone(),
+                    source,
+                }
+            })?;
         crate::io::write_atomic(&path, text.as_bytes())
             .map_err(|e| FileError::io("cannot write", &path, DirKind::Bake)(e).into())
     }
@@ -250,36 +240,28 @@ impl BakeIndex {
                     &path,
                     DirKind::Bake,
                 ))?;
-        let json_err = |source| MapsError::Json {
-            path: path.clone(),
-            source,
-        };
-        let mut value: serde_json::Value = serde_json::from_slice(&text).map_err(json_err)?;
-        let obj = value.as_object_mut().ok_or_else(|| MapsError::BadIndex {
-            path: path.clone(),
-            reason: "the top level is not a JSON object".into(),
+        use crate::io::VersionedError as V;
+        let index: BakeIndex = crate::io::from_versioned_json(&text, INDEX_FORMAT, INDEX_VERSION)
+            .map_err(|e| match e {
+            V::Json(source) => MapsError::Json {
+                path: path.clone(),
+                source,
+            },
+            V::NotObject => MapsError::BadIndex {
+                path: path.clone(),
+                reason: "the top level is not a JSON object".into(),
+            },
+            V::Format(found) => MapsError::IndexFormat {
+                path: path.clone(),
+                expected: INDEX_FORMAT,
+                found,
+            },
+            V::Version(found) => MapsError::IndexVersion {
+                path: path.clone(),
+                expected: INDEX_VERSION,
+                found,
+            },
         })?;
-        match obj.remove("format") {
-            Some(serde_json::Value::String(f)) if f == INDEX_FORMAT => {}
-            other => {
-                return Err(MapsError::IndexFormat {
-                    path,
-                    expected: INDEX_FORMAT,
-                    found: other.map_or_else(|| "<missing>".into(), |v| v.to_string()),
-                });
-            }
-        }
-        match obj.remove("version") {
-            Some(v) if v.as_u64() == Some(INDEX_VERSION as u64) => {}
-            other => {
-                return Err(MapsError::IndexVersion {
-                    path,
-                    expected: INDEX_VERSION,
-                    found: other.map_or_else(|| "<missing>".into(), |v| v.to_string()),
-                });
-            }
-        }
-        let index: BakeIndex = serde_json::from_value(value).map_err(json_err)?;
         index.validate(&path)?;
         for m in &index.maps {
             let (file, len) =

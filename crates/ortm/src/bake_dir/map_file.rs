@@ -205,8 +205,7 @@ struct MapHeader {
 /// `expected_size` if given; scan-line, non-deep parts named `rect0, rect1, …` (or the single
 /// `ortm-empty` placeholder) with exactly `B, G, R` f32 channels; data windows inside the display
 /// window and disjoint; all `ortm*` attributes present with the right types; finite values; and
-/// finally the content hash. The headers are checked ([`check_headers`]) before any pixel is
-/// decoded ([`decode_crops`]).
+/// finally the content hash. Every header is checked before any pixel is decoded.
 ///
 /// # Errors
 /// [`MapsError::NotExr`], [`FileError::Exr`] (decoder failure: truncated/corrupt),

@@ -32,7 +32,7 @@ pub struct ResumeScan {
     pub stale_temp: Vec<PathBuf>,
 }
 
-/// Scans `dir` for map files a resumed bake can keep: names of the form [`map_file_name`] whose
+/// Scans `dir` for map files a resumed bake can keep: names of the form [`map_file_name`](super::map_file_name) whose
 /// file decodes, passes its content hash, was stamped with `key`, has the given lightmap size,
 /// and whose header index/offset match its name. A missing `dir` gives an empty scan. Files are
 /// never deleted here.

@@ -10,6 +10,8 @@
 //!   record it.
 //! - [`FileError`]: the failures shared by bake directories (`docs/bake-format.md`) and atlas
 //!   directories (`docs/atlas-format.md`), worded for each by [`DirKind`].
+//! - Versioned JSON ([`to_versioned_json`], [`from_versioned_json`]): the `format` and
+//!   `version` fields of `index.json` and `atlases.json`, checked before the body.
 //! - [`exr`]: the OpenEXR pieces shared by the map and atlas file codecs (the `ortmMeta`
 //!   attribute, accepted compressions, RGB f32 channels).
 
@@ -19,6 +21,7 @@ mod error;
 pub mod exr;
 pub mod limits;
 mod read;
+mod versioned;
 
 pub use atomic::{write_atomic, write_png_atomic};
 pub use digest::{hex, is_hex_digest, sha256_hex};
@@ -27,3 +30,4 @@ pub use read::{
     ListedFile, Unresolved, plain_file_name, read_bounded, read_listed, resolve_in_dir,
     resolve_listed,
 };
+pub use versioned::{VersionedError, from_versioned_json, to_versioned_json};
