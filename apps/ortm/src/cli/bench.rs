@@ -10,11 +10,11 @@ use std::time::Instant;
 
 use anyhow::Result;
 use glam::Vec3;
-use ortm::bake::{self, BakeSettings};
 use ortm::bake::raycast::Visibility;
 use ortm::bake::texels::TexelGrid;
 use ortm::bake::transport::dense::DenseTransport;
 use ortm::bake::transport::{Effects, Kernels, Transport, texel_patches};
+use ortm::bake::{self, BakeSettings};
 use rand::{RngExt, SeedableRng};
 
 /// Arguments of `ortm bench`.

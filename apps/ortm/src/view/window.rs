@@ -268,7 +268,7 @@ impl Running {
         let options = RendererOptions {
             first_order: passes::first_order::FirstOrderOptions {
                 shadow_map_size: data.shadow_size,
-                max_shadow_layers: 24,
+                max_shadow_layers: super::SHADOW_LAYERS,
                 ..Default::default()
             },
             transfer: passes::transfer::TransferOptions::best_for(&gpu),
