@@ -276,11 +276,10 @@ fn bench_table(
     let paper = super::bench_render::TABLE_1
         .iter()
         .find(|r| r.0 == size && r.1 == a.offsets);
-    const PAPER_MAPGEN_S: [f64; 8] = [22.0, 28.0, 42.0, 57.0, 36.0, 107.0, 197.0, 226.0];
     let paper_mapgen = super::bench_render::TABLE_1
         .iter()
         .position(|r| r.0 == size && r.1 == a.offsets)
-        .map(|i| PAPER_MAPGEN_S[i]);
+        .map(|i| super::bench::PAPER_MAPGEN_S[i]);
     println!(
         "\nface demo configuration beside the paper's Table 1 (paper: Pentium 4 2.53 GHz, GeForce 6800)"
     );
