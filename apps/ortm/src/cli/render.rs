@@ -42,19 +42,44 @@ pub enum PathArg {
     Compute,
 }
 
-/// Arguments of `ortm render`.
+/// The bake and the lights, the first arguments of `ortm render` and `ortm view`.
 #[derive(clap::Args, Debug)]
-pub struct Args {
+pub struct BakeArgs {
     /// Bake directory (with index.json from `ortm bake`, and atlases.json from `ortm bin` if
     /// binned; otherwise the maps are packed in memory).
-    dir: PathBuf,
+    pub dir: PathBuf,
     /// Scene the bake was made from: `cornell` or a scene file. Default: the `scene` recorded
     /// in the bake's settings, if any.
     #[arg(long)]
-    scene: Option<String>,
+    pub scene: Option<String>,
     /// A light replacing the scene's lights (repeatable).
     #[arg(long = "light", value_name = "SPEC", help = format!("A light replacing the scene's lights (repeatable): {LIGHT_SYNTAX}"))]
-    lights: Vec<String>,
+    pub lights: Vec<String>,
+}
+
+impl BakeArgs {
+    /// Opens the bake directory ([`render::open_bake`], the scene loaded by
+    /// [`super::load_scene`]), with atlases of `atlas_size`² when it was not binned.
+    pub fn open(&self, atlas_size: u32) -> Result<BakeAndScene> {
+        render::open_bake(
+            &self.dir,
+            self.scene.as_deref(),
+            atlas_size,
+            super::load_scene,
+        )
+    }
+
+    /// The `--light` lights ([`LIGHT_SYNTAX`]), in order.
+    pub fn lights(&self) -> Result<Vec<Light>, SpecError> {
+        self.lights.iter().map(|s| parse_light(s)).collect()
+    }
+}
+
+/// Arguments of `ortm render`.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    #[command(flatten)]
+    bake: BakeArgs,
     /// Camera; default: looking along −z at the whole mesh.
     #[arg(long, value_name = "SPEC", help = format!("Camera: {CAMERA_SYNTAX}; default: looking along −z at the whole mesh"))]
     camera: Option<String>,
@@ -106,30 +131,19 @@ pub fn save_png_atomic(img: &image::RgbaImage, path: &Path) -> Result<()> {
     res.with_context(|| format!("cannot write image '{}'", path.display()))
 }
 
-/// Opens a bake directory for `ortm render` and `ortm view` ([`render::open_bake`], the
-/// scene loaded by [`super::load_scene`]).
-pub(crate) fn open_bake(dir: &Path, scene: Option<&str>, atlas_size: u32) -> Result<BakeAndScene> {
-    render::open_bake(dir, scene, atlas_size, super::load_scene)
-}
-
-/// The lights of `--light` specs ([`LIGHT_SYNTAX`]), in order.
-pub(crate) fn parse_lights(specs: &[String]) -> Result<Vec<Light>, SpecError> {
-    specs.iter().map(|s| parse_light(s)).collect()
-}
-
 /// Runs `ortm render`.
 pub fn run(a: Args) -> Result<()> {
     let t0 = Instant::now();
     let (img_w, img_h) = render::parse_size(&a.size)?;
     let BakeAndScene {
         set, source, scene, ..
-    } = open_bake(&a.dir, a.scene.as_deref(), a.atlas_size)?;
+    } = a.bake.open(a.atlas_size)?;
     let (w, h) = set.lightmap_size;
     let grid = TexelGrid::build_with_size(&scene, w, h)?;
-    let lights = if a.lights.is_empty() {
+    let lights = if a.bake.lights.is_empty() {
         scene.lights.clone()
     } else {
-        parse_lights(&a.lights)?
+        a.bake.lights()?
     };
     if lights.is_empty() {
         eprintln!(

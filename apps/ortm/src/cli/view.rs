@@ -9,8 +9,8 @@ use anyhow::{Context, Result, bail};
 use ortm::bake::texels::TexelGrid;
 use ortm::render::{self, BakeAndScene, DEFAULT_ATLAS_SIDE};
 use ortm::scene::Light;
-use ortm::scene::light::LIGHT_SYNTAX;
 
+use super::render::BakeArgs;
 use crate::view::app::{DebugView, ViewMode};
 use crate::view::{RunOptions, SHADOW_LAYERS, ViewerInput, importance_order};
 
@@ -43,16 +43,8 @@ pub enum DebugArg {
 /// Arguments of `ortm view`.
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// Bake directory (index.json from `ortm bake`; atlases.json from `ortm bin`, else the
-    /// maps are packed in memory).
-    dir: PathBuf,
-    /// Scene the bake was made from: `cornell` or a scene file. Default: the scene recorded
-    /// in the bake.
-    #[arg(long)]
-    scene: Option<String>,
-    /// A light replacing the scene's lights (repeatable).
-    #[arg(long = "light", value_name = "SPEC", help = format!("A light replacing the scene's lights (repeatable): {LIGHT_SYNTAX}"))]
-    lights: Vec<String>,
+    #[command(flatten)]
+    bake: BakeArgs,
     /// Light set-up file (`[[light]]` tables, as saved by the viewer) replacing the scene's
     /// lights; also the file the viewer's save/load buttons use.
     #[arg(long = "lights", value_name = "FILE")]
@@ -141,16 +133,16 @@ pub fn run(a: Args) -> Result<()> {
 
 /// The opened, checked bake and the initial lights, as the viewer's input.
 fn load_input(a: &Args) -> Result<ViewerInput> {
-    if !a.dir.is_dir() {
+    if !a.bake.dir.is_dir() {
         bail!(
             "bake directory '{}' does not exist or is not a folder (make one with `ortm bake \
              SCENE -o DIR`)",
-            a.dir.display()
+            a.bake.dir.display()
         );
     }
     let BakeAndScene {
         index, set, scene, ..
-    } = super::render::open_bake(&a.dir, a.scene.as_deref(), a.atlas_size)?;
+    } = a.bake.open(a.atlas_size)?;
     let (w, h) = set.lightmap_size;
     let grid = TexelGrid::build_with_size(&scene, w, h)?;
     let lights = initial_lights(a, &scene.lights)?;
@@ -162,7 +154,7 @@ fn load_input(a: &Args) -> Result<ViewerInput> {
     let (atlases, _pieces) = render::transfer_inputs(&set, (w, h))?;
     let map_order = importance_order(&set, index.as_ref());
     Ok(ViewerInput {
-        title: format!("{} — {}", scene.name, a.dir.display()),
+        title: format!("{} — {}", scene.name, a.bake.dir.display()),
         scene,
         grid,
         set,
@@ -176,11 +168,11 @@ fn load_input(a: &Args) -> Result<ViewerInput> {
 
 /// `--light`, `--lights FILE` or the scene's lights, within the viewer's shadow-map layers.
 fn initial_lights(a: &Args, scene_lights: &[Light]) -> Result<Vec<Light>> {
-    let lights = match (&a.lights_file, a.lights.is_empty()) {
+    let lights = match (&a.lights_file, a.bake.lights.is_empty()) {
         (Some(_), false) => bail!("give either --light or --lights FILE, not both"),
         (Some(p), true) => ortm::scene::file::load_lights_fragment(p)
             .with_context(|| format!("loading the light set-up '{}'", p.display()))?,
-        (None, false) => super::render::parse_lights(&a.lights)?,
+        (None, false) => a.bake.lights()?,
         (None, true) => scene_lights.to_vec(),
     };
     if render::shadow_layers_for(&lights) > SHADOW_LAYERS {
