@@ -5,6 +5,7 @@
 //!
 //! Scenes come from a TOML scene file ([`file`], format in `docs/scene-format.md`) or are
 //! built in code ([`cornell`]). Meshes are read from OBJ by [`obj`], which validates them.
+//! Lights and their one text form (`--light`) live in [`light`].
 //! Named subsurface coefficient sets live in [`presets`]; all loading errors are
 //! [`SceneError`]s (file, problem, fix).
 
