@@ -1,6 +1,8 @@
-//! The `ortm` command-line tool: a thin layer over the `ortm` library (argument parsing,
-//! progress bars, messages). Each subcommand lives in `src/cli/`.
+//! The `ortm` command-line tool: a thin layer over the `ortm` library. `src/cli/` holds the
+//! subcommands (arguments, progress bars and printing only; the work is the library's),
+//! `src/view/` the interactive viewer, `src/bench/` benchmark data.
 
+mod bench;
 mod cli;
 mod view;
 

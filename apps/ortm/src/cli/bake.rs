@@ -7,9 +7,9 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use anyhow::{Context, Result, bail};
 use indicatif::{ProgressBar, ProgressStyle};
-use ortm::bake::{BakeEvent, BakeSettings, CellRule, Selector, bake};
 use ortm::bake::offsets::ImportanceMetric;
 use ortm::bake::transport::Effects;
+use ortm::bake::{BakeEvent, BakeSettings, CellRule, Selector, bake};
 
 /// Arguments of `ortm bake`.
 #[derive(clap::Args, Debug)]

@@ -16,6 +16,8 @@ use ortm::bake::transport::dense::DenseTransport;
 use ortm::bake::transport::{Effects, Kernels, Transport, texel_patches};
 use ortm::bake::{self, BakeSettings};
 use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rayon::prelude::*;
 
 /// Arguments of `ortm bench`.
 #[derive(clap::Args, Debug)]
@@ -37,13 +39,25 @@ pub fn run(a: Args) -> Result<()> {
     }
 }
 
+/// `ortm bench transport`: one table of shadow-ray, exact-solve, evaluator-accuracy and
+/// pair-evaluation figures (one random stream, seed 1, for the random pairs).
 fn transport() -> Result<()> {
     let mut scene = super::head_scene()?;
     scene.lightmap_size = (256, 256);
-    let vis = Visibility::new(&scene.mesh);
-    // Rays between random pairs of surface points of the head.
     let grid = TexelGrid::build(&scene)?;
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
+    println!("| measurement | value |");
+    println!("|---|---|");
+    shadow_ray_rate(&scene, &grid, &mut rng);
+    exact_solve_times()?;
+    evaluator_accuracy()?;
+    pair_evaluation_rates(&scene, &grid, &mut rng);
+    Ok(())
+}
+
+/// Shadow rays per second between 2 M random pairs of covered texels of the head.
+fn shadow_ray_rate(scene: &ortm::scene::Scene, grid: &TexelGrid, rng: &mut ChaCha8Rng) {
+    let vis = Visibility::new(&scene.mesh);
     let n = grid.texels.len();
     let pairs: Vec<(Vec3, Vec3)> = (0..2_000_000)
         .map(|_| {
@@ -56,22 +70,21 @@ fn transport() -> Result<()> {
         })
         .collect();
     let t = Instant::now();
-    let visible = {
-        use rayon::prelude::*;
-        pairs
-            .par_iter()
-            .filter(|(p, q)| vis.visible(*p, *q, 1e-5))
-            .count()
-    };
+    let visible = pairs
+        .par_iter()
+        .filter(|(p, q)| vis.visible(*p, *q, 1e-5))
+        .count();
     let ray_s = pairs.len() as f64 / t.elapsed().as_secs_f64();
-    println!("| measurement | value |");
-    println!("|---|---|");
     println!(
         "| shadow rays/s, head ({} triangles), random texel pairs ({:.0}% unoccluded) | {:.2} M |",
         scene.mesh.triangles.len(),
         100.0 * visible as f64 / pairs.len() as f64,
         ray_s / 1e6
     );
+}
+
+/// Assembly and LU-solve times of the exact dense solve at 64² (Cornell box, head).
+fn exact_solve_times() -> Result<()> {
     for (name, mut s) in [
         ("cornell", ortm::scene::cornell::cornell_box(64)),
         ("head", super::head_scene()?),
@@ -91,53 +104,61 @@ fn transport() -> Result<()> {
             t.elapsed().as_secs_f64() - t_asm
         );
     }
-    // Accuracy of the pair evaluator (exact first bounce + coarse remainder) against the exact
-    // dense solve: head at 64², one random light set-up, all pairs.
-    {
-        let mut s = super::head_scene()?;
-        s.lightmap_size = (64, 64);
-        let g = TexelGrid::build(&s)?;
-        let lights = ortm::bake::eval::random_light_setups(&s, 1, 11).remove(0);
-        let b_o = ortm::bake::lighting::first_order(&g, &lights, &vis_of(&s));
-        for (label, eff) in [
-            (
-                "radiosity",
-                Effects {
-                    radiosity: true,
-                    subsurface: false,
-                },
-            ),
-            (
-                "subsurface",
-                Effects {
-                    radiosity: false,
-                    subsurface: true,
-                },
-            ),
-            ("both", Effects::default()),
-        ] {
-            let tr = Transport::new(&s, &g, eff, 4);
-            let dense = DenseTransport::new(&texel_patches(&g), &tr.kernels);
-            let exact = dense.solve(&b_o);
-            let n = g.texels.len();
-            use rayon::prelude::*;
-            let approx: Vec<Vec3> = (0..n)
-                .into_par_iter()
-                .map(|i| {
-                    (0..n)
-                        .map(|j| Vec3::from_array(tr.r(i as u32, j as u32)) * b_o[j])
-                        .sum()
-                })
-                .collect();
-            let ex: Vec<Vec3> = exact.iter().zip(&b_o).map(|(a, b)| *a - *b).collect();
-            println!(
-                "| R(t,t') evaluator vs exact solve, head 64², 4×4 clusters, {label}: relative RMSE of the indirect term | {:.1}% |",
-                100.0 * ortm::bake::eval::relative_rmse(&approx, &ex)
-            );
-        }
+    Ok(())
+}
+
+/// Accuracy of the pair evaluator (exact first bounce + coarse remainder) against the exact
+/// dense solve: head at 64², one random light set-up, all pairs.
+fn evaluator_accuracy() -> Result<()> {
+    let mut s = super::head_scene()?;
+    s.lightmap_size = (64, 64);
+    let g = TexelGrid::build(&s)?;
+    let lights = ortm::bake::eval::random_light_setups(&s, 1, 11).remove(0);
+    let b_o = ortm::bake::lighting::first_order(&g, &lights, &vis_of(&s));
+    for (label, eff) in [
+        (
+            "radiosity",
+            Effects {
+                radiosity: true,
+                subsurface: false,
+            },
+        ),
+        (
+            "subsurface",
+            Effects {
+                radiosity: false,
+                subsurface: true,
+            },
+        ),
+        ("both", Effects::default()),
+    ] {
+        let tr = Transport::new(&s, &g, eff, 4);
+        let dense = DenseTransport::new(&texel_patches(&g), &tr.kernels);
+        let exact = dense.solve(&b_o);
+        let n = g.texels.len();
+        let approx: Vec<Vec3> = (0..n)
+            .into_par_iter()
+            .map(|i| {
+                (0..n)
+                    .map(|j| Vec3::from_array(tr.r(i as u32, j as u32)) * b_o[j])
+                    .sum()
+            })
+            .collect();
+        let ex: Vec<Vec3> = exact.iter().zip(&b_o).map(|(a, b)| *a - *b).collect();
+        println!(
+            "| R(t,t') evaluator vs exact solve, head 64², 4×4 clusters, {label}: relative RMSE of the indirect term | {:.1}% |",
+            100.0 * ortm::bake::eval::relative_rmse(&approx, &ex)
+        );
     }
+    Ok(())
+}
+
+/// Transport set-up time at 256², then `K` and `R` evaluations per second over 2 M random
+/// texel pairs.
+fn pair_evaluation_rates(scene: &ortm::scene::Scene, grid: &TexelGrid, rng: &mut ChaCha8Rng) {
+    let n = grid.texels.len();
     let t = Instant::now();
-    let tr = Transport::new(&scene, &grid, Effects::default(), 8);
+    let tr = Transport::new(scene, grid, Effects::default(), 8);
     println!(
         "| transport set-up 256² head (BVH + coarse solve, {} clusters) | {:.2} s |",
         tr.remainder.clusters.len(),
@@ -146,7 +167,6 @@ fn transport() -> Result<()> {
     let idx: Vec<(u32, u32)> = (0..2_000_000)
         .map(|_| (rng.random_range(0..n) as u32, rng.random_range(0..n) as u32))
         .collect();
-    use rayon::prelude::*;
     let t = Instant::now();
     let s: f64 = idx
         .par_iter()
@@ -166,30 +186,24 @@ fn transport() -> Result<()> {
         idx.len() as f64 / t.elapsed().as_secs_f64() / 1e6
     );
     std::hint::black_box((s, s2));
-    Ok(())
 }
 
 fn vis_of(s: &ortm::scene::Scene) -> Visibility {
     Visibility::new(&s.mesh)
 }
 
+/// Map-generation seconds of the paper's Table 1, row by row beside
+/// [`super::bench_render::TABLE_1`] (Pentium 4 2.53 GHz).
+pub const PAPER_MAPGEN_S: [f64; 8] = [22.0, 28.0, 42.0, 57.0, 36.0, 107.0, 197.0, 226.0];
+
+/// `ortm bench bake`: the first `rows` configurations of the paper's Table 1 baked on the head.
 fn bake_table(rows: usize) -> Result<()> {
-    // The paper's Table 1: (size, offsets, bins, map-generation seconds, fps).
-    let table = [
-        (256u32, 50usize, 3u32, 22.0f64),
-        (256, 100, 6, 28.0),
-        (256, 200, 10, 42.0),
-        (256, 400, 19, 57.0),
-        (384, 100, 13, 36.0),
-        (384, 200, 24, 107.0),
-        (512, 100, 22, 197.0),
-        (512, 200, 43, 226.0),
-    ];
     println!(
         "| lightmap | offsets | ortm map generation (s) | of which transport / selection / maps | paper (s) | stored texels/map | atlases 1024² (paper) | pieces/map mean (max) |"
     );
     println!("|---|---|---|---|---|---|---|---|");
-    for &(size, k, bins, paper_s) in table.iter().take(rows) {
+    let table = super::bench_render::TABLE_1.iter().zip(PAPER_MAPGEN_S);
+    for (&(size, k, bins, _fps), paper_s) in table.take(rows) {
         let mut scene = super::head_scene()?;
         scene.lightmap_size = (size, size);
         let dir = tempfile_dir(size, k)?;

@@ -15,7 +15,7 @@
 //!
 //! # Where the maps come from
 //! `--bake DIR` (repeatable) benches real bakes (atlases from `atlases.json`, or packed in
-//! memory). Without it the maps are synthetic ([`ortm::render::synthetic_transfer_maps`]):
+//! memory). Without it the maps are synthetic ([`crate::bench::synthetic::synthetic_transfer_maps`]):
 //! jittered-grid offsets within `|dx|, |dy| < size/8` (`--offset-window`; importance-selected
 //! offsets crowd near zero) and maps that are non-zero wherever receiver and sender are both
 //! covered, cropped like baked maps — the frame cost depends only on the stored texels and
@@ -195,7 +195,7 @@ pub fn run(a: Args) -> Result<()> {
                 // offsets of a real bake crowd near Δt = 0, where the transfer is strong).
                 let sub = (size / a.offset_window.max(1)).max(2);
                 let offsets = ortm::bake::offsets::select_jittered_grid(sub, sub, n, a.seed)?;
-                let maps = render::synthetic_transfer_maps(&grid, &offsets)?;
+                let maps = crate::bench::synthetic::synthetic_transfer_maps(&grid, &offsets)?;
                 let set = ortm::atlas::build_atlas_set(&maps, 1024, 1024)?;
                 (scene, grid, set)
             }

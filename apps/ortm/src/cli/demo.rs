@@ -127,21 +127,24 @@ fn cornell(a: &Args) -> Result<()> {
     Ok(())
 }
 
-/// `ortm render --light` syntax of a figure light.
+/// `ortm render --light` text of a figure light ([`ortm::scene::light::LIGHT_SYNTAX`]), with
+/// the figure's numbers as given: a directional light's direction is left unnormalised, so
+/// that `--light` normalises it once, exactly as [`ortm::scene::head::light`] does
+/// (normalising twice can move the last bit).
 pub fn light_spec(l: &faces::FigLight) -> String {
-    let v = |v: glam::Vec3| format!("{},{},{}", v.x, v.y, v.z);
-    match *l {
-        faces::FigLight::Point {
-            position_m,
-            color,
-            intensity_w_sr,
-        } => format!("point:{}:{intensity_w_sr}:{}", v(position_m), v(color)),
+    let light = match *l {
         faces::FigLight::Directional {
             direction,
             color,
             irradiance_w_m2,
-        } => format!("dir:{}:{irradiance_w_m2}:{}", v(direction), v(color)),
-    }
+        } => ortm::scene::Light::Directional {
+            direction,
+            color,
+            irradiance_w_m2,
+        },
+        faces::FigLight::Point { .. } => ortm::scene::head::light(l),
+    };
+    light.to_string()
 }
 
 /// `ortm render --camera` syntax of a figure camera.
@@ -195,43 +198,10 @@ fn face(a: &Args) -> Result<()> {
     let mut render_s = Vec::new();
     for f in &faces::FIGURES {
         let png = format!("{}.png", f.id);
-        let h = a.height.max(16);
-        let w = if f.side_by_side {
-            2 * h * 8 / 9
-        } else {
-            h * 8 / 9
-        };
-        let mut v = words(&[
-            "render",
-            &bake_dir,
-            &format!("--camera={}", camera_spec(&f.camera)),
-            "--size",
-            &format!("{w}x{h}"),
-            "-o",
-            &out(&png),
-        ]);
-        for l in f.lights {
-            // `--light=SPEC`: a spec may start with a minus sign.
-            v.push(format!("--light={}", light_spec(l)));
-        }
-        if f.side_by_side {
-            v.push("--side-by-side".into());
-        }
         let t = Instant::now();
-        step(v)?;
+        step(render_figure_command(a, f, &bake_dir, &out(&png)))?;
         render_s.push((f.id, t.elapsed().as_secs_f64()));
-        md.push_str(&format!(
-            "## {}\n\n![{}]({png})\n\n{}{}.\nLook for: {}.\n\n",
-            f.paper,
-            f.id,
-            if f.side_by_side {
-                "Left: first order; right: final (radiosity + subsurface scattering). "
-            } else {
-                ""
-            },
-            faces::HEAD_CREDIT,
-            f.look_for
-        ));
+        md.push_str(&figure_section(f, &png));
     }
     write_text(&a.output.join("figures.md"), &md)?;
     println!("\nface demo outputs in {}", a.output.display());
@@ -240,6 +210,49 @@ fn face(a: &Args) -> Result<()> {
         bench_table(a, size, bake_s, &render_s, Path::new(&bake_dir))?;
     }
     Ok(())
+}
+
+/// The `ortm render` command line of figure `f` from the bake in `bake_dir`, writing `png`.
+fn render_figure_command(a: &Args, f: &faces::Figure, bake_dir: &str, png: &str) -> Vec<String> {
+    let h = a.height.max(16);
+    let w = if f.side_by_side {
+        2 * h * 8 / 9
+    } else {
+        h * 8 / 9
+    };
+    let mut v = words(&[
+        "render",
+        bake_dir,
+        &format!("--camera={}", camera_spec(&f.camera)),
+        "--size",
+        &format!("{w}x{h}"),
+        "-o",
+        png,
+    ]);
+    for l in f.lights {
+        // `--light=SPEC`: a spec may start with a minus sign.
+        v.push(format!("--light={}", light_spec(l)));
+    }
+    if f.side_by_side {
+        v.push("--side-by-side".into());
+    }
+    v
+}
+
+/// The `figures.md` section of figure `f` shown in `png`: caption, image, what to look for.
+fn figure_section(f: &faces::Figure, png: &str) -> String {
+    format!(
+        "## {}\n\n![{}]({png})\n\n{}{}.\nLook for: {}.\n\n",
+        f.paper,
+        f.id,
+        if f.side_by_side {
+            "Left: first order; right: final (radiosity + subsurface scattering). "
+        } else {
+            ""
+        },
+        faces::HEAD_CREDIT,
+        f.look_for
+    )
 }
 
 /// Writes a text file atomically ([`ortm::io::write_atomic`]).
@@ -261,11 +274,10 @@ fn bench_table(
     let paper = super::bench_render::TABLE_1
         .iter()
         .find(|r| r.0 == size && r.1 == a.offsets);
-    const PAPER_MAPGEN_S: [f64; 8] = [22.0, 28.0, 42.0, 57.0, 36.0, 107.0, 197.0, 226.0];
     let paper_mapgen = super::bench_render::TABLE_1
         .iter()
         .position(|r| r.0 == size && r.1 == a.offsets)
-        .map(|i| PAPER_MAPGEN_S[i]);
+        .map(|i| super::bench::PAPER_MAPGEN_S[i]);
     println!(
         "\nface demo configuration beside the paper's Table 1 (paper: Pentium 4 2.53 GHz, GeForce 6800)"
     );
@@ -296,4 +308,24 @@ fn bench_table(
         "--iterations",
         "3",
     ]))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn figure_light_specs_read_back_as_the_figure_lights() {
+        for f in &faces::FIGURES {
+            for l in f.lights {
+                let spec = light_spec(l);
+                assert_eq!(
+                    ortm::scene::light::parse_light(&spec),
+                    Ok(ortm::scene::head::light(l)),
+                    "{}: {spec}",
+                    f.id
+                );
+            }
+        }
+    }
 }

@@ -1,4 +1,8 @@
-//! Subcommands of the `ortm` tool.
+//! Subcommands of the `ortm` tool: each file parses one subcommand's arguments, calls the
+//! `ortm` library (bake, bin, render, …) and prints the results, progress and errors. The
+//! work itself — file formats, checks, conversions — is the library's; what lives here is
+//! arguments and printing (and `load_scene`, which maps a scene argument to a built-in
+//! scene or a scene file).
 
 mod bake;
 mod bench;

@@ -9,7 +9,7 @@
 //! → transfer (Eq. 9, blend or compute) → dilation → display → `-o` PNG.
 //!
 //! # Options worth knowing
-//! - `--light` (repeatable) replaces the scene's lights: see [`ortm::render::LIGHT_SYNTAX`].
+//! - `--light` (repeatable) replaces the scene's lights: see [`ortm::scene::light::LIGHT_SYNTAX`].
 //! - `--camera EX,EY,EZ:TX,TY,TZ[:FOV]`; default: looking along −z at the whole mesh.
 //! - `--exposure auto` (default) maps the 95th percentile of the final radiance to 1 before
 //!   Reinhard tonemapping; a number sets it directly (multiplies `L = B/π`).
@@ -17,12 +17,13 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Context, Result};
 use ortm::bake::texels::TexelGrid;
 use ortm::render::{
-    self, AtlasSource, CAMERA_SYNTAX, DEFAULT_ATLAS_SIDE, LIGHT_SYNTAX, to_lightmap,
+    self, AtlasSource, BakeAndScene, CAMERA_SYNTAX, DEFAULT_ATLAS_SIDE, to_lightmap,
     write_lightmap_exr,
 };
+use ortm::scene::light::{LIGHT_SYNTAX, Light, SpecError, parse_light};
 use passes::display::{Camera, DisplayOptions};
 use passes::first_order::FirstOrderOptions;
 use passes::frame::{FrameParams, Renderer, RendererOptions};
@@ -41,19 +42,44 @@ pub enum PathArg {
     Compute,
 }
 
-/// Arguments of `ortm render`.
+/// The bake and the lights, the first arguments of `ortm render` and `ortm view`.
 #[derive(clap::Args, Debug)]
-pub struct Args {
+pub struct BakeArgs {
     /// Bake directory (with index.json from `ortm bake`, and atlases.json from `ortm bin` if
     /// binned; otherwise the maps are packed in memory).
-    dir: PathBuf,
+    pub dir: PathBuf,
     /// Scene the bake was made from: `cornell` or a scene file. Default: the `scene` recorded
     /// in the bake's settings, if any.
     #[arg(long)]
-    scene: Option<String>,
+    pub scene: Option<String>,
     /// A light replacing the scene's lights (repeatable).
     #[arg(long = "light", value_name = "SPEC", help = format!("A light replacing the scene's lights (repeatable): {LIGHT_SYNTAX}"))]
-    lights: Vec<String>,
+    pub lights: Vec<String>,
+}
+
+impl BakeArgs {
+    /// Opens the bake directory ([`render::open_bake`], the scene loaded by
+    /// [`super::load_scene`]), with atlases of `atlas_size`² when it was not binned.
+    pub fn open(&self, atlas_size: u32) -> Result<BakeAndScene> {
+        render::open_bake(
+            &self.dir,
+            self.scene.as_deref(),
+            atlas_size,
+            super::load_scene,
+        )
+    }
+
+    /// The `--light` lights ([`LIGHT_SYNTAX`]), in order.
+    pub fn lights(&self) -> Result<Vec<Light>, SpecError> {
+        self.lights.iter().map(|s| parse_light(s)).collect()
+    }
+}
+
+/// Arguments of `ortm render`.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    #[command(flatten)]
+    bake: BakeArgs,
     /// Camera; default: looking along −z at the whole mesh.
     #[arg(long, value_name = "SPEC", help = format!("Camera: {CAMERA_SYNTAX}; default: looking along −z at the whole mesh"))]
     camera: Option<String>,
@@ -95,69 +121,19 @@ pub fn save_png_atomic(img: &image::RgbaImage, path: &Path) -> Result<()> {
         .with_context(|| format!("cannot write image '{}'", path.display()))
 }
 
-/// A bake directory's atlases (built from its maps when `ortm bin` was not run) and its scene:
-/// `scene` when given, else the one the bake recorded; the scene is checked against the bake.
-pub(crate) struct BakeAndScene {
-    /// The bake index, when the directory has one.
-    pub index: Option<ortm::bake_dir::BakeIndex>,
-    /// The atlases.
-    pub set: ortm::atlas::AtlasSet,
-    /// Where the atlases came from.
-    pub source: AtlasSource,
-    /// The scene at the bake's lightmap size.
-    pub scene: ortm::scene::Scene,
-}
-
-/// Loads a bake directory for `ortm render` and `ortm view` (see [`BakeAndScene`]).
-pub(crate) fn load_bake_and_scene(
-    dir: &Path,
-    scene: Option<&str>,
-    atlas_size: u32,
-) -> Result<BakeAndScene> {
-    let (index, set, source) = render::load_bake_atlases(dir, atlas_size)
-        .with_context(|| format!("reading bake directory '{}'", dir.display()))?;
-    let scene_arg = match (
-        scene,
-        index.as_ref().and_then(render::scene_arg_from_settings),
-    ) {
-        (Some(s), _) => s.to_owned(),
-        (None, Some(s)) => s,
-        (None, None) => bail!(
-            "the bake in '{}' does not record which scene it was made from; pass it with \
-             --scene (`cornell` or the scene file used for `ortm bake`)",
-            dir.display()
-        ),
-    };
-    let (w, h) = set.lightmap_size;
-    let mut scene = super::load_scene(&scene_arg, (w == h).then_some(w))?;
-    scene.lightmap_size = (w, h);
-    if let Some(index) = &index {
-        render::check_scene(dir, index, &scene, &scene_arg)?;
-    }
-    Ok(BakeAndScene {
-        index,
-        set,
-        source,
-        scene,
-    })
-}
-
 /// Runs `ortm render`.
 pub fn run(a: Args) -> Result<()> {
     let t0 = Instant::now();
     let (img_w, img_h) = render::parse_size(&a.size)?;
     let BakeAndScene {
         set, source, scene, ..
-    } = load_bake_and_scene(&a.dir, a.scene.as_deref(), a.atlas_size)?;
+    } = a.bake.open(a.atlas_size)?;
     let (w, h) = set.lightmap_size;
     let grid = TexelGrid::build_with_size(&scene, w, h)?;
-    let lights = if a.lights.is_empty() {
+    let lights = if a.bake.lights.is_empty() {
         scene.lights.clone()
     } else {
-        a.lights
-            .iter()
-            .map(|s| render::parse_light(s))
-            .collect::<Result<Vec<_>, _>>()?
+        a.bake.lights()?
     };
     if lights.is_empty() {
         eprintln!(
@@ -169,59 +145,17 @@ pub fn run(a: Args) -> Result<()> {
     let t_load = t0.elapsed().as_secs_f64();
 
     let gpu = Gpu::new_headless()?;
-    let transfer = match a.path {
-        PathArg::Auto => TransferOptions::best_for(&gpu),
-        PathArg::Blend => TransferOptions {
-            path: TransferPath::Blend,
-            ..TransferOptions::best_for(&gpu)
-        },
-        PathArg::Compute => TransferOptions {
-            path: TransferPath::Compute,
-            ..TransferOptions::best_for(&gpu)
-        },
-    };
-    let options = RendererOptions {
-        first_order: FirstOrderOptions {
-            shadow_map_size: a.shadow_size,
-            max_shadow_layers: render::shadow_layers_for(&lights),
-            ..Default::default()
-        },
-        transfer,
-        display: DisplayOptions {
-            width: img_w,
-            height: img_h,
-            side_by_side: a.side_by_side,
-        },
-        ..Default::default()
-    };
+    let options = renderer_options(&a, &gpu, &lights, (img_w, img_h));
     let renderer = Renderer::new(&gpu, &options)?;
     let mesh = render::mesh_data(&scene.mesh);
     let rscene = renderer.prepare(&gpu, &mesh, &render::albedo_map(&grid), &atlases, &pieces)?;
     let t1 = Instant::now();
     let (fo, fin) = renderer.render_lightmaps(&gpu, &rscene, &light_descs)?;
-    let exposure = match a.exposure.as_str() {
-        "auto" => render::auto_exposure(&fin),
-        s => s
-            .parse::<f32>()
-            .ok()
-            .filter(|e| e.is_finite() && *e > 0.0)
-            .with_context(|| format!("--exposure {s:?}: use `auto` or a positive number"))?,
-    };
-    let aspect = if a.side_by_side {
-        (img_w / 2).max(1) as f32 / img_h as f32
-    } else {
-        img_w as f32 / img_h as f32
-    };
-    let camera: Camera = match &a.camera {
-        Some(spec) => {
-            let r = bounding_radius(&scene.mesh);
-            render::parse_camera(spec, a.fov, r)?
-        }
-        None => render::default_camera(&scene.mesh, aspect, a.fov),
-    };
+    let exposure =
+        render::parse_exposure(&a.exposure)?.unwrap_or_else(|| render::auto_exposure(&fin));
     let params = FrameParams {
         lights: &light_descs,
-        camera,
+        camera: camera(&a, &scene.mesh, (img_w, img_h))?,
         exposure,
         specular: None,
     };
@@ -262,16 +196,64 @@ pub fn run(a: Args) -> Result<()> {
     println!(
         "wrote {} ({img_w}x{img_h}){}{}; load {t_load:.2} s, GPU {t_gpu:.2} s",
         a.output.display(),
-        a.lightmap_out
-            .as_ref()
-            .map(|p| format!(", {}", p.display()))
-            .unwrap_or_default(),
-        a.first_order_out
-            .as_ref()
-            .map(|p| format!(", {}", p.display()))
-            .unwrap_or_default(),
+        optional_path(a.lightmap_out.as_deref()),
+        optional_path(a.first_order_out.as_deref()),
     );
     Ok(())
+}
+
+/// The renderer's options: `--shadow-size` with as many layers as `lights` need, the
+/// `--path` transfer implementation, the image size and layout.
+fn renderer_options(
+    a: &Args,
+    gpu: &Gpu,
+    lights: &[Light],
+    (width, height): (u32, u32),
+) -> RendererOptions {
+    let best = TransferOptions::best_for(gpu);
+    let transfer = match a.path {
+        PathArg::Auto => best,
+        PathArg::Blend => TransferOptions {
+            path: TransferPath::Blend,
+            ..best
+        },
+        PathArg::Compute => TransferOptions {
+            path: TransferPath::Compute,
+            ..best
+        },
+    };
+    RendererOptions {
+        first_order: FirstOrderOptions {
+            shadow_map_size: a.shadow_size,
+            max_shadow_layers: render::shadow_layers_for(lights),
+            ..Default::default()
+        },
+        transfer,
+        display: DisplayOptions {
+            width,
+            height,
+            side_by_side: a.side_by_side,
+        },
+        ..Default::default()
+    }
+}
+
+/// `--camera`, or the default camera framing `mesh` in one image (half of it side by side).
+fn camera(a: &Args, mesh: &ortm::scene::Mesh, (img_w, img_h): (u32, u32)) -> Result<Camera> {
+    let aspect = if a.side_by_side {
+        (img_w / 2).max(1) as f32 / img_h as f32
+    } else {
+        img_w as f32 / img_h as f32
+    };
+    Ok(match &a.camera {
+        Some(spec) => render::parse_camera(spec, a.fov, bounding_radius(mesh))?,
+        None => render::default_camera(mesh, aspect, a.fov),
+    })
+}
+
+/// `", PATH"` for an optional output file, else nothing.
+fn optional_path(p: Option<&Path>) -> String {
+    p.map(|p| format!(", {}", p.display())).unwrap_or_default()
 }
 
 fn sum_rgb(img: &TexelImage) -> f64 {

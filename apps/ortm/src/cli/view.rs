@@ -6,11 +6,13 @@
 use std::path::PathBuf;
 
 use anyhow::{Context, Result, bail};
-use ortm::render::{self, DEFAULT_ATLAS_SIDE, LIGHT_SYNTAX};
 use ortm::bake::texels::TexelGrid;
+use ortm::render::{self, BakeAndScene, DEFAULT_ATLAS_SIDE};
+use ortm::scene::Light;
 
+use super::render::BakeArgs;
 use crate::view::app::{DebugView, ViewMode};
-use crate::view::{RunOptions, ViewerInput, importance_order};
+use crate::view::{RunOptions, SHADOW_LAYERS, ViewerInput, importance_order};
 
 /// Initial view (`--view`).
 #[derive(clap::ValueEnum, Clone, Copy, Debug)]
@@ -41,16 +43,8 @@ pub enum DebugArg {
 /// Arguments of `ortm view`.
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// Bake directory (index.json from `ortm bake`; atlases.json from `ortm bin`, else the
-    /// maps are packed in memory).
-    dir: PathBuf,
-    /// Scene the bake was made from: `cornell` or a scene file. Default: the scene recorded
-    /// in the bake.
-    #[arg(long)]
-    scene: Option<String>,
-    /// A light replacing the scene's lights (repeatable).
-    #[arg(long = "light", value_name = "SPEC", help = format!("A light replacing the scene's lights (repeatable): {LIGHT_SYNTAX}"))]
-    lights: Vec<String>,
+    #[command(flatten)]
+    bake: BakeArgs,
     /// Light set-up file (`[[light]]` tables, as saved by the viewer) replacing the scene's
     /// lights; also the file the viewer's save/load buttons use.
     #[arg(long = "lights", value_name = "FILE")]
@@ -61,9 +55,9 @@ pub struct Args {
     /// Exposure: `auto`, or a number multiplying the radiance B/π before tonemapping.
     #[arg(long, default_value = "auto")]
     exposure: String,
-    /// Side of each shadow-map layer, texels (24 layers: 4 point lights, or more spot and
-    /// directional ones).
-    #[arg(long, default_value_t = 1024)]
+    /// Side of each shadow-map layer, texels ([`SHADOW_LAYERS`] layers: 4 point lights, or
+    /// more spot and directional ones).
+    #[arg(long, default_value_t = 1024, help = format!("Side of each shadow-map layer, texels ({SHADOW_LAYERS} layers: 4 point lights, or more spot and directional ones)"))]
     shadow_size: u32,
     /// Atlas side when the bake has no atlases.json (power of two).
     #[arg(long, default_value_t = DEFAULT_ATLAS_SIDE)]
@@ -105,64 +99,8 @@ pub fn run(a: Args) -> Result<()> {
         bail!("--frames 0: give at least one frame");
     }
     let window_size = render::parse_size(&a.size)?;
-    let exposure = match a.exposure.as_str() {
-        "auto" => None,
-        s => Some(
-            s.parse::<f32>()
-                .ok()
-                .filter(|e| e.is_finite() && *e > 0.0)
-                .with_context(|| format!("--exposure {s:?}: use `auto` or a positive number"))?,
-        ),
-    };
-    if !a.dir.is_dir() {
-        bail!(
-            "bake directory '{}' does not exist or is not a folder (make one with `ortm bake \
-             SCENE -o DIR`)",
-            a.dir.display()
-        );
-    }
-    let super::render::BakeAndScene {
-        index, set, scene, ..
-    } = super::render::load_bake_and_scene(&a.dir, a.scene.as_deref(), a.atlas_size)?;
-    let (w, h) = set.lightmap_size;
-    let grid = TexelGrid::build_with_size(&scene, w, h)?;
-    let lights = match (&a.lights_file, a.lights.is_empty()) {
-        (Some(_), false) => bail!("give either --light or --lights FILE, not both"),
-        (Some(p), true) => ortm::scene::file::load_lights_fragment(p)
-            .with_context(|| format!("loading the light set-up '{}'", p.display()))?,
-        (None, false) => a
-            .lights
-            .iter()
-            .map(|s| render::parse_light(s))
-            .collect::<Result<Vec<_>, _>>()?,
-        (None, true) => scene.lights.clone(),
-    };
-    if render::shadow_layers_for(&lights) > 24 {
-        bail!(
-            "{} lights need {} shadow-map layers; the viewer has 24 (6 per point light, 1 per \
-             spot or directional light)",
-            lights.len(),
-            render::shadow_layers_for(&lights)
-        );
-    }
-    let note = if lights.is_empty() {
-        "no lights: add one in the Lights panel (P, L or I)".to_string()
-    } else {
-        String::new()
-    };
-    let (atlases, _pieces) = render::transfer_inputs(&set, (w, h))?;
-    let map_order = importance_order(&set, index.as_ref());
-    let input = ViewerInput {
-        title: format!("{} — {}", scene.name, a.dir.display()),
-        scene,
-        grid,
-        set,
-        atlases,
-        map_order,
-        lights,
-        shadow_size: a.shadow_size,
-        note,
-    };
+    let exposure = render::parse_exposure(&a.exposure)?;
+    let input = load_input(&a)?;
     crate::view::run(
         input,
         RunOptions {
@@ -191,4 +129,59 @@ pub fn run(a: Args) -> Result<()> {
         },
     )?;
     Ok(())
+}
+
+/// The opened, checked bake and the initial lights, as the viewer's input.
+fn load_input(a: &Args) -> Result<ViewerInput> {
+    if !a.bake.dir.is_dir() {
+        bail!(
+            "bake directory '{}' does not exist or is not a folder (make one with `ortm bake \
+             SCENE -o DIR`)",
+            a.bake.dir.display()
+        );
+    }
+    let BakeAndScene {
+        index, set, scene, ..
+    } = a.bake.open(a.atlas_size)?;
+    let (w, h) = set.lightmap_size;
+    let grid = TexelGrid::build_with_size(&scene, w, h)?;
+    let lights = initial_lights(a, &scene.lights)?;
+    let note = if lights.is_empty() {
+        "no lights: add one in the Lights panel (P, L or I)".to_string()
+    } else {
+        String::new()
+    };
+    let (atlases, _pieces) = render::transfer_inputs(&set, (w, h))?;
+    let map_order = importance_order(&set, index.as_ref());
+    Ok(ViewerInput {
+        title: format!("{} — {}", scene.name, a.bake.dir.display()),
+        scene,
+        grid,
+        set,
+        atlases,
+        map_order,
+        lights,
+        shadow_size: a.shadow_size,
+        note,
+    })
+}
+
+/// `--light`, `--lights FILE` or the scene's lights, within the viewer's shadow-map layers.
+fn initial_lights(a: &Args, scene_lights: &[Light]) -> Result<Vec<Light>> {
+    let lights = match (&a.lights_file, a.bake.lights.is_empty()) {
+        (Some(_), false) => bail!("give either --light or --lights FILE, not both"),
+        (Some(p), true) => ortm::scene::file::load_lights_fragment(p)
+            .with_context(|| format!("loading the light set-up '{}'", p.display()))?,
+        (None, false) => a.bake.lights()?,
+        (None, true) => scene_lights.to_vec(),
+    };
+    if render::shadow_layers_for(&lights) > SHADOW_LAYERS {
+        bail!(
+            "{} lights need {} shadow-map layers; the viewer has {SHADOW_LAYERS} (6 per point \
+             light, 1 per spot or directional light)",
+            lights.len(),
+            render::shadow_layers_for(&lights)
+        );
+    }
+    Ok(lights)
 }

@@ -110,7 +110,8 @@ pub struct AppState {
     pub req: Requests,
     /// Figures shown in the stats panel.
     pub stats: Stats,
-    /// Largest shadow-map layer count (6 per point light, 1 per spot/directional).
+    /// Largest shadow-map layer count (6 per point light, 1 per spot/directional;
+    /// [`super::SHADOW_LAYERS`]).
     pub max_shadow_layers: u32,
     drag: Option<Drag>,
     /// The camera was framed for the real view size.
@@ -185,7 +186,7 @@ impl AppState {
             status: String::new(),
             req: Requests::default(),
             stats: Stats::default(),
-            max_shadow_layers: 24,
+            max_shadow_layers: super::SHADOW_LAYERS,
             drag: None,
         }
     }
@@ -444,14 +445,18 @@ impl AppState {
                     .map(|p| sub.min + Vec2::new(p[0], p[1]))
             })
             .collect();
-        let painter = ui.painter_at(rect);
+        self.draw_handles(&ui.painter_at(rect), &handles, sub);
+        self.mouse(ui, &resp, &handles, sub);
+    }
+
+    /// Draws each light's handle (at its screen position in `handles`, `None` when off
+    /// screen) in its colour, the selected one larger, with a line along the direction of
+    /// spot and directional lights; `sub` is the view the handles are projected into.
+    fn draw_handles(&self, painter: &egui::Painter, handles: &[Option<Pos2>], sub: Rect) {
+        let size = [sub.width(), sub.height()];
         for (i, (h, l)) in handles.iter().zip(&self.lights).enumerate() {
             let Some(p) = h else { continue };
-            let c = match *l {
-                Light::Point { color, .. }
-                | Light::Spot { color, .. }
-                | Light::Directional { color, .. } => color,
-            };
+            let c = l.color();
             let m = c.max_element().max(1e-6);
             let fill = Color32::from_rgb(
                 (255.0 * c.x / m) as u8,
@@ -469,13 +474,7 @@ impl AppState {
                 ),
             );
             // Direction of spot and directional lights.
-            let dir = match *l {
-                Light::Spot { direction, .. } | Light::Directional { direction, .. } => {
-                    Some(direction)
-                }
-                Light::Point { .. } => None,
-            };
-            if let Some(d) = dir {
+            if let Some(d) = l.direction() {
                 let from = self.handle_position(l);
                 let to = from + d.normalize_or(Vec3::NEG_Y) * (0.4 * self.bounds.1);
                 if let Some(q) = self.camera.project(to, size) {
@@ -486,7 +485,11 @@ impl AppState {
                 }
             }
         }
-        // Mouse.
+    }
+
+    /// Mouse input on the 3D view: a left drag on a handle moves that light, elsewhere it
+    /// orbits; right or middle drag pans; the wheel zooms.
+    fn mouse(&mut self, ui: &egui::Ui, resp: &egui::Response, handles: &[Option<Pos2>], sub: Rect) {
         if resp.drag_started_by(egui::PointerButton::Primary) {
             let at = resp.interact_pointer_pos();
             let hit = at.and_then(|a| {
@@ -544,8 +547,17 @@ impl AppState {
         }
     }
 
-    /// The left panel.
+    /// The left panel: view choices, lights, stats.
     fn controls(&mut self, ui: &mut egui::Ui) {
+        self.view_controls(ui);
+        ui.separator();
+        self.lights_controls(ui);
+        ui.separator();
+        self.stats_grid(ui);
+    }
+
+    /// View, number of maps, exposure, reference mode, debug view.
+    fn view_controls(&mut self, ui: &mut egui::Ui) {
         ui.heading("View");
         ui.horizontal_wrapped(|ui| {
             ui.radio_value(&mut self.mode, ViewMode::FirstOrder, "first order");
@@ -597,7 +609,10 @@ impl AppState {
                     .text("map (by importance)"),
             );
         }
-        ui.separator();
+    }
+
+    /// The light list with add / remove buttons, the selected light's fields, save / load.
+    fn lights_controls(&mut self, ui: &mut egui::Ui) {
         ui.heading("Lights");
         ui.horizontal(|ui| {
             if ui.button("+ point").clicked() {
@@ -613,11 +628,7 @@ impl AppState {
         let mut remove = None;
         for i in 0..self.lights.len() {
             let sel = self.selected == Some(i);
-            let name = match self.lights[i] {
-                Light::Point { .. } => "point",
-                Light::Spot { .. } => "spot",
-                Light::Directional { .. } => "directional",
-            };
+            let name = self.lights[i].type_name();
             ui.horizontal(|ui| {
                 if ui.selectable_label(sel, format!("{i}: {name}")).clicked() {
                     self.selected = Some(i);
@@ -650,7 +661,10 @@ impl AppState {
                 self.req.screenshot = true;
             }
         });
-        ui.separator();
+    }
+
+    /// Frame rate, per-pass times, maps, atlases, lightmap, adapter.
+    fn stats_grid(&self, ui: &mut egui::Ui) {
         ui.heading("Stats");
         let s = &self.stats;
         egui::Grid::new("ortm.view.stats").show(ui, |ui| {
@@ -688,7 +702,8 @@ impl AppState {
     }
 }
 
-/// Numeric fields of one light.
+/// Numeric fields of one light: position, direction (with "aim at the scene centre" for
+/// a spot), colour, intensity or irradiance, cone angles.
 fn light_editor(ui: &mut egui::Ui, l: &mut Light, centre: Vec3) {
     let vec3 = |ui: &mut egui::Ui, label: &str, v: &mut Vec3, speed: f64| {
         ui.horizontal(|ui| {
@@ -698,67 +713,56 @@ fn light_editor(ui: &mut egui::Ui, l: &mut Light, centre: Vec3) {
             ui.add(egui::DragValue::new(&mut v.z).speed(speed).prefix("z "));
         });
     };
-    let colour = |ui: &mut egui::Ui, c: &mut Vec3| {
-        ui.horizontal(|ui| {
-            ui.label("colour");
-            let mut rgb = c.to_array();
-            ui.color_edit_button_rgb(&mut rgb);
-            *c = Vec3::from(rgb).max(Vec3::ZERO);
-        });
+    let strength = |ui: &mut egui::Ui, v: &mut f32, unit: &str| {
+        ui.add(
+            egui::DragValue::new(v)
+                .speed(0.01)
+                .range(0.0..=1e9)
+                .suffix(unit),
+        );
     };
+    if let Light::Point { position_m, .. } | Light::Spot { position_m, .. } = l {
+        vec3(ui, "position (m)", position_m, 0.005);
+    }
     match l {
-        Light::Point {
-            position_m,
-            color,
-            intensity_w_sr,
-        } => {
-            vec3(ui, "position (m)", position_m, 0.005);
-            colour(ui, color);
-            ui.add(
-                egui::DragValue::new(intensity_w_sr)
-                    .speed(0.01)
-                    .range(0.0..=1e9)
-                    .suffix(" W/sr"),
-            );
-        }
         Light::Spot {
             position_m,
             direction,
-            color,
-            intensity_w_sr,
-            inner_deg,
-            outer_deg,
+            ..
         } => {
-            vec3(ui, "position (m)", position_m, 0.005);
             vec3(ui, "direction", direction, 0.01);
             if ui.button("aim at the scene centre").clicked() {
                 *direction = (centre - *position_m).normalize_or(*direction);
             }
-            colour(ui, color);
-            ui.add(
-                egui::DragValue::new(intensity_w_sr)
-                    .speed(0.01)
-                    .range(0.0..=1e9)
-                    .suffix(" W/sr"),
-            );
-            ui.add(egui::Slider::new(outer_deg, 0.5..=89.0).text("outer cone (°)"));
-            ui.add(egui::Slider::new(inner_deg, 0.0..=*outer_deg).text("inner cone (°)"));
-            *inner_deg = inner_deg.min(*outer_deg);
+        }
+        Light::Directional { direction, .. } => vec3(ui, "direction (travel)", direction, 0.01),
+        Light::Point { .. } => {}
+    }
+    let (Light::Point { color, .. } | Light::Spot { color, .. } | Light::Directional { color, .. }) =
+        l;
+    ui.horizontal(|ui| {
+        ui.label("colour");
+        let mut rgb = color.to_array();
+        ui.color_edit_button_rgb(&mut rgb);
+        *color = Vec3::from(rgb).max(Vec3::ZERO);
+    });
+    match l {
+        Light::Point { intensity_w_sr, .. } | Light::Spot { intensity_w_sr, .. } => {
+            strength(ui, intensity_w_sr, " W/sr")
         }
         Light::Directional {
-            direction,
-            color,
-            irradiance_w_m2,
-        } => {
-            vec3(ui, "direction (travel)", direction, 0.01);
-            colour(ui, color);
-            ui.add(
-                egui::DragValue::new(irradiance_w_m2)
-                    .speed(0.01)
-                    .range(0.0..=1e9)
-                    .suffix(" W/m²"),
-            );
-        }
+            irradiance_w_m2, ..
+        } => strength(ui, irradiance_w_m2, " W/m²"),
+    }
+    if let Light::Spot {
+        inner_deg,
+        outer_deg,
+        ..
+    } = l
+    {
+        ui.add(egui::Slider::new(outer_deg, 0.5..=89.0).text("outer cone (°)"));
+        ui.add(egui::Slider::new(inner_deg, 0.0..=*outer_deg).text("inner cone (°)"));
+        *inner_deg = inner_deg.min(*outer_deg);
     }
     if let Light::Spot { direction, .. } | Light::Directional { direction, .. } = l
         && direction.length_squared() < 1e-12

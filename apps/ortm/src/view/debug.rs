@@ -18,10 +18,10 @@
 
 use glam::Vec3;
 use ortm::atlas::{AtlasPiece, AtlasSet, apply_atlas_pieces};
-use ortm::lightmap::Lightmap;
 use ortm::bake::raycast::Visibility;
-use ortm::scene::Light;
 use ortm::bake::texels::{NO_TEXEL, TexelGrid};
+use ortm::lightmap::Lightmap;
+use ortm::scene::Light;
 use passes::TexelImage;
 
 /// Largest displayable colour component (Reinhard never reaches 1).

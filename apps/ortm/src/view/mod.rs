@@ -11,7 +11,8 @@
 //! - [`window`]: winit/wgpu/egui plumbing, the frame loop, `--frames/--screenshot`.
 //!
 //! # Data flow
-//! `ViewerInput` (loaded by `src/cli/view.rs`: scene, texel grid, atlases, lights) →
+//! `ViewerInput` (the bake opened by [`ortm::render::open_bake`] in `src/cli/view.rs`:
+//! scene, texel grid, atlases, lights) →
 //! [`window::run`] → per frame: [`app::AppState::ui`] → [`frame::ViewRenderer::render`] →
 //! egui paints the image and the panels into the window.
 
@@ -30,6 +31,11 @@ use ortm::scene::{Light, Scene};
 use passes::{AtlasData, TransferPiece};
 
 pub use window::run;
+
+/// Shadow-map layers of the viewer's first-order pass: the lights on screen together may
+/// need at most this many ([`ortm::render::shadow_layers_for`]: 6 per point light, 1 per
+/// spot or directional light), so 4 point lights, or more spot and directional ones.
+pub const SHADOW_LAYERS: u32 = 24;
 
 /// What the viewer shows: a loaded, checked bake.
 pub struct ViewerInput {
@@ -110,16 +116,7 @@ impl ViewerInput {
             .pieces
             .iter()
             .filter(|p| keep.get(p.map_index as usize).copied().unwrap_or(false))
-            .map(|p| TransferPiece {
-                atlas: p.atlas,
-                src_x: p.src_x,
-                src_y: p.src_y,
-                w: p.w,
-                h: p.h,
-                dst_x: p.dst_x,
-                dst_y: p.dst_y,
-                offset: p.offset,
-            })
+            .map(ortm::render::transfer_piece)
             .collect()
     }
 

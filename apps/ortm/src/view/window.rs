@@ -181,6 +181,8 @@ impl ApplicationHandler for Handler {
 }
 
 impl Running {
+    /// Opens the window on the adapter that can draw into it, uploads the bake to the
+    /// passes and sets up the UI state from `data` and `opts`.
     fn open(
         event_loop: &ActiveEventLoop,
         display: OwnedDisplayHandle,
@@ -217,40 +219,7 @@ impl Running {
             )
         })?;
         let gpu = Gpu::from_adapter(&adapter)?;
-        let caps = surface.get_capabilities(&adapter);
-        // egui-wgpu wants a non-sRGB ("gamma space") target; our image holds sRGB values.
-        let format = caps
-            .formats
-            .iter()
-            .copied()
-            .find(|f| !f.is_srgb())
-            .or_else(|| caps.formats.first().copied())
-            .context("the window surface offers no texture format")?;
-        let size = window.inner_size();
-        let copyable = caps.usages.contains(wgpu::TextureUsages::COPY_SRC)
-            && matches!(
-                format,
-                wgpu::TextureFormat::Bgra8Unorm | wgpu::TextureFormat::Rgba8Unorm
-            );
-        let config = wgpu::SurfaceConfiguration {
-            usage: if copyable {
-                wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC
-            } else {
-                wgpu::TextureUsages::RENDER_ATTACHMENT
-            },
-            format,
-            width: size.width.max(1),
-            height: size.height.max(1),
-            present_mode: wgpu::PresentMode::AutoVsync,
-            desired_maximum_frame_latency: 2,
-            alpha_mode: caps
-                .alpha_modes
-                .first()
-                .copied()
-                .unwrap_or(wgpu::CompositeAlphaMode::Auto),
-            view_formats: vec![],
-            color_space: wgpu::SurfaceColorSpace::Auto,
-        };
+        let (config, copyable) = surface_config(&surface, &adapter, window.inner_size())?;
         surface.configure(&gpu.device, &config);
 
         let ctx = egui::Context::default();
@@ -262,49 +231,13 @@ impl Running {
             None,
             Some(gpu.device.limits().max_texture_dimension_2d as usize),
         );
-        let egui_renderer =
-            egui_wgpu::Renderer::new(&gpu.device, format, egui_wgpu::RendererOptions::default());
-
-        let options = RendererOptions {
-            first_order: passes::first_order::FirstOrderOptions {
-                shadow_map_size: data.shadow_size,
-                max_shadow_layers: 24,
-                ..Default::default()
-            },
-            transfer: passes::transfer::TransferOptions::best_for(&gpu),
-            ..Default::default()
-        };
-        // The transfer pass starts with every map; `frame` re-prepares it for `--maps K`.
-        let all_maps = data.map_order.len();
-        let all_pieces = data.pieces_of_first(all_maps);
-        let view = ViewRenderer::new(
-            gpu,
-            &options,
-            ortm::render::mesh_data(&data.scene.mesh),
-            &ortm::render::albedo_map(&data.grid),
-            data.atlases.clone(),
-            &all_pieces,
-        )?;
-        let (centre, radius) = data.bounds();
-        let mut app = AppState::new(data.lights.clone(), (centre, radius), data.map_order.len());
-        app.stats.adapter = format!(
-            "{} ({:?})",
-            view.gpu.adapter_info.name, view.gpu.adapter_info.backend
+        let egui_renderer = egui_wgpu::Renderer::new(
+            &gpu.device,
+            config.format,
+            egui_wgpu::RendererOptions::default(),
         );
-        app.stats.atlases = data.atlases.len();
-        app.stats.lightmap = (data.grid.width, data.grid.height);
-        app.stats.covered = data.grid.texels.len();
-        app.status = data.note.clone();
-        if let Some(p) = &opts.lights_file {
-            app.lights_path = p.display().to_string();
-        }
-        app.mode = opts.mode;
-        app.debug = opts.debug;
-        app.reference = opts.reference;
-        app.debug_map = opts.debug_map.min(app.map_count.saturating_sub(1));
-        if let Some(k) = opts.maps {
-            app.k = k.min(app.map_count);
-        }
+        let view = view_renderer(gpu, &data)?;
+        let app = initial_state(&data, &view, opts);
         let mut st = Self {
             window,
             surface,
@@ -313,7 +246,7 @@ impl Running {
             egui_renderer,
             image_id: None,
             view,
-            last_pieces_k: all_maps,
+            last_pieces_k: data.map_order.len(),
             app,
             data,
             vis: None,
@@ -575,33 +508,7 @@ impl Running {
             ),
             DebugView::MapContribution => {
                 let last = self.data.map_order.len() - 1;
-                let m = self.data.map_order[app.debug_map.min(last)];
-                let fo = if app.reference {
-                    self.reference()?.first_order
-                } else {
-                    let (fo, _) = self.view.lightmaps(&self.light_descs())?;
-                    debug::to_lightmap(&fo)
-                };
-                let c = debug::map_contribution(&self.data.set, m, &fo)?;
-                let (dx, dy) = self.data.offset_of(m);
-                // One map's term is small: scale it so its 95th percentile shows like the
-                // automatic exposure would show it.
-                let mut img = debug::with_coverage(&self.data.grid, &c);
-                let gain = ortm::render::auto_exposure(&img) / exposure;
-                let gain = if gain.is_finite() && gain > 0.0 {
-                    gain
-                } else {
-                    1.0
-                };
-                for p in &mut img.rgba {
-                    for v in &mut p[..3] {
-                        *v *= gain;
-                    }
-                }
-                (
-                    img,
-                    format!("map {m}, offset ({dx}, {dy}) texels, shown ×{gain:.3}"),
-                )
+                self.map_contribution_view(self.data.map_order[app.debug_map.min(last)])?
             }
             DebugView::Off => {
                 let r = self.reference()?;
@@ -620,6 +527,36 @@ impl Running {
         self.app.stats.debug_note = format!("{note} ({:.0} ms)", t0.elapsed().as_secs_f64() * 1e3);
         self.cpu_key = key;
         Ok(Shown::Cpu { dilate })
+    }
+
+    /// The one-map debug view of map `m` (its transfer term from the GPU's, or in
+    /// reference mode the CPU's, first order), scaled so its 95th percentile shows as the
+    /// automatic exposure would show it; and its status note.
+    fn map_contribution_view(&mut self, m: u32) -> Result<(TexelImage, String)> {
+        let fo = if self.app.reference {
+            self.reference()?.first_order
+        } else {
+            let (fo, _) = self.view.lightmaps(&self.light_descs())?;
+            debug::to_lightmap(&fo)
+        };
+        let c = debug::map_contribution(&self.data.set, m, &fo)?;
+        let (dx, dy) = self.data.offset_of(m);
+        let mut img = debug::with_coverage(&self.data.grid, &c);
+        let gain = ortm::render::auto_exposure(&img) / self.app.exposure;
+        let gain = if gain.is_finite() && gain > 0.0 {
+            gain
+        } else {
+            1.0
+        };
+        for p in &mut img.rgba {
+            for v in &mut p[..3] {
+                *v *= gain;
+            }
+        }
+        Ok((
+            img,
+            format!("map {m}, offset ({dx}, {dy}) texels, shown ×{gain:.3}"),
+        ))
     }
 
     fn reference(&mut self) -> Result<debug::Reference> {
@@ -695,6 +632,97 @@ impl Running {
         let img = self.view.read_image()?;
         crate::cli::save_png_atomic(&img, path)
     }
+}
+
+/// The window surface's configuration at `size` (physical pixels) and whether it can be
+/// copied from (window screenshots): a non-sRGB format, as egui-wgpu wants ("gamma space";
+/// the image holds sRGB values), vsync, the first alpha mode offered.
+fn surface_config(
+    surface: &wgpu::Surface<'_>,
+    adapter: &wgpu::Adapter,
+    size: winit::dpi::PhysicalSize<u32>,
+) -> Result<(wgpu::SurfaceConfiguration, bool)> {
+    let caps = surface.get_capabilities(adapter);
+    let format = caps
+        .formats
+        .iter()
+        .copied()
+        .find(|f| !f.is_srgb())
+        .or_else(|| caps.formats.first().copied())
+        .context("the window surface offers no texture format")?;
+    let copyable = caps.usages.contains(wgpu::TextureUsages::COPY_SRC)
+        && matches!(
+            format,
+            wgpu::TextureFormat::Bgra8Unorm | wgpu::TextureFormat::Rgba8Unorm
+        );
+    let config = wgpu::SurfaceConfiguration {
+        usage: if copyable {
+            wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC
+        } else {
+            wgpu::TextureUsages::RENDER_ATTACHMENT
+        },
+        format,
+        width: size.width.max(1),
+        height: size.height.max(1),
+        present_mode: wgpu::PresentMode::AutoVsync,
+        desired_maximum_frame_latency: 2,
+        alpha_mode: caps
+            .alpha_modes
+            .first()
+            .copied()
+            .unwrap_or(wgpu::CompositeAlphaMode::Auto),
+        view_formats: vec![],
+        color_space: wgpu::SurfaceColorSpace::Auto,
+    };
+    Ok((config, copyable))
+}
+
+/// The viewer's passes on `gpu` with the bake of `data` uploaded: [`super::SHADOW_LAYERS`]
+/// shadow-map layers of `data.shadow_size`², the adapter's best transfer path, every map
+/// (`frame` re-prepares the transfer pass for `--maps K`).
+fn view_renderer(gpu: Gpu, data: &ViewerInput) -> Result<ViewRenderer> {
+    let options = RendererOptions {
+        first_order: passes::first_order::FirstOrderOptions {
+            shadow_map_size: data.shadow_size,
+            max_shadow_layers: super::SHADOW_LAYERS,
+            ..Default::default()
+        },
+        transfer: passes::transfer::TransferOptions::best_for(&gpu),
+        ..Default::default()
+    };
+    let all_pieces = data.pieces_of_first(data.map_order.len());
+    ViewRenderer::new(
+        gpu,
+        &options,
+        ortm::render::mesh_data(&data.scene.mesh),
+        &ortm::render::albedo_map(&data.grid),
+        data.atlases.clone(),
+        &all_pieces,
+    )
+}
+
+/// The UI state at start: the bake's lights, camera and stats, and the options of the run.
+fn initial_state(data: &ViewerInput, view: &ViewRenderer, opts: &RunOptions) -> AppState {
+    let mut app = AppState::new(data.lights.clone(), data.bounds(), data.map_order.len());
+    app.stats.adapter = format!(
+        "{} ({:?})",
+        view.gpu.adapter_info.name, view.gpu.adapter_info.backend
+    );
+    app.stats.atlases = data.atlases.len();
+    app.stats.lightmap = (data.grid.width, data.grid.height);
+    app.stats.covered = data.grid.texels.len();
+    app.status = data.note.clone();
+    if let Some(p) = &opts.lights_file {
+        app.lights_path = p.display().to_string();
+    }
+    app.mode = opts.mode;
+    app.debug = opts.debug;
+    app.reference = opts.reference;
+    app.debug_map = opts.debug_map.min(app.map_count.saturating_sub(1));
+    if let Some(k) = opts.maps {
+        app.k = k.min(app.map_count);
+    }
+    app
 }
 
 /// Records a copy of a 4-byte-per-texel texture into a new `MAP_READ` buffer; returns it and

@@ -5,6 +5,7 @@
 //!
 //! Scenes come from a TOML scene file ([`file`], format in `docs/scene-format.md`) or are
 //! built in code ([`cornell`]). Meshes are read from OBJ by [`obj`], which validates them.
+//! Lights and their one text form (`--light`) live in [`light`].
 //! Named subsurface coefficient sets live in [`presets`], the profile they define in
 //! [`subsurface`]; all loading errors are
 //! [`SceneError`]s (file, problem, fix).
@@ -13,6 +14,7 @@ pub mod cornell;
 mod error;
 pub mod file;
 pub mod head;
+pub mod light;
 pub mod obj;
 pub mod presets;
 pub mod subsurface;
@@ -27,6 +29,7 @@ use sha2::{Digest, Sha256};
 pub use cornell::cornell_box;
 pub use error::{AtLine, SceneError};
 pub use file::{load_scene, load_scene_with_warnings};
+pub use light::Light;
 pub use obj::load_obj;
 pub use presets::subsurface_preset;
 
@@ -164,44 +167,6 @@ pub struct Material {
     pub albedo: Albedo,
     /// `Some` for translucent (subsurface-scattering) materials.
     pub subsurface: Option<Subsurface>,
-}
-
-/// A light source. Colours are linear RGB multipliers of the stated power quantity.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum Light {
-    /// Isotropic point light.
-    Point {
-        /// Position in metres.
-        position_m: Vec3,
-        /// Linear RGB tint (multiplies the intensity per channel).
-        color: Vec3,
-        /// Radiant intensity in W/sr.
-        intensity_w_sr: f32,
-    },
-    /// Spot light with a smooth falloff between the inner and outer cone.
-    Spot {
-        /// Position in metres.
-        position_m: Vec3,
-        /// Unit direction the spot points to.
-        direction: Vec3,
-        /// Linear RGB tint.
-        color: Vec3,
-        /// Radiant intensity on the axis, in W/sr.
-        intensity_w_sr: f32,
-        /// Half-angle of full intensity, degrees.
-        inner_deg: f32,
-        /// Half-angle beyond which the intensity is zero, degrees.
-        outer_deg: f32,
-    },
-    /// Directional (distant) light.
-    Directional {
-        /// Unit direction the light travels (from the light towards the scene).
-        direction: Vec3,
-        /// Linear RGB tint.
-        color: Vec3,
-        /// Irradiance on a surface facing the light, W/m².
-        irradiance_w_m2: f32,
-    },
 }
 
 /// A complete scene ready for baking.
