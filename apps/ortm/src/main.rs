@@ -1,6 +1,7 @@
 //! The `ortm` command-line tool: a thin layer over the `ortm` library (argument parsing,
 //! progress bars, messages). Each subcommand lives in `src/cli/`.
 
+mod bench;
 mod cli;
 mod view;
 

@@ -289,8 +289,8 @@ fn plans_of_another_size_are_errors() {
 
 #[test]
 fn frame_plan_is_the_first_order_coverage_and_dilates_like_the_mirror() {
-    use passes::demo::{blur_transfer, demo_lights, floor_and_box};
-    use passes::frame::{FrameParams, Renderer};
+    use common::demo::{blur_transfer, demo_lights, floor_and_box};
+    use passes::frame::{FrameOptions, FrameParams, Renderer};
 
     let gpu = gpu();
     let size = 64;
@@ -309,7 +309,9 @@ fn frame_plan_is_the_first_order_coverage_and_dilates_like_the_mirror() {
         specular: None,
     };
     let mut enc = gpu.device.create_command_encoder(&Default::default());
-    let out = renderer.encode(&gpu, &mut enc, &scene, &params).unwrap();
+    let out = renderer
+        .encode_frame(&gpu, &mut enc, &scene, &params, &FrameOptions::default())
+        .unwrap();
     gpu.submit_and_wait("test.frame", enc).unwrap();
     let read = |what, t| gpu.read_texel_image(what, t).unwrap();
     let fo = read("fo", &out.first_order_tex);
