@@ -111,6 +111,20 @@ pub struct Camera {
     pub far: f32,
 }
 
+impl Default for Camera {
+    /// At `(0, 0, 1)` looking at the origin, `+y` up, 45°, depth range `[0.1, 10]` m.
+    fn default() -> Self {
+        Self {
+            eye: [0.0, 0.0, 1.0],
+            target: [0.0; 3],
+            up: [0.0, 1.0, 0.0],
+            fov_y_deg: 45.0,
+            near: 0.1,
+            far: 10.0,
+        }
+    }
+}
+
 impl Camera {
     /// View-projection matrix for an `aspect` = width/height viewport (wgpu clip space).
     pub fn view_proj(&self, aspect: f32) -> Mat4 {

@@ -492,14 +492,7 @@ impl Renderer {
         let params = FrameParams {
             lights,
             // Not used: the display stage is not recorded.
-            camera: Camera {
-                eye: [0.0, 0.0, 1.0],
-                target: [0.0; 3],
-                up: [0.0, 1.0, 0.0],
-                fov_y_deg: 45.0,
-                near: 0.1,
-                far: 10.0,
-            },
+            camera: Camera::default(),
             exposure: 1.0,
             specular: None,
         };

@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::demo::{blur_transfer, demo_lights, floor_and_box};
+use common::demo::{demo_lights, floor_and_box, prepare_demo};
 use common::gpu;
 use glam::Vec3;
 use passes::frame::{
@@ -29,11 +29,7 @@ fn renderer_final_map_matches_mirror_and_stages_make_the_frame() {
         ..common::demo_renderer_options(64, 32)
     };
     let renderer = Renderer::new(&gpu, &options).unwrap();
-    let (mesh, albedo) = floor_and_box(size);
-    let (atlases, pieces) = blur_transfer([size, size], 2, 1, 0.02);
-    let scene = renderer
-        .prepare(&gpu, &mesh, &albedo, &atlases, &pieces)
-        .unwrap();
+    let (scene, atlases) = prepare_demo(&gpu, &renderer, size);
     let lights = demo_lights();
 
     let (fo, fin) = renderer.render_lightmaps(&gpu, &scene, &lights).unwrap();

@@ -3,7 +3,7 @@
 
 mod common;
 
-use common::demo::{blur_transfer, demo_lights, floor_and_box};
+use common::demo::{demo_lights, prepare_demo};
 use common::{Rng, gpu};
 use passes::frame::{FrameOptions, FrameParams, Renderer, Shown, Stages};
 use passes::indirect::{IndirectInputs, IndirectPass};
@@ -67,11 +67,7 @@ fn frame_shows_the_dilated_indirect_map() {
     let gpu = gpu();
     let size = 64;
     let renderer = Renderer::new(&gpu, &common::demo_renderer_options(32, 16)).unwrap();
-    let (mesh, albedo) = floor_and_box(size);
-    let (atlases, pieces) = blur_transfer([size, size], 2, 1, 0.02);
-    let scene = renderer
-        .prepare(&gpu, &mesh, &albedo, &atlases, &pieces)
-        .unwrap();
+    let (scene, _) = prepare_demo(&gpu, &renderer, size);
     let lights = demo_lights();
     let params = FrameParams {
         lights: &lights,

@@ -270,11 +270,7 @@ mod tests {
             lights: &lights,
             camera: Camera {
                 eye: [2.0, 2.0, 3.0],
-                target: [0.0; 3],
-                up: [0.0, 1.0, 0.0],
-                fov_y_deg: 45.0,
-                near: 0.05,
-                far: 20.0,
+                ..Camera::default()
             },
             exposure: 1.0,
             specular: None,

@@ -12,7 +12,8 @@
 
 use glam::Vec3;
 
-use passes::{AlbedoMap, AtlasData, LightDesc, MeshData, TransferPiece};
+use passes::frame::{RenderScene, Renderer};
+use passes::{AlbedoMap, AtlasData, Gpu, LightDesc, MeshData, TransferPiece};
 
 /// Builds the floor-and-box mesh for a `size×size` lightmap and its per-chart albedo
 /// (floor 0.6 grey, box (0.7, 0.35, 0.25)).
@@ -129,4 +130,15 @@ pub fn blur_transfer(
         dy += step;
     }
     (vec![atlas], pieces)
+}
+
+/// The frame tests' scene: [`floor_and_box`] on a `size²` lightmap with the blur transfer
+/// of radius 2 (weight 0.02 per piece), prepared for `renderer`; returns it and the atlases.
+pub fn prepare_demo(gpu: &Gpu, renderer: &Renderer, size: u32) -> (RenderScene, Vec<AtlasData>) {
+    let (mesh, albedo) = floor_and_box(size);
+    let (atlases, pieces) = blur_transfer([size, size], 2, 1, 0.02);
+    let scene = renderer
+        .prepare(gpu, &mesh, &albedo, &atlases, &pieces)
+        .unwrap();
+    (scene, atlases)
 }
