@@ -40,13 +40,6 @@ fn fill(t: vec2<i32>, s: u32) -> vec4<f32> {
     return vec4<f32>(0.0);
 }
 
-@vertex
-fn vs_fullscreen(@builtin(vertex_index) vi: u32) -> @builtin(position) vec4<f32> {
-    let x = f32(i32(vi & 1u) * 4 - 1);
-    let y = f32(i32(vi >> 1u) * 4 - 1);
-    return vec4<f32>(x, y, 0.0, 1.0);
-}
-
 @fragment
 fn fs_dilate(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
     let t = vec2<i32>(floor(pos.xy));

@@ -67,14 +67,8 @@ fn fs_gbuffer(in: LightmapOut) -> GbufferOut {
     return out;
 }
 
-// Full-screen triangle over the lightmap (per-frame lighting pass).
-@vertex
-fn vs_fullscreen(@builtin(vertex_index) vi: u32) -> @builtin(position) vec4<f32> {
-    let x = f32(i32(vi & 1u) * 4 - 1);
-    let y = f32(i32(vi >> 1u) * 4 - 1);
-    return vec4<f32>(x, y, 0.0, 1.0);
-}
-
+// Full-screen triangle over the lightmap (per-frame lighting pass): `vs_fullscreen`
+// (fullscreen.wgsl, prepended).
 struct LightmapOut {
     @builtin(position) clip: vec4<f32>,
     @location(0) world: vec3<f32>,

@@ -46,15 +46,8 @@ fn fs_piece(in: PieceOut) -> @location(0) vec4<f32> {
     return vec4<f32>(a * load_first_order(t + in.offset).rgb, 0.0);
 }
 
-// Full-screen triangle that copies the first-order map (RGB and coverage alpha) into the
-// accumulation target before the pieces are blended on top.
-@vertex
-fn vs_fullscreen(@builtin(vertex_index) vi: u32) -> @builtin(position) vec4<f32> {
-    let x = f32(i32(vi & 1u) * 4 - 1);
-    let y = f32(i32(vi >> 1u) * 4 - 1);
-    return vec4<f32>(x, y, 0.0, 1.0);
-}
-
+// fs_copy (over `vs_fullscreen`, fullscreen.wgsl, prepended) copies the first-order map (RGB
+// and coverage alpha) into the accumulation target before the pieces are blended on top.
 @fragment
 fn fs_copy(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
     return load_first_order(vec2<i32>(floor(pos.xy)));

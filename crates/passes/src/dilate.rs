@@ -374,7 +374,11 @@ impl DilatePass {
             let module = util::shader(
                 device,
                 "ortm.dilate.shader",
-                include_str!("../shaders/dilate.wgsl"),
+                &[
+                    util::FULLSCREEN_WGSL,
+                    include_str!("../shaders/dilate.wgsl"),
+                ]
+                .concat(),
             );
             let fs = wgpu::ShaderStages::FRAGMENT;
             // Order = @binding order in dilate.wgsl.

@@ -4,8 +4,9 @@
 //! mirror [`crate::cpu::display`].
 //!
 //! # Data flow
-//! [`DisplayPass::prepare`] uploads the mesh and allocates the colour (`Rgba8Unorm`,
-//! linear storage of sRGB-encoded values) and depth targets. [`DisplayPass::encode`] writes
+//! [`DisplayPass::prepare_mesh`] takes the uploaded mesh ([`GpuMesh`], shared with the
+//! first-order pass) and allocates the colour (`Rgba8Unorm`, linear storage of sRGB-encoded
+//! values) and depth targets. [`DisplayPass::encode`] writes
 //! the [`DisplayView`] uniform and draws the mesh once (or twice, into the left and right
 //! halves, for side-by-side). [`crate::gpu::Gpu::read_rgba8`] reads the image back.
 //!
@@ -41,8 +42,9 @@ use glam::camera::rh::view::look_at_mat4;
 use glam::{Mat4, Vec3};
 
 use crate::error::PassError;
-use crate::first_order::{Bounds, GpuLight, Vertex, pack_lights, vertex_layout};
+use crate::first_order::{Bounds, GpuLight, pack_lights, vertex_layout};
 use crate::gpu::Gpu;
+use crate::mesh::GpuMesh;
 use crate::types::{LightDesc, MeshData};
 use crate::util;
 
@@ -107,6 +109,20 @@ pub struct Camera {
     pub near: f32,
     /// Far clipping distance.
     pub far: f32,
+}
+
+impl Default for Camera {
+    /// At `(0, 0, 1)` looking at the origin, `+y` up, 45°, depth range `[0.1, 10]` m.
+    fn default() -> Self {
+        Self {
+            eye: [0.0, 0.0, 1.0],
+            target: [0.0; 3],
+            up: [0.0, 1.0, 0.0],
+            fov_y_deg: 45.0,
+            near: 0.1,
+            far: 10.0,
+        }
+    }
 }
 
 impl Camera {
@@ -183,18 +199,21 @@ pub struct DisplayPass {
 /// Per-scene GPU data.
 #[derive(Debug)]
 pub struct DisplayScene {
-    bounds: Bounds,
-    /// [`MeshData::is_closed_outward`].
-    closed_outward: bool,
-    vertices: wgpu::Buffer,
-    indices: wgpu::Buffer,
-    index_count: u32,
+    /// The mesh's buffers (shared with the first-order pass).
+    mesh: GpuMesh,
     view: wgpu::Buffer,
     lights: wgpu::Buffer,
     view_group: wgpu::BindGroup,
     color: wgpu::Texture,
     color_view: wgpu::TextureView,
     depth_view: wgpu::TextureView,
+}
+
+impl DisplayScene {
+    /// The image the last `encode` drew (`Rgba8Unorm`, sRGB-encoded values).
+    pub fn color(&self) -> &wgpu::Texture {
+        &self.color
+    }
 }
 
 /// Per-frame inputs.
@@ -225,6 +244,132 @@ pub struct DisplayOutput {
     pub color_tex: wgpu::Texture,
 }
 
+/// Checks `filter` and the image size against the device.
+fn check_options(
+    gpu: &Gpu,
+    options: &DisplayOptions,
+    filter: LightmapFilter,
+) -> Result<(), PassError> {
+    if filter == LightmapFilter::Hardware && !gpu.supports_float32_filter() {
+        return Err(PassError::InvalidInput {
+            what: "LightmapFilter::Hardware".into(),
+            problem: format!(
+                "adapter '{}' lacks FLOAT32_FILTERABLE (RGBA32F lightmaps cannot be \
+                 filtered); use LightmapFilter::Manual or LightmapFilter::best_for",
+                gpu.adapter_info.name
+            ),
+        });
+    }
+    gpu.check_texture_size("display image", options.width, options.height)?;
+    if options.side_by_side && options.width < 2 {
+        return Err(PassError::InvalidInput {
+            what: "DisplayOptions.width".into(),
+            problem: "side-by-side needs a width of at least 2 pixels".into(),
+        });
+    }
+    Ok(())
+}
+
+/// The lightmap bind group (group 1) of `filter`: its layout entries, the fragment entry
+/// point (without `_specular`) and the sampler ([`LightmapFilter::Hardware`] only).
+fn lightmap_binding(
+    device: &wgpu::Device,
+    filter: LightmapFilter,
+) -> (
+    Vec<wgpu::BindGroupLayoutEntry>,
+    &'static str,
+    Option<wgpu::Sampler>,
+) {
+    let fs = wgpu::ShaderStages::FRAGMENT;
+    match filter {
+        LightmapFilter::Manual => (vec![util::texture_entry(0, fs)], "fs_manual", None),
+        LightmapFilter::Hardware => {
+            let mut texture = util::texture_entry(0, fs);
+            texture.ty = wgpu::BindingType::Texture {
+                sample_type: wgpu::TextureSampleType::Float { filterable: true },
+                view_dimension: wgpu::TextureViewDimension::D2,
+                multisampled: false,
+            };
+            let sampler_entry = wgpu::BindGroupLayoutEntry {
+                binding: 1,
+                visibility: fs,
+                ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
+                count: None,
+            };
+            let sampler = device.create_sampler(&wgpu::SamplerDescriptor {
+                label: Some("ortm.display.lightmap_sampler"),
+                address_mode_u: wgpu::AddressMode::ClampToEdge,
+                address_mode_v: wgpu::AddressMode::ClampToEdge,
+                mag_filter: wgpu::FilterMode::Linear,
+                min_filter: wgpu::FilterMode::Linear,
+                ..Default::default()
+            });
+            (vec![texture, sampler_entry], "fs_filtered", Some(sampler))
+        }
+    }
+}
+
+/// One display pipeline: the mesh ([`vertex_layout`]) with depth test into `Rgba8Unorm`;
+/// `(vs, fs)` entry points, `cull_mode` `Some(Back)` for closed outward meshes seen from
+/// outside (see [`DisplayPass::encode`]).
+fn display_pipeline(
+    device: &wgpu::Device,
+    layout: &wgpu::PipelineLayout,
+    module: &wgpu::ShaderModule,
+    (vs, fs): (&str, &str),
+    cull_mode: Option<wgpu::Face>,
+) -> wgpu::RenderPipeline {
+    device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+        label: Some("ortm.display.pipeline"),
+        layout: Some(layout),
+        vertex: wgpu::VertexState {
+            module,
+            entry_point: Some(vs),
+            compilation_options: Default::default(),
+            buffers: &[Some(vertex_layout())],
+        },
+        primitive: wgpu::PrimitiveState {
+            cull_mode,
+            ..Default::default()
+        },
+        depth_stencil: Some(wgpu::DepthStencilState {
+            format: wgpu::TextureFormat::Depth32Float,
+            depth_write_enabled: Some(true),
+            depth_compare: Some(wgpu::CompareFunction::Less),
+            stencil: Default::default(),
+            bias: Default::default(),
+        }),
+        multisample: Default::default(),
+        fragment: Some(wgpu::FragmentState {
+            module,
+            entry_point: Some(fs),
+            compilation_options: Default::default(),
+            targets: &[Some(wgpu::ColorTargetState {
+                format: wgpu::TextureFormat::Rgba8Unorm,
+                blend: None,
+                write_mask: wgpu::ColorWrites::ALL,
+            })],
+        }),
+        multiview_mask: None,
+        cache: None,
+    })
+}
+
+/// Whether back faces can be culled: a closed outward mesh hides its back faces behind its
+/// front faces for an eye outside it, unless the near plane cuts into the mesh — true when
+/// the eye is farther from the bounding box than any point of the near-plane rectangle of a
+/// viewport of `aspect` (saves shading back faces drawn before the front face covering
+/// them).
+fn cull_back_faces(mesh: &GpuMesh, cam: &Camera, aspect: f32) -> bool {
+    let t = (0.5 * cam.fov_y_deg.to_radians()).tan();
+    let near_reach = cam.near * (1.0 + t * t * (1.0 + aspect * aspect)).sqrt();
+    let grown = Bounds {
+        min: mesh.bounds.min - Vec3::splat(near_reach),
+        max: mesh.bounds.max + Vec3::splat(near_reach),
+    };
+    mesh.closed_outward && !grown.contains(Vec3::from(cam.eye))
+}
+
 impl DisplayPass {
     /// Builds the pipelines with the device's cheaper lightmap filter
     /// ([`LightmapFilter::best_for`]).
@@ -241,23 +386,7 @@ impl DisplayPass {
         options: &DisplayOptions,
         filter: LightmapFilter,
     ) -> Result<Self, PassError> {
-        if filter == LightmapFilter::Hardware && !gpu.supports_float32_filter() {
-            return Err(PassError::InvalidInput {
-                what: "LightmapFilter::Hardware".into(),
-                problem: format!(
-                    "adapter '{}' lacks FLOAT32_FILTERABLE (RGBA32F lightmaps cannot be \
-                     filtered); use LightmapFilter::Manual or LightmapFilter::best_for",
-                    gpu.adapter_info.name
-                ),
-            });
-        }
-        gpu.check_texture_size("display image", options.width, options.height)?;
-        if options.side_by_side && options.width < 2 {
-            return Err(PassError::InvalidInput {
-                what: "DisplayOptions.width".into(),
-                problem: "side-by-side needs a width of at least 2 pixels".into(),
-            });
-        }
+        check_options(gpu, options, filter)?;
         gpu.scoped("ortm.display.new", || {
             let device = &gpu.device;
             let source = concat!(
@@ -274,33 +403,7 @@ impl DisplayPass {
                     util::storage_entry(1, wgpu::ShaderStages::FRAGMENT, true),
                 ],
             });
-            let fs = wgpu::ShaderStages::FRAGMENT;
-            let (map_entries, entry_point, sampler) = match filter {
-                LightmapFilter::Manual => (vec![util::texture_entry(0, fs)], "fs_manual", None),
-                LightmapFilter::Hardware => {
-                    let mut texture = util::texture_entry(0, fs);
-                    texture.ty = wgpu::BindingType::Texture {
-                        sample_type: wgpu::TextureSampleType::Float { filterable: true },
-                        view_dimension: wgpu::TextureViewDimension::D2,
-                        multisampled: false,
-                    };
-                    let sampler_entry = wgpu::BindGroupLayoutEntry {
-                        binding: 1,
-                        visibility: fs,
-                        ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
-                        count: None,
-                    };
-                    let sampler = device.create_sampler(&wgpu::SamplerDescriptor {
-                        label: Some("ortm.display.lightmap_sampler"),
-                        address_mode_u: wgpu::AddressMode::ClampToEdge,
-                        address_mode_v: wgpu::AddressMode::ClampToEdge,
-                        mag_filter: wgpu::FilterMode::Linear,
-                        min_filter: wgpu::FilterMode::Linear,
-                        ..Default::default()
-                    });
-                    (vec![texture, sampler_entry], "fs_filtered", Some(sampler))
-                }
-            };
+            let (map_entries, entry_point, sampler) = lightmap_binding(device, filter);
             let map_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
                 label: Some("ortm.display.lightmap_layout"),
                 entries: &map_entries,
@@ -310,55 +413,17 @@ impl DisplayPass {
                 bind_group_layouts: &[Some(&view_layout), Some(&map_layout)],
                 immediate_size: 0,
             });
-            // `[both sides, back faces culled]`; the second for closed outward meshes seen
-            // from outside (see `DisplayPass::encode`). Without specular the shaders
-            // interpolate only the UV and have no light loop.
-            let pipeline = |specular: bool, cull_mode: Option<wgpu::Face>| {
-                let (vs, fs) = if specular {
-                    ("vs_main", format!("{entry_point}_specular"))
-                } else {
-                    ("vs_uv", entry_point.to_string())
-                };
-                device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-                    label: Some("ortm.display.pipeline"),
-                    layout: Some(&pl),
-                    vertex: wgpu::VertexState {
-                        module: &module,
-                        entry_point: Some(vs),
-                        compilation_options: Default::default(),
-                        buffers: &[Some(vertex_layout())],
-                    },
-                    primitive: wgpu::PrimitiveState {
-                        cull_mode,
-                        ..Default::default()
-                    },
-                    depth_stencil: Some(wgpu::DepthStencilState {
-                        format: wgpu::TextureFormat::Depth32Float,
-                        depth_write_enabled: Some(true),
-                        depth_compare: Some(wgpu::CompareFunction::Less),
-                        stencil: Default::default(),
-                        bias: Default::default(),
-                    }),
-                    multisample: Default::default(),
-                    fragment: Some(wgpu::FragmentState {
-                        module: &module,
-                        entry_point: Some(&fs),
-                        compilation_options: Default::default(),
-                        targets: &[Some(wgpu::ColorTargetState {
-                            format: wgpu::TextureFormat::Rgba8Unorm,
-                            blend: None,
-                            write_mask: wgpu::ColorWrites::ALL,
-                        })],
-                    }),
-                    multiview_mask: None,
-                    cache: None,
-                })
-            };
+            // `[specular off, on][both sides, back faces culled]`. Without specular the
+            // shaders interpolate only the UV and have no light loop.
             let pipelines = [false, true].map(|specular| {
-                [
-                    pipeline(specular, None),
-                    pipeline(specular, Some(wgpu::Face::Back)),
-                ]
+                let fs = if specular {
+                    format!("{entry_point}_specular")
+                } else {
+                    entry_point.to_string()
+                };
+                let vs = if specular { "vs_main" } else { "vs_uv" };
+                [None, Some(wgpu::Face::Back)]
+                    .map(|cull| display_pipeline(device, &pl, &module, (vs, &fs), cull))
             });
             Self {
                 options: *options,
@@ -376,29 +441,19 @@ impl DisplayPass {
         self.filter
     }
 
-    /// Uploads the mesh and allocates the colour and depth targets.
+    /// The options the pass was created with.
+    pub fn options(&self) -> &DisplayOptions {
+        &self.options
+    }
+
+    /// Uploads the mesh ([`GpuMesh::upload`]) and calls [`DisplayPass::prepare_mesh`].
     pub fn prepare(&self, gpu: &Gpu, mesh: &MeshData) -> Result<DisplayScene, PassError> {
-        mesh.validate()?;
+        self.prepare_mesh(gpu, &GpuMesh::upload(gpu, mesh)?)
+    }
+
+    /// Allocates the uniforms and the colour and depth targets for the uploaded `mesh`.
+    pub fn prepare_mesh(&self, gpu: &Gpu, mesh: &GpuMesh) -> Result<DisplayScene, PassError> {
         let device = &gpu.device;
-        let verts: Vec<Vertex> = (0..mesh.positions_m.len())
-            .map(|i| Vertex {
-                position: mesh.positions_m[i],
-                normal: mesh.normals[i],
-                uv: mesh.lightmap_uvs[i],
-            })
-            .collect();
-        let vertices = util::buffer_init(
-            device,
-            "ortm.display.vertices",
-            bytemuck::cast_slice(&verts),
-            wgpu::BufferUsages::VERTEX,
-        );
-        let indices = util::buffer_init(
-            device,
-            "ortm.display.indices",
-            bytemuck::cast_slice(&mesh.indices),
-            wgpu::BufferUsages::INDEX,
-        );
         let view = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("ortm.display.view"),
             size: std::mem::size_of::<DisplayView>() as u64,
@@ -445,11 +500,7 @@ impl DisplayPass {
         );
         gpu.check("ortm.display.prepare")?;
         Ok(DisplayScene {
-            bounds: Bounds::of(&mesh.positions_m),
-            closed_outward: mesh.is_closed_outward(),
-            vertices,
-            indices,
-            index_count: mesh.indices.len() as u32,
+            mesh: mesh.clone(),
             view,
             lights,
             view_group,
@@ -459,7 +510,7 @@ impl DisplayPass {
         })
     }
 
-    /// Writes the view uniform and records the draw(s).
+    /// Writes the view uniform (and the specular lights) and records the draw(s).
     pub fn encode(
         &self,
         gpu: &Gpu,
@@ -470,6 +521,35 @@ impl DisplayPass {
         let scene = inputs.scene;
         let (w, h) = (self.options.width, self.options.height);
         let half_w = if self.options.side_by_side { w / 2 } else { w };
+        self.write_view(gpu, inputs, half_w as f32 / h as f32)?;
+        let draws = self.draws(gpu, inputs, half_w)?;
+        let mut pass = self.begin_pass(encoder, scene);
+        let cull = cull_back_faces(&scene.mesh, &inputs.camera, half_w as f32 / h as f32);
+        let specular_on = usize::from(inputs.specular.is_some());
+        pass.set_pipeline(&self.pipelines[specular_on][usize::from(cull)]);
+        pass.set_bind_group(0, &scene.view_group, &[]);
+        pass.set_vertex_buffer(0, scene.mesh.vertices.slice(..));
+        pass.set_index_buffer(scene.mesh.indices.slice(..), wgpu::IndexFormat::Uint32);
+        for (x, group) in &draws {
+            pass.set_viewport(*x as f32, 0.0, half_w as f32, h as f32, 0.0, 1.0);
+            pass.set_bind_group(1, group, &[]);
+            pass.draw_indexed(0..scene.mesh.index_count, 0, 0..1);
+        }
+        drop(pass);
+        Ok(DisplayOutput {
+            color_tex: scene.color.clone(),
+        })
+    }
+
+    /// Writes the [`DisplayView`] uniform for a viewport of `aspect`, and the lights when
+    /// the specular term is on.
+    fn write_view(
+        &self,
+        gpu: &Gpu,
+        inputs: &DisplayInputs<'_>,
+        aspect: f32,
+    ) -> Result<(), PassError> {
+        let scene = inputs.scene;
         let (light_count, specular) = match inputs.specular {
             Some(s) => {
                 if inputs.lights.len() > MAX_SPECULAR_LIGHTS {
@@ -481,7 +561,7 @@ impl DisplayPass {
                         ),
                     });
                 }
-                let (gl, _) = pack_lights(inputs.lights, &scene.bounds, 1, u32::MAX)?;
+                let (gl, _) = pack_lights(inputs.lights, &scene.mesh.bounds, 1, u32::MAX)?;
                 if !gl.is_empty() {
                     gpu.queue
                         .write_buffer(&scene.lights, 0, bytemuck::cast_slice(&gl));
@@ -492,10 +572,7 @@ impl DisplayPass {
         };
         let e = inputs.camera.eye;
         let view = DisplayView {
-            view_proj: inputs
-                .camera
-                .view_proj(half_w as f32 / h as f32)
-                .to_cols_array(),
+            view_proj: inputs.camera.view_proj(aspect).to_cols_array(),
             eye_exposure: [e[0], e[1], e[2], inputs.exposure],
             lightmap_size: inputs.lightmap_size,
             light_count,
@@ -504,6 +581,17 @@ impl DisplayPass {
         };
         gpu.queue
             .write_buffer(&scene.view, 0, bytemuck::bytes_of(&view));
+        Ok(())
+    }
+
+    /// `(viewport x, lightmap bind group)` per draw: the final map, or the first-order map
+    /// left of it in side-by-side mode.
+    fn draws(
+        &self,
+        gpu: &Gpu,
+        inputs: &DisplayInputs<'_>,
+        half_w: u32,
+    ) -> Result<Vec<(u32, wgpu::BindGroup)>, PassError> {
         let map_group = |v: &wgpu::TextureView, label: &str| {
             let mut entries = vec![wgpu::BindGroupEntry {
                 binding: 0,
@@ -521,7 +609,6 @@ impl DisplayPass {
                 entries: &entries,
             })
         };
-        // (viewport x, lightmap) per draw.
         let mut draws = Vec::new();
         if self.options.side_by_side {
             let fo = inputs.first_order.ok_or_else(|| PassError::InvalidInput {
@@ -539,8 +626,17 @@ impl DisplayPass {
                 map_group(inputs.final_lightmap, "ortm.display.final_bind_group"),
             ));
         }
+        Ok(draws)
+    }
+
+    /// The render pass: colour cleared to [`BACKGROUND`], depth cleared to 1 (discarded).
+    fn begin_pass<'e>(
+        &self,
+        encoder: &'e mut wgpu::CommandEncoder,
+        scene: &DisplayScene,
+    ) -> wgpu::RenderPass<'e> {
         let bg = |i: usize| BACKGROUND[i] as f64 / 255.0;
-        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+        encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some("ortm.display.pass"),
             color_attachments: &[Some(wgpu::RenderPassColorAttachment {
                 view: &scene.color_view,
@@ -567,33 +663,6 @@ impl DisplayPass {
             timestamp_writes: None,
             occlusion_query_set: None,
             multiview_mask: None,
-        });
-        // Back faces of a closed outward mesh are hidden behind its front faces for an eye
-        // outside it, unless the near plane cuts into the mesh: cull them when the eye is
-        // farther from the bounding box than any point of the near-plane rectangle
-        // (saves shading back faces drawn before the front face covering them).
-        let cam = &inputs.camera;
-        let t = (0.5 * cam.fov_y_deg.to_radians()).tan();
-        let aspect = half_w as f32 / h as f32;
-        let near_reach = cam.near * (1.0 + t * t * (1.0 + aspect * aspect)).sqrt();
-        let grown = Bounds {
-            min: scene.bounds.min - Vec3::splat(near_reach),
-            max: scene.bounds.max + Vec3::splat(near_reach),
-        };
-        let cull = scene.closed_outward && !grown.contains(Vec3::from(cam.eye));
-        let specular_on = usize::from(inputs.specular.is_some());
-        pass.set_pipeline(&self.pipelines[specular_on][usize::from(cull)]);
-        pass.set_bind_group(0, &scene.view_group, &[]);
-        pass.set_vertex_buffer(0, scene.vertices.slice(..));
-        pass.set_index_buffer(scene.indices.slice(..), wgpu::IndexFormat::Uint32);
-        for (x, group) in &draws {
-            pass.set_viewport(*x as f32, 0.0, half_w as f32, h as f32, 0.0, 1.0);
-            pass.set_bind_group(1, group, &[]);
-            pass.draw_indexed(0..scene.index_count, 0, 0..1);
-        }
-        drop(pass);
-        Ok(DisplayOutput {
-            color_tex: scene.color.clone(),
         })
     }
 }

@@ -3,10 +3,10 @@
 //! `shaders/lights.wgsl`), mirror [`crate::cpu::first_order`].
 //!
 //! # Data flow
-//! Once: [`FirstOrderPass::new`] builds the pipelines; [`FirstOrderPass::prepare`] uploads
-//! the mesh (interleaved [`Vertex`], plus positions alone for the shadow pass), the albedo
-//! map, allocates the shadow-map array and the output, and rasterises the mesh once by its
-//! UVs into a texel G-buffer (interpolated world position + coverage, interpolated normal;
+//! Once: [`FirstOrderPass::new`] builds the pipelines; [`FirstOrderPass::prepare_mesh`]
+//! takes the uploaded mesh ([`GpuMesh`]: interleaved [`Vertex`], plus positions alone for
+//! the shadow pass), uploads the albedo map, allocates the shadow-map array and the output,
+//! and rasterises the mesh once by its UVs into a texel G-buffer (interpolated world position + coverage, interpolated normal;
 //! two RGBA32F maps). Per frame: [`FirstOrderPass::encode`] writes the lights
 //! ([`GpuLight`]) and one view-projection matrix per shadow layer ([`shadow_layers`]),
 //! renders every shadow layer (depth only), then the lightmap as one full-screen triangle:
@@ -64,6 +64,7 @@ use glam::{Mat4, Vec3};
 
 use crate::error::PassError;
 use crate::gpu::Gpu;
+use crate::mesh::GpuMesh;
 use crate::types::{AlbedoMap, LightDesc, MeshData};
 use crate::util;
 
@@ -282,40 +283,12 @@ pub fn shadow_layers(
             position_m,
             color,
             intensity_w_sr,
-        } => {
-            let p = Vec3::from(position_m);
-            let radiance = (Vec3::from(color) * intensity_w_sr).extend(0.0).into();
-            if let Some((dir, half, near, far)) = point_cone(p, bounds) {
-                // Outside the bounding sphere: one perspective layer whose cone just
-                // contains the sphere sees every surface the light can reach.
-                let proj = proj_dx::perspective(2.0 * half, 1.0, near, far);
-                let g = GpuLight {
-                    position: [p.x, p.y, p.z, 0.0],
-                    radiance,
-                    cone: [-2.0, -1.0, 2.0 * half.tan() / size, 0.0],
-                    kind: LIGHT_POINT,
-                    layer_count: 1,
-                    ..Default::default()
-                };
-                return (g, vec![proj * look_to_mat4(p, dir, up_for(dir))]);
-            }
-            let far = bounds.farthest_corner(p) * 1.01 + 1e-3;
-            let near = (far * 1e-3).max(1e-5);
-            let proj = proj_dx::perspective(std::f32::consts::FRAC_PI_2, 1.0, near, far);
-            let mats = point_face_dirs()
-                .iter()
-                .map(|&d| proj * look_to_mat4(p, d, up_for(d)))
-                .collect();
-            let g = GpuLight {
-                position: [p.x, p.y, p.z, 0.0],
-                radiance,
-                cone: [-2.0, -1.0, 2.0 / size, 0.0],
-                kind: LIGHT_POINT,
-                layer_count: 6,
-                ..Default::default()
-            };
-            (g, mats)
-        }
+        } => point_layers(
+            Vec3::from(position_m),
+            (Vec3::from(color) * intensity_w_sr).extend(0.0).into(),
+            bounds,
+            size,
+        ),
         LightDesc::Spot {
             position_m,
             direction,
@@ -323,53 +296,117 @@ pub fn shadow_layers(
             intensity_w_sr,
             inner_deg,
             outer_deg,
-        } => {
-            let p = Vec3::from(position_m);
-            let d = Vec3::from(direction).normalize();
-            let far = bounds.farthest_corner(p) * 1.01 + 1e-3;
-            let near = (far * 1e-3).max(1e-5);
-            let half = (outer_deg + 1.0).min(89.0).to_radians();
-            let proj = proj_dx::perspective(2.0 * half, 1.0, near, far);
-            let g = GpuLight {
-                position: [p.x, p.y, p.z, 0.0],
-                direction: d.extend(0.0).into(),
-                radiance: (Vec3::from(color) * intensity_w_sr).extend(0.0).into(),
-                // cos inner is kept above cos outer so smoothstep is defined.
-                cone: [
-                    outer_deg.to_radians().cos(),
-                    inner_deg
-                        .to_radians()
-                        .cos()
-                        .max(outer_deg.to_radians().cos() + 1e-6),
-                    2.0 * half.tan() / size,
-                    0.0,
-                ],
-                kind: LIGHT_SPOT,
-                layer_count: 1,
-                ..Default::default()
-            };
-            (g, vec![proj * look_to_mat4(p, d, up_for(d))])
-        }
+        } => spot_layers(
+            Vec3::from(position_m),
+            Vec3::from(direction).normalize(),
+            (Vec3::from(color) * intensity_w_sr).extend(0.0).into(),
+            [inner_deg, outer_deg],
+            bounds,
+            size,
+        ),
         LightDesc::Directional {
             direction,
             color,
             irradiance_w_m2,
-        } => {
-            let d = Vec3::from(direction).normalize();
-            let (c, r) = bounds.sphere();
-            let eye = c - d * (2.0 * r);
-            let proj = proj_dx::orthographic(-r, r, -r, r, 0.5 * r, 3.5 * r);
-            let g = GpuLight {
-                direction: d.extend(0.0).into(),
-                radiance: (Vec3::from(color) * irradiance_w_m2).extend(0.0).into(),
-                cone: [-2.0, -1.0, 0.0, 2.0 * r / size],
-                kind: LIGHT_DIRECTIONAL,
-                layer_count: 1,
-                ..Default::default()
-            };
-            (g, vec![proj * look_to_mat4(eye, d, up_for(d))])
-        }
+        } => directional_layers(
+            Vec3::from(direction).normalize(),
+            (Vec3::from(color) * irradiance_w_m2).extend(0.0).into(),
+            bounds,
+            size,
+        ),
     }
+}
+
+/// A point light at `p` of `radiance` (`I·colour`, W/sr): one cone layer from outside the
+/// bounding sphere, else six 90° cube faces.
+fn point_layers(p: Vec3, radiance: [f32; 4], bounds: &Bounds, size: f32) -> (GpuLight, Vec<Mat4>) {
+    if let Some((dir, half, near, far)) = point_cone(p, bounds) {
+        // Outside the bounding sphere: one perspective layer whose cone just
+        // contains the sphere sees every surface the light can reach.
+        let proj = proj_dx::perspective(2.0 * half, 1.0, near, far);
+        let g = GpuLight {
+            position: [p.x, p.y, p.z, 0.0],
+            radiance,
+            cone: [-2.0, -1.0, 2.0 * half.tan() / size, 0.0],
+            kind: LIGHT_POINT,
+            layer_count: 1,
+            ..Default::default()
+        };
+        return (g, vec![proj * look_to_mat4(p, dir, up_for(dir))]);
+    }
+    let far = bounds.farthest_corner(p) * 1.01 + 1e-3;
+    let near = (far * 1e-3).max(1e-5);
+    let proj = proj_dx::perspective(std::f32::consts::FRAC_PI_2, 1.0, near, far);
+    let mats = point_face_dirs()
+        .iter()
+        .map(|&d| proj * look_to_mat4(p, d, up_for(d)))
+        .collect();
+    let g = GpuLight {
+        position: [p.x, p.y, p.z, 0.0],
+        radiance,
+        cone: [-2.0, -1.0, 2.0 / size, 0.0],
+        kind: LIGHT_POINT,
+        layer_count: 6,
+        ..Default::default()
+    };
+    (g, mats)
+}
+
+/// A spot light at `p` aiming along unit `d`, `[inner, outer]` cone angles in degrees: one
+/// perspective layer of half-angle `outer + 1°` (≤ 89°).
+fn spot_layers(
+    p: Vec3,
+    d: Vec3,
+    radiance: [f32; 4],
+    [inner_deg, outer_deg]: [f32; 2],
+    bounds: &Bounds,
+    size: f32,
+) -> (GpuLight, Vec<Mat4>) {
+    let far = bounds.farthest_corner(p) * 1.01 + 1e-3;
+    let near = (far * 1e-3).max(1e-5);
+    let half = (outer_deg + 1.0).min(89.0).to_radians();
+    let proj = proj_dx::perspective(2.0 * half, 1.0, near, far);
+    let g = GpuLight {
+        position: [p.x, p.y, p.z, 0.0],
+        direction: d.extend(0.0).into(),
+        radiance,
+        // cos inner is kept above cos outer so smoothstep is defined.
+        cone: [
+            outer_deg.to_radians().cos(),
+            inner_deg
+                .to_radians()
+                .cos()
+                .max(outer_deg.to_radians().cos() + 1e-6),
+            2.0 * half.tan() / size,
+            0.0,
+        ],
+        kind: LIGHT_SPOT,
+        layer_count: 1,
+        ..Default::default()
+    };
+    (g, vec![proj * look_to_mat4(p, d, up_for(d))])
+}
+
+/// A directional light along unit `d` of `radiance` (`E⊥·colour`, W/m²): one orthographic
+/// layer fitted to the bounding sphere.
+fn directional_layers(
+    d: Vec3,
+    radiance: [f32; 4],
+    bounds: &Bounds,
+    size: f32,
+) -> (GpuLight, Vec<Mat4>) {
+    let (c, r) = bounds.sphere();
+    let eye = c - d * (2.0 * r);
+    let proj = proj_dx::orthographic(-r, r, -r, r, 0.5 * r, 3.5 * r);
+    let g = GpuLight {
+        direction: d.extend(0.0).into(),
+        radiance,
+        cone: [-2.0, -1.0, 0.0, 2.0 * r / size],
+        kind: LIGHT_DIRECTIONAL,
+        layer_count: 1,
+        ..Default::default()
+    };
+    (g, vec![proj * look_to_mat4(eye, d, up_for(d))])
 }
 
 /// Validates `lights` and packs them with their shadow layers.
@@ -424,16 +461,10 @@ pub struct FirstOrderScene {
     pub lightmap_size: [u32; 2],
     /// Mesh bounds (for shadow frusta).
     pub bounds: Bounds,
-    /// [`MeshData::is_closed_outward`]: back faces may be culled for lights outside the
-    /// bounds.
-    closed_outward: bool,
-    vertices: wgpu::Buffer,
-    positions: wgpu::Buffer,
-    indices: wgpu::Buffer,
-    index_count: u32,
-    params: wgpu::Buffer,
-    lights: wgpu::Buffer,
-    matrices: wgpu::Buffer,
+    /// The mesh's buffers (shared with the display pass).
+    mesh: GpuMesh,
+    /// Per-frame uniforms: [`FirstOrderParams`], lights, layer matrices.
+    uniforms: FrameUniforms,
     shadow_layer_views: Vec<wgpu::TextureView>,
     /// Layer matrices the shadow maps were last rendered with (`None`: not valid).
     shadow_cache: std::sync::Mutex<Option<Vec<[f32; 16]>>>,
@@ -442,25 +473,51 @@ pub struct FirstOrderScene {
     output: wgpu::Texture,
 }
 
+/// The uniform buffers written every frame (bindings 0, 1, 2 of `first_order.wgsl`).
+#[derive(Debug)]
+struct FrameUniforms {
+    params: wgpu::Buffer,
+    lights: wgpu::Buffer,
+    matrices: wgpu::Buffer,
+}
+
+impl FrameUniforms {
+    /// Buffers for `layers` shadow layers (and as many lights at most).
+    fn new(device: &wgpu::Device, layers: u32) -> Self {
+        let uniform = |label: &str, size: u64| {
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size,
+                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            })
+        };
+        Self {
+            params: uniform(
+                "ortm.first_order.params",
+                std::mem::size_of::<FirstOrderParams>() as u64,
+            ),
+            lights: uniform(
+                "ortm.first_order.lights",
+                (std::mem::size_of::<GpuLight>() as u32 * layers) as u64,
+            ),
+            matrices: uniform("ortm.first_order.layer_matrices", 64 * layers as u64),
+        }
+    }
+}
+
 impl FirstOrderScene {
-    /// The mesh's vertex buffer ([`Vertex`] layout), shared with the display pass.
-    pub fn vertex_buffer(&self) -> &wgpu::Buffer {
-        &self.vertices
-    }
-    /// The mesh's `u32` index buffer.
-    pub fn index_buffer(&self) -> &wgpu::Buffer {
-        &self.indices
-    }
-    /// Number of indices.
-    pub fn index_count(&self) -> u32 {
-        self.index_count
-    }
     /// Forgets which lights the shadow maps hold, so the next `encode` re-renders them even
     /// if the lights did not move (benchmarks of the moving-light case use this).
     pub fn invalidate_shadow_maps(&self) {
         if let Ok(mut c) = self.shadow_cache.lock() {
             *c = None;
         }
+    }
+
+    /// The first-order lightmap the last `encode` wrote (RGBA32F, alpha = coverage).
+    pub fn output(&self) -> &wgpu::Texture {
+        &self.output
     }
 }
 
@@ -480,91 +537,251 @@ pub struct FirstOrderOutput {
     pub first_order_tex: wgpu::Texture,
 }
 
+/// Checks `options` against the device; returns the resolved texel reads.
+fn check_options(gpu: &Gpu, options: &FirstOrderOptions) -> Result<util::TexelReads, PassError> {
+    if options.shadow_map_size == 0 || options.max_shadow_layers == 0 {
+        return Err(PassError::InvalidInput {
+            what: "FirstOrderOptions".into(),
+            problem: "shadow_map_size and max_shadow_layers must be ≥ 1".into(),
+        });
+    }
+    gpu.check_texture_size(
+        "shadow map",
+        options.shadow_map_size,
+        options.shadow_map_size,
+    )?;
+    // Lights and layer matrices live in uniform arrays of `max_shadow_layers` entries
+    // (a light takes ≥ 1 layer, so there are never more lights than layers): both must
+    // fit one uniform binding, as well as the shadow-map array its layer count.
+    let limits = gpu.device.limits();
+    let ubo_entries =
+        limits.max_uniform_buffer_binding_size / std::mem::size_of::<GpuLight>() as u64;
+    let layer_limit = (limits.max_texture_array_layers as u64).min(ubo_entries) as u32;
+    if options.max_shadow_layers > layer_limit {
+        return Err(PassError::TooLarge {
+            what: "FirstOrderOptions.max_shadow_layers".into(),
+            size: options.max_shadow_layers as u64,
+            limit: layer_limit as u64,
+        });
+    }
+    let reads = options.texel_reads.unwrap_or(gpu.best_texel_reads());
+    if reads == util::TexelReads::Storage && !gpu.supports_storage_reads() {
+        return Err(PassError::MissingFeature {
+            option: "FirstOrderOptions.texel_reads = Some(Storage)".into(),
+            feature: "read-only storage textures in fragment shaders".into(),
+            adapter: gpu.adapter_info.name.clone(),
+            fallback: "None (the device's best) or Some(TexelReads::Sampled)".into(),
+        });
+    }
+    Ok(reads)
+}
+
+/// The shader module: `lights.wgsl` + `first_order.wgsl` with `MAX_LAYERS` substituted
+/// and the texel-read declarations of bindings 3, 6, 7 prepended.
+fn shader_module(
+    device: &wgpu::Device,
+    max_layers: u32,
+    reads: util::TexelReads,
+) -> wgpu::ShaderModule {
+    let source = concat!(
+        include_str!("../shaders/lights.wgsl"),
+        include_str!("../shaders/first_order.wgsl")
+    );
+    // Fixed-size uniform arrays (see first_order.wgsl): llvmpipe loads uniforms with
+    // plain vector loads but storage buffers lane by lane, which made the lighting
+    // pass ~2.5× slower (docs/render.md).
+    let source = source.replace("MAX_LAYERS", &max_layers.to_string());
+    let f32x4 = wgpu::TextureFormat::Rgba32Float;
+    let source = format!(
+        "{}{}{}{}{source}",
+        util::FULLSCREEN_WGSL,
+        reads.wgsl(0, 3, "albedo", f32x4),
+        reads.wgsl(0, 6, "gbuffer_position", f32x4),
+        reads.wgsl(0, 7, "gbuffer_normal", f32x4),
+    );
+    util::shader(device, "ortm.first_order.shader", &source)
+}
+
+/// The lighting pass's group 0; order = @binding order in first_order.wgsl.
+fn lighting_layout(device: &wgpu::Device, reads: util::TexelReads) -> wgpu::BindGroupLayout {
+    let vf = wgpu::ShaderStages::VERTEX_FRAGMENT;
+    let fs = wgpu::ShaderStages::FRAGMENT;
+    let f32x4 = wgpu::TextureFormat::Rgba32Float;
+    device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: Some("ortm.first_order.layout"),
+        entries: &[
+            util::uniform_entry(0, vf),
+            util::uniform_entry(1, fs),
+            util::uniform_entry(2, vf),
+            reads.entry(3, fs, f32x4),
+            wgpu::BindGroupLayoutEntry {
+                binding: 4,
+                visibility: fs,
+                ty: wgpu::BindingType::Texture {
+                    sample_type: wgpu::TextureSampleType::Depth,
+                    view_dimension: wgpu::TextureViewDimension::D2Array,
+                    multisampled: false,
+                },
+                count: None,
+            },
+            wgpu::BindGroupLayoutEntry {
+                binding: 5,
+                visibility: fs,
+                ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Comparison),
+                count: None,
+            },
+            reads.entry(6, fs, f32x4),
+            reads.entry(7, fs, f32x4),
+        ],
+    })
+}
+
+/// A depth-only shadow pipeline (`vs_shadow`, positions only) with the slope-scaled bias;
+/// `cull_mode` `Some(Back)` for a closed outward mesh lit from outside its bounds (the
+/// nearest surface seen from the light is then always a front face, so the depths are the
+/// same and about half the triangles are never rasterised).
+fn shadow_pipeline(
+    device: &wgpu::Device,
+    layout: &wgpu::PipelineLayout,
+    module: &wgpu::ShaderModule,
+    slope_bias: f32,
+    cull_mode: Option<wgpu::Face>,
+) -> wgpu::RenderPipeline {
+    device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+        label: Some("ortm.first_order.shadow_pipeline"),
+        layout: Some(layout),
+        vertex: wgpu::VertexState {
+            module,
+            entry_point: Some("vs_shadow"),
+            compilation_options: Default::default(),
+            buffers: &[Some(position_layout())],
+        },
+        primitive: wgpu::PrimitiveState {
+            cull_mode,
+            ..Default::default()
+        },
+        depth_stencil: Some(wgpu::DepthStencilState {
+            format: wgpu::TextureFormat::Depth32Float,
+            depth_write_enabled: Some(true),
+            depth_compare: Some(wgpu::CompareFunction::Less),
+            stencil: Default::default(),
+            bias: wgpu::DepthBiasState {
+                constant: 0,
+                slope_scale: slope_bias,
+                clamp: 0.0,
+            },
+        }),
+        multisample: Default::default(),
+        fragment: None,
+        multiview_mask: None,
+        cache: None,
+    })
+}
+
+/// The texel G-buffer pipeline: the mesh by its UVs (`vs_gbuffer`, both sides) into two
+/// RGBA32F targets (position + coverage, normal).
+fn gbuffer_pipeline(device: &wgpu::Device, module: &wgpu::ShaderModule) -> wgpu::RenderPipeline {
+    let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+        label: Some("ortm.first_order.gbuffer_pipeline_layout"),
+        bind_group_layouts: &[],
+        immediate_size: 0,
+    });
+    let target = Some(wgpu::ColorTargetState {
+        format: wgpu::TextureFormat::Rgba32Float,
+        blend: None,
+        write_mask: wgpu::ColorWrites::ALL,
+    });
+    device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+        label: Some("ortm.first_order.gbuffer_pipeline"),
+        layout: Some(&layout),
+        vertex: wgpu::VertexState {
+            module,
+            entry_point: Some("vs_gbuffer"),
+            compilation_options: Default::default(),
+            buffers: &[Some(vertex_layout())],
+        },
+        primitive: wgpu::PrimitiveState {
+            cull_mode: None,
+            ..Default::default()
+        },
+        depth_stencil: None,
+        multisample: Default::default(),
+        fragment: Some(wgpu::FragmentState {
+            module,
+            entry_point: Some("fs_gbuffer"),
+            compilation_options: Default::default(),
+            targets: &[target.clone(), target],
+        }),
+        multiview_mask: None,
+        cache: None,
+    })
+}
+
+/// Checks that `albedo` holds `width·height` values of a lightmap the device can hold;
+/// returns `[W, H]`.
+fn check_albedo(gpu: &Gpu, albedo: &AlbedoMap) -> Result<[u32; 2], PassError> {
+    let size = [albedo.width, albedo.height];
+    gpu.check_texture_size("lightmap (AlbedoMap)", size[0], size[1])?;
+    let n = size[0] as usize * size[1] as usize;
+    if albedo.rgb.len() != n {
+        return Err(PassError::BadLength {
+            what: "AlbedoMap.rgb".into(),
+            expected: n,
+            got: albedo.rgb.len(),
+            hint: "width·height reflectances".into(),
+        });
+    }
+    Ok(size)
+}
+
+/// The shadow-map array of `layers` `size²` depth layers: one 2D view per layer (render
+/// targets) and the array view (the lighting pass's binding 4).
+fn shadow_maps(
+    device: &wgpu::Device,
+    size: u32,
+    layers: u32,
+) -> (Vec<wgpu::TextureView>, wgpu::TextureView) {
+    let shadow = device.create_texture(&wgpu::TextureDescriptor {
+        label: Some("ortm.first_order.shadow_maps"),
+        size: wgpu::Extent3d {
+            width: size,
+            height: size,
+            depth_or_array_layers: layers,
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format: wgpu::TextureFormat::Depth32Float,
+        usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
+        view_formats: &[],
+    });
+    let layer_views = (0..layers)
+        .map(|l| {
+            shadow.create_view(&wgpu::TextureViewDescriptor {
+                label: Some(&format!("ortm.first_order.shadow_layer{l}")),
+                dimension: Some(wgpu::TextureViewDimension::D2),
+                base_array_layer: l,
+                array_layer_count: Some(1),
+                ..Default::default()
+            })
+        })
+        .collect();
+    let array_view = shadow.create_view(&wgpu::TextureViewDescriptor {
+        label: Some("ortm.first_order.shadow_array"),
+        dimension: Some(wgpu::TextureViewDimension::D2Array),
+        ..Default::default()
+    });
+    (layer_views, array_view)
+}
+
 impl FirstOrderPass {
     /// Builds the shadow and lightmap pipelines.
     pub fn new(gpu: &Gpu, options: &FirstOrderOptions) -> Result<Self, PassError> {
-        if options.shadow_map_size == 0 || options.max_shadow_layers == 0 {
-            return Err(PassError::InvalidInput {
-                what: "FirstOrderOptions".into(),
-                problem: "shadow_map_size and max_shadow_layers must be ≥ 1".into(),
-            });
-        }
-        gpu.check_texture_size(
-            "shadow map",
-            options.shadow_map_size,
-            options.shadow_map_size,
-        )?;
-        // Lights and layer matrices live in uniform arrays of `max_shadow_layers` entries
-        // (a light takes ≥ 1 layer, so there are never more lights than layers): both must
-        // fit one uniform binding, as well as the shadow-map array its layer count.
-        let limits = gpu.device.limits();
-        let ubo_entries =
-            limits.max_uniform_buffer_binding_size / std::mem::size_of::<GpuLight>() as u64;
-        let layer_limit = (limits.max_texture_array_layers as u64).min(ubo_entries) as u32;
-        if options.max_shadow_layers > layer_limit {
-            return Err(PassError::TooLarge {
-                what: "FirstOrderOptions.max_shadow_layers".into(),
-                size: options.max_shadow_layers as u64,
-                limit: layer_limit as u64,
-            });
-        }
-        let reads = options.texel_reads.unwrap_or(gpu.best_texel_reads());
-        if reads == util::TexelReads::Storage && !gpu.supports_storage_reads() {
-            return Err(PassError::MissingFeature {
-                option: "FirstOrderOptions.texel_reads = Some(Storage)".into(),
-                feature: "read-only storage textures in fragment shaders".into(),
-                adapter: gpu.adapter_info.name.clone(),
-                fallback: "None (the device's best) or Some(TexelReads::Sampled)".into(),
-            });
-        }
+        let reads = check_options(gpu, options)?;
         gpu.scoped("ortm.first_order.new", || {
             let device = &gpu.device;
-            let source = concat!(
-                include_str!("../shaders/lights.wgsl"),
-                include_str!("../shaders/first_order.wgsl")
-            );
-            // Fixed-size uniform arrays (see first_order.wgsl): llvmpipe loads uniforms with
-            // plain vector loads but storage buffers lane by lane, which made the lighting
-            // pass ~2.5× slower (docs/render.md).
-            let source = source.replace("MAX_LAYERS", &options.max_shadow_layers.to_string());
-            let f32x4 = wgpu::TextureFormat::Rgba32Float;
-            let source = format!(
-                "{}{}{}{source}",
-                reads.wgsl(0, 3, "albedo", f32x4),
-                reads.wgsl(0, 6, "gbuffer_position", f32x4),
-                reads.wgsl(0, 7, "gbuffer_normal", f32x4),
-            );
-            let module = util::shader(device, "ortm.first_order.shader", &source);
-            let vf = wgpu::ShaderStages::VERTEX_FRAGMENT;
-            let fs = wgpu::ShaderStages::FRAGMENT;
-            // Order = @binding order in first_order.wgsl.
-            let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-                label: Some("ortm.first_order.layout"),
-                entries: &[
-                    util::uniform_entry(0, vf),
-                    util::uniform_entry(1, fs),
-                    util::uniform_entry(2, vf),
-                    reads.entry(3, fs, f32x4),
-                    wgpu::BindGroupLayoutEntry {
-                        binding: 4,
-                        visibility: fs,
-                        ty: wgpu::BindingType::Texture {
-                            sample_type: wgpu::TextureSampleType::Depth,
-                            view_dimension: wgpu::TextureViewDimension::D2Array,
-                            multisampled: false,
-                        },
-                        count: None,
-                    },
-                    wgpu::BindGroupLayoutEntry {
-                        binding: 5,
-                        visibility: fs,
-                        ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Comparison),
-                        count: None,
-                    },
-                    reads.entry(6, fs, f32x4),
-                    reads.entry(7, fs, f32x4),
-                ],
-            });
+            let module = shader_module(device, options.max_shadow_layers, reads);
+            let layout = lighting_layout(device, reads);
             let pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
                 label: Some("ortm.first_order.pipeline_layout"),
                 bind_group_layouts: &[Some(&layout)],
@@ -581,41 +798,8 @@ impl FirstOrderPass {
                 bind_group_layouts: &[Some(&shadow_layout)],
                 immediate_size: 0,
             });
-            // Two shadow pipelines: both sides of every triangle, and back faces culled (used
-            // for a closed outward mesh lit from outside its bounds: the nearest surface seen
-            // from the light is then always a front face, so the depths are the same and
-            // about half the triangles are never rasterised).
-            let shadow = |cull_mode: Option<wgpu::Face>| {
-                device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-                    label: Some("ortm.first_order.shadow_pipeline"),
-                    layout: Some(&shadow_pl),
-                    vertex: wgpu::VertexState {
-                        module: &module,
-                        entry_point: Some("vs_shadow"),
-                        compilation_options: Default::default(),
-                        buffers: &[Some(position_layout())],
-                    },
-                    primitive: wgpu::PrimitiveState {
-                        cull_mode,
-                        ..Default::default()
-                    },
-                    depth_stencil: Some(wgpu::DepthStencilState {
-                        format: wgpu::TextureFormat::Depth32Float,
-                        depth_write_enabled: Some(true),
-                        depth_compare: Some(wgpu::CompareFunction::Less),
-                        stencil: Default::default(),
-                        bias: wgpu::DepthBiasState {
-                            constant: 0,
-                            slope_scale: options.slope_bias,
-                            clamp: 0.0,
-                        },
-                    }),
-                    multisample: Default::default(),
-                    fragment: None,
-                    multiview_mask: None,
-                    cache: None,
-                })
-            };
+            let shadow =
+                |cull| shadow_pipeline(device, &shadow_pl, &module, options.slope_bias, cull);
             let shadow_pipelines = [shadow(None), shadow(Some(wgpu::Face::Back))];
             let lightmap_pipeline = util::fullscreen_pipeline(
                 device,
@@ -626,40 +810,6 @@ impl FirstOrderPass {
                 wgpu::TextureFormat::Rgba32Float,
                 None,
             );
-            let gbuffer_pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-                label: Some("ortm.first_order.gbuffer_pipeline_layout"),
-                bind_group_layouts: &[],
-                immediate_size: 0,
-            });
-            let gbuffer_target = Some(wgpu::ColorTargetState {
-                format: wgpu::TextureFormat::Rgba32Float,
-                blend: None,
-                write_mask: wgpu::ColorWrites::ALL,
-            });
-            let gbuffer_pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-                label: Some("ortm.first_order.gbuffer_pipeline"),
-                layout: Some(&gbuffer_pl),
-                vertex: wgpu::VertexState {
-                    module: &module,
-                    entry_point: Some("vs_gbuffer"),
-                    compilation_options: Default::default(),
-                    buffers: &[Some(vertex_layout())],
-                },
-                primitive: wgpu::PrimitiveState {
-                    cull_mode: None,
-                    ..Default::default()
-                },
-                depth_stencil: None,
-                multisample: Default::default(),
-                fragment: Some(wgpu::FragmentState {
-                    module: &module,
-                    entry_point: Some("fs_gbuffer"),
-                    compilation_options: Default::default(),
-                    targets: &[gbuffer_target.clone(), gbuffer_target],
-                }),
-                multiview_mask: None,
-                cache: None,
-            });
             let sampler = device.create_sampler(&wgpu::SamplerDescriptor {
                 label: Some("ortm.first_order.shadow_sampler"),
                 address_mode_u: wgpu::AddressMode::ClampToEdge,
@@ -676,7 +826,7 @@ impl FirstOrderPass {
                 shadow_layout,
                 shadow_pipelines,
                 lightmap_pipeline,
-                gbuffer_pipeline,
+                gbuffer_pipeline: gbuffer_pipeline(device, &module),
                 sampler,
             }
         })
@@ -687,51 +837,26 @@ impl FirstOrderPass {
         &self.options
     }
 
-    /// Uploads the mesh and albedo, allocates shadow maps and the output.
+    /// Uploads the mesh ([`GpuMesh::upload`]) and calls [`FirstOrderPass::prepare_mesh`].
     pub fn prepare(
         &self,
         gpu: &Gpu,
         mesh: &MeshData,
         albedo: &AlbedoMap,
     ) -> Result<FirstOrderScene, PassError> {
-        mesh.validate()?;
-        let size = [albedo.width, albedo.height];
-        gpu.check_texture_size("lightmap (AlbedoMap)", size[0], size[1])?;
-        let n = size[0] as usize * size[1] as usize;
-        if albedo.rgb.len() != n {
-            return Err(PassError::BadLength {
-                what: "AlbedoMap.rgb".into(),
-                expected: n,
-                got: albedo.rgb.len(),
-                hint: "width·height reflectances".into(),
-            });
-        }
+        self.prepare_mesh(gpu, &GpuMesh::upload(gpu, mesh)?, albedo)
+    }
+
+    /// Uploads the albedo, allocates shadow maps and the output, and rasterises the
+    /// uploaded `mesh` into the texel G-buffer.
+    pub fn prepare_mesh(
+        &self,
+        gpu: &Gpu,
+        mesh: &GpuMesh,
+        albedo: &AlbedoMap,
+    ) -> Result<FirstOrderScene, PassError> {
+        let size = check_albedo(gpu, albedo)?;
         let device = &gpu.device;
-        let verts: Vec<Vertex> = (0..mesh.positions_m.len())
-            .map(|i| Vertex {
-                position: mesh.positions_m[i],
-                normal: mesh.normals[i],
-                uv: mesh.lightmap_uvs[i],
-            })
-            .collect();
-        let vertices = util::buffer_init(
-            device,
-            "ortm.first_order.vertices",
-            bytemuck::cast_slice(&verts),
-            wgpu::BufferUsages::VERTEX,
-        );
-        let positions = util::buffer_init(
-            device,
-            "ortm.first_order.positions",
-            bytemuck::cast_slice(&mesh.positions_m),
-            wgpu::BufferUsages::VERTEX,
-        );
-        let indices = util::buffer_init(
-            device,
-            "ortm.first_order.indices",
-            bytemuck::cast_slice(&mesh.indices),
-            wgpu::BufferUsages::INDEX,
-        );
         let rgba: Vec<[f32; 4]> = albedo.rgb.iter().map(|c| [c[0], c[1], c[2], 1.0]).collect();
         let albedo_tex = gpu.create_rgba32f_texture(
             "ortm.first_order.albedo",
@@ -740,145 +865,26 @@ impl FirstOrderPass {
             &rgba,
             wgpu::TextureUsages::TEXTURE_BINDING | self.reads.usage(),
         )?;
-        let layers = self.options.max_shadow_layers;
-        let params = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("ortm.first_order.params"),
-            size: std::mem::size_of::<FirstOrderParams>() as u64,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        let lights = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("ortm.first_order.lights"),
-            size: (std::mem::size_of::<GpuLight>() as u32 * layers) as u64,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        let matrices = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("ortm.first_order.layer_matrices"),
-            size: 64 * layers as u64,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        let s = self.options.shadow_map_size;
-        let shadow = device.create_texture(&wgpu::TextureDescriptor {
-            label: Some("ortm.first_order.shadow_maps"),
-            size: wgpu::Extent3d {
-                width: s,
-                height: s,
-                depth_or_array_layers: layers,
-            },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: wgpu::TextureFormat::Depth32Float,
-            usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
-            view_formats: &[],
-        });
-        let shadow_layer_views = (0..layers)
-            .map(|l| {
-                shadow.create_view(&wgpu::TextureViewDescriptor {
-                    label: Some(&format!("ortm.first_order.shadow_layer{l}")),
-                    dimension: Some(wgpu::TextureViewDimension::D2),
-                    base_array_layer: l,
-                    array_layer_count: Some(1),
-                    ..Default::default()
-                })
-            })
-            .collect();
-        let shadow_array_view = shadow.create_view(&wgpu::TextureViewDescriptor {
-            label: Some("ortm.first_order.shadow_array"),
-            dimension: Some(wgpu::TextureViewDimension::D2Array),
-            ..Default::default()
-        });
-        let albedo_view = util::view(&albedo_tex);
-        // The texel G-buffer: the mesh rasterised once by its UVs (the lights change per
-        // frame, the surface point of a texel does not).
-        let gbuffer_usage = wgpu::TextureUsages::RENDER_ATTACHMENT
-            | wgpu::TextureUsages::TEXTURE_BINDING
-            | self.reads.usage();
-        let gbuffer = [
-            util::texture_2d(
-                device,
-                "ortm.first_order.gbuffer_position",
-                size,
-                wgpu::TextureFormat::Rgba32Float,
-                gbuffer_usage,
-            ),
-            util::texture_2d(
-                device,
-                "ortm.first_order.gbuffer_normal",
-                size,
-                wgpu::TextureFormat::Rgba32Float,
-                gbuffer_usage,
-            ),
-        ];
-        let gbuffer_views = [util::view(&gbuffer[0]), util::view(&gbuffer[1])];
-        let mut enc = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
-            label: Some("ortm.first_order.gbuffer_encoder"),
-        });
-        {
-            let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("ortm.first_order.gbuffer_pass"),
-                color_attachments: &[
-                    util::cleared_attachment(&gbuffer_views[0]),
-                    util::cleared_attachment(&gbuffer_views[1]),
-                ],
-                depth_stencil_attachment: None,
-                timestamp_writes: None,
-                occlusion_query_set: None,
-                multiview_mask: None,
-            });
-            pass.set_pipeline(&self.gbuffer_pipeline);
-            pass.set_vertex_buffer(0, vertices.slice(..));
-            pass.set_index_buffer(indices.slice(..), wgpu::IndexFormat::Uint32);
-            pass.draw_indexed(0..mesh.indices.len() as u32, 0, 0..1);
-        }
-        gpu.queue.submit([enc.finish()]);
-        // Order = @binding order in first_order.wgsl.
-        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("ortm.first_order.bind_group"),
-            layout: &self.layout,
-            entries: &[
-                wgpu::BindGroupEntry {
-                    binding: 0,
-                    resource: params.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 1,
-                    resource: lights.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 2,
-                    resource: matrices.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 3,
-                    resource: wgpu::BindingResource::TextureView(&albedo_view),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 4,
-                    resource: wgpu::BindingResource::TextureView(&shadow_array_view),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 5,
-                    resource: wgpu::BindingResource::Sampler(&self.sampler),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 6,
-                    resource: wgpu::BindingResource::TextureView(&gbuffer_views[0]),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 7,
-                    resource: wgpu::BindingResource::TextureView(&gbuffer_views[1]),
-                },
-            ],
-        });
+        let uniforms = FrameUniforms::new(device, self.options.max_shadow_layers);
+        let (shadow_layer_views, shadow_array_view) = shadow_maps(
+            device,
+            self.options.shadow_map_size,
+            self.options.max_shadow_layers,
+        );
+        let gbuffer = self.texel_gbuffer(gpu, mesh, size);
+        let bind_group = self.lighting_bind_group(
+            device,
+            &uniforms,
+            &util::view(&albedo_tex),
+            &shadow_array_view,
+            &gbuffer,
+        );
         let shadow_bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("ortm.first_order.shadow_bind_group"),
             layout: &self.shadow_layout,
             entries: &[wgpu::BindGroupEntry {
                 binding: 2,
-                resource: matrices.as_entire_binding(),
+                resource: uniforms.matrices.as_entire_binding(),
             }],
         });
         let output = util::texture_2d(
@@ -895,20 +901,96 @@ impl FirstOrderPass {
         gpu.check("ortm.first_order.prepare")?;
         Ok(FirstOrderScene {
             lightmap_size: size,
-            bounds: Bounds::of(&mesh.positions_m),
-            closed_outward: mesh.is_closed_outward(),
-            vertices,
-            positions,
-            indices,
-            index_count: mesh.indices.len() as u32,
-            params,
-            lights,
-            matrices,
+            bounds: mesh.bounds,
+            mesh: mesh.clone(),
+            uniforms,
             shadow_layer_views,
             shadow_cache: std::sync::Mutex::new(None),
             bind_group,
             shadow_bind_group,
             output,
+        })
+    }
+
+    /// The texel G-buffer: the mesh rasterised once by its UVs into `[position + coverage,
+    /// normal]` RGBA32F maps of `size` (the lights change per frame, the surface point of a
+    /// texel does not). Submits the draw; returns the two views.
+    fn texel_gbuffer(&self, gpu: &Gpu, mesh: &GpuMesh, size: [u32; 2]) -> [wgpu::TextureView; 2] {
+        let device = &gpu.device;
+        let usage = wgpu::TextureUsages::RENDER_ATTACHMENT
+            | wgpu::TextureUsages::TEXTURE_BINDING
+            | self.reads.usage();
+        let map = |label| {
+            let tex =
+                util::texture_2d(device, label, size, wgpu::TextureFormat::Rgba32Float, usage);
+            util::view(&tex)
+        };
+        let views = [
+            map("ortm.first_order.gbuffer_position"),
+            map("ortm.first_order.gbuffer_normal"),
+        ];
+        let mut enc = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+            label: Some("ortm.first_order.gbuffer_encoder"),
+        });
+        {
+            let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("ortm.first_order.gbuffer_pass"),
+                color_attachments: &[
+                    util::cleared_attachment(&views[0]),
+                    util::cleared_attachment(&views[1]),
+                ],
+                depth_stencil_attachment: None,
+                timestamp_writes: None,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            pass.set_pipeline(&self.gbuffer_pipeline);
+            pass.set_vertex_buffer(0, mesh.vertices.slice(..));
+            pass.set_index_buffer(mesh.indices.slice(..), wgpu::IndexFormat::Uint32);
+            pass.draw_indexed(0..mesh.index_count, 0, 0..1);
+        }
+        gpu.queue.submit([enc.finish()]);
+        views
+    }
+
+    /// The lighting pass's bind group; order = @binding order in first_order.wgsl.
+    fn lighting_bind_group(
+        &self,
+        device: &wgpu::Device,
+        uniforms: &FrameUniforms,
+        albedo: &wgpu::TextureView,
+        shadow_array: &wgpu::TextureView,
+        gbuffer: &[wgpu::TextureView; 2],
+    ) -> wgpu::BindGroup {
+        let texture = |binding, view| wgpu::BindGroupEntry {
+            binding,
+            resource: wgpu::BindingResource::TextureView(view),
+        };
+        device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("ortm.first_order.bind_group"),
+            layout: &self.layout,
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: uniforms.params.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: uniforms.lights.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 2,
+                    resource: uniforms.matrices.as_entire_binding(),
+                },
+                texture(3, albedo),
+                texture(4, shadow_array),
+                wgpu::BindGroupEntry {
+                    binding: 5,
+                    resource: wgpu::BindingResource::Sampler(&self.sampler),
+                },
+                texture(6, &gbuffer[0]),
+                texture(7, &gbuffer[1]),
+            ],
         })
     }
 
@@ -920,28 +1002,8 @@ impl FirstOrderPass {
         inputs: &FirstOrderInputs<'_>,
     ) -> Result<FirstOrderOutput, PassError> {
         let scene = inputs.scene;
-        let (lights, mats) = pack_lights(
-            inputs.lights,
-            &scene.bounds,
-            self.options.shadow_map_size,
-            self.options.max_shadow_layers,
-        )?;
-        let params = FirstOrderParams {
-            lightmap_size: scene.lightmap_size,
-            light_count: lights.len() as u32,
-            shadow_size: self.options.shadow_map_size,
-            normal_offset_texels: self.options.normal_offset_texels,
-            _pad: [0.0; 3],
-        };
-        gpu.queue
-            .write_buffer(&scene.params, 0, bytemuck::bytes_of(&params));
-        let m: Vec<[f32; 16]> = mats.iter().map(|m| m.to_cols_array()).collect();
-        if !lights.is_empty() {
-            gpu.queue
-                .write_buffer(&scene.lights, 0, bytemuck::cast_slice(&lights));
-            gpu.queue
-                .write_buffer(&scene.matrices, 0, bytemuck::cast_slice(&m));
-        }
+        let (lights, m) = self.write_lights(gpu, scene, inputs.lights)?;
+        let layers = m.len();
         // The mesh is static: shadow maps rendered with the same matrices are still valid.
         let reuse = {
             let mut cache = scene
@@ -955,13 +1017,65 @@ impl FirstOrderPass {
             *cache = Some(m);
             same
         };
-        let layers_to_render = if reuse { 0 } else { mats.len() };
-        for (layer, view) in scene
-            .shadow_layer_views
-            .iter()
-            .enumerate()
-            .take(layers_to_render)
-        {
+        if !reuse {
+            self.encode_shadow_layers(encoder, scene, &lights, inputs.lights, layers);
+        }
+        let target = util::view(&scene.output);
+        let mut pass = util::clear_pass(encoder, "ortm.first_order.lightmap_pass", &target);
+        pass.set_pipeline(&self.lightmap_pipeline);
+        pass.set_bind_group(0, &scene.bind_group, &[]);
+        pass.draw(0..3, 0..1);
+        drop(pass);
+        Ok(FirstOrderOutput {
+            first_order_tex: scene.output.clone(),
+        })
+    }
+
+    /// Packs `lights` and writes the params, lights and layer matrices uniforms; returns
+    /// the packed lights and the layer matrices (column-major).
+    fn write_lights(
+        &self,
+        gpu: &Gpu,
+        scene: &FirstOrderScene,
+        lights: &[LightDesc],
+    ) -> Result<(Vec<GpuLight>, Vec<[f32; 16]>), PassError> {
+        let (gl, mats) = pack_lights(
+            lights,
+            &scene.bounds,
+            self.options.shadow_map_size,
+            self.options.max_shadow_layers,
+        )?;
+        let params = FirstOrderParams {
+            lightmap_size: scene.lightmap_size,
+            light_count: gl.len() as u32,
+            shadow_size: self.options.shadow_map_size,
+            normal_offset_texels: self.options.normal_offset_texels,
+            _pad: [0.0; 3],
+        };
+        let u = &scene.uniforms;
+        gpu.queue
+            .write_buffer(&u.params, 0, bytemuck::bytes_of(&params));
+        let m: Vec<[f32; 16]> = mats.iter().map(|m| m.to_cols_array()).collect();
+        if !gl.is_empty() {
+            gpu.queue
+                .write_buffer(&u.lights, 0, bytemuck::cast_slice(&gl));
+            gpu.queue
+                .write_buffer(&u.matrices, 0, bytemuck::cast_slice(&m));
+        }
+        Ok((gl, m))
+    }
+
+    /// Records the depth passes of the first `layers` shadow layers.
+    fn encode_shadow_layers(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        scene: &FirstOrderScene,
+        packed: &[GpuLight],
+        lights: &[LightDesc],
+        layers: usize,
+    ) {
+        let mesh = &scene.mesh;
+        for (layer, view) in scene.shadow_layer_views.iter().enumerate().take(layers) {
             let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
                 label: Some(&format!("ortm.first_order.shadow_pass{layer}")),
                 color_attachments: &[],
@@ -979,10 +1093,10 @@ impl FirstOrderPass {
             });
             // The light owning this layer; cull back faces when it is outside the bounds
             // of a closed outward mesh (a directional light always is).
-            let cull = scene.closed_outward
-                && lights
+            let cull = mesh.closed_outward
+                && packed
                     .iter()
-                    .zip(inputs.lights)
+                    .zip(lights)
                     .find(|(g, _)| {
                         (g.first_layer..g.first_layer + g.layer_count).contains(&(layer as u32))
                     })
@@ -995,20 +1109,11 @@ impl FirstOrderPass {
                     });
             pass.set_pipeline(&self.shadow_pipelines[usize::from(cull)]);
             pass.set_bind_group(0, &scene.shadow_bind_group, &[]);
-            pass.set_vertex_buffer(0, scene.positions.slice(..));
-            pass.set_index_buffer(scene.indices.slice(..), wgpu::IndexFormat::Uint32);
+            pass.set_vertex_buffer(0, mesh.positions.slice(..));
+            pass.set_index_buffer(mesh.indices.slice(..), wgpu::IndexFormat::Uint32);
             let l = layer as u32;
-            pass.draw_indexed(0..scene.index_count, 0, l..l + 1);
+            pass.draw_indexed(0..mesh.index_count, 0, l..l + 1);
         }
-        let target = util::view(&scene.output);
-        let mut pass = util::clear_pass(encoder, "ortm.first_order.lightmap_pass", &target);
-        pass.set_pipeline(&self.lightmap_pipeline);
-        pass.set_bind_group(0, &scene.bind_group, &[]);
-        pass.draw(0..3, 0..1);
-        drop(pass);
-        Ok(FirstOrderOutput {
-            first_order_tex: scene.output.clone(),
-        })
     }
 }
 

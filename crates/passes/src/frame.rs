@@ -1,24 +1,41 @@
-//! The whole real-time frame as a script: first order → transfer → dilation (of both
-//! maps) → display. [`Renderer`] owns one instance of each pass; [`RenderScene`] the
-//! per-scene GPU data; [`Renderer::encode`] records a frame, and [`Renderer::render_image`]
-//! / [`Renderer::render_lightmaps`] also submit and read back (for the CLI and for a
-//! reference comparison against the CPU mirrors in [`crate::cpu`]).
+//! The whole real-time frame as one script: first order → transfer → (indirect) →
+//! dilation → display. [`Renderer`] owns one instance of each pass; [`RenderScene`] the
+//! per-scene GPU data (the mesh is uploaded once, in [`Renderer::prepare`], and shared by
+//! the first-order and display passes). [`Renderer::encode_frame`] records a frame — the
+//! CLI render, the viewer and the benchmarks all record through it; [`FrameOptions`]
+//! selects the stages to record, the lightmap to show, whether the shadow maps are
+//! re-rendered, and timestamps. [`Renderer::render_image`] / [`Renderer::render_lightmaps`]
+//! also submit and read back (for the CLI and for a reference comparison against the CPU
+//! mirrors in [`crate::cpu`]).
 //!
 //! # Data flow
 //! ```text
-//! lights ─▶ FirstOrderPass ─first_order─▶ TransferPass ─final─▶ DilatePass ─▶ DisplayPass ─▶ RGBA8
-//!                              └──────────▶ DilatePass (left half in side-by-side) ─┘
+//! lights ─▶ FirstOrderPass ─first_order─▶ TransferPass ─final─▶ [IndirectPass: final − fo]
+//!                              │                         └─shown map─▶ DilatePass ─▶ DisplayPass ─▶ RGBA8
+//!                              └────────▶ DilatePass (left half in side-by-side) ───────┘
 //! ```
 //! The transfer pass reads the *undilated* first-order map (first order is 0 outside
-//! coverage, as in the bake); only the display sees dilated maps. Both dilations use one
+//! coverage, as in the bake); only the display sees dilated maps. Every dilation uses one
 //! [`DilatePlan`], built at [`Renderer::prepare`] from the coverage the first-order pass
 //! rasterises (the maps share it).
+//!
+//! # Stages and timestamps
+//! A stage left out of [`FrameOptions::stages`] records nothing; the later stages read what
+//! it last wrote (every pass's output is a texture owned by the scene, overwritten each
+//! frame). With [`FrameOptions::timestamps`] the frame writes [`FRAME_TIMESTAMPS`] stamps:
+//! `i` before stage `i` of [`TIMED_STAGES`] and the last one after the display.
+
+use std::sync::OnceLock;
 
 use crate::dilate::{DilateInputs, DilateOptions, DilatePass, DilatePlan, DilateTargets};
-use crate::display::{Camera, DisplayInputs, DisplayOptions, DisplayPass, DisplayScene, Specular};
+use crate::display::{
+    Camera, DisplayInputs, DisplayOptions, DisplayPass, DisplayScene, LightmapFilter, Specular,
+};
 use crate::error::PassError;
 use crate::first_order::{FirstOrderInputs, FirstOrderOptions, FirstOrderPass, FirstOrderScene};
 use crate::gpu::Gpu;
+use crate::indirect::{IndirectInputs, IndirectPass, IndirectTargets};
+use crate::mesh::GpuMesh;
 use crate::transfer::{TransferInputs, TransferOptions, TransferPass, TransferScene};
 use crate::types::{AlbedoMap, AtlasData, LightDesc, MeshData, TexelImage, TransferPiece};
 use crate::util;
@@ -39,15 +56,11 @@ pub struct RendererOptions {
 /// One instance of every pass.
 #[derive(Debug)]
 pub struct Renderer {
-    /// First-order pass.
-    pub first_order: FirstOrderPass,
-    /// Transfer pass.
-    pub transfer: TransferPass,
-    /// Dilation pass.
-    pub dilate: DilatePass,
-    /// Display pass.
-    pub display: DisplayPass,
-    side_by_side: bool,
+    first_order: FirstOrderPass,
+    transfer: TransferPass,
+    dilate: DilatePass,
+    display: DisplayPass,
+    indirect: IndirectPass,
 }
 
 /// Per-scene data of every pass.
@@ -55,6 +68,8 @@ pub struct Renderer {
 pub struct RenderScene {
     /// Lightmap `[W, H]` (= albedo size).
     pub lightmap_size: [u32; 2],
+    /// The mesh, uploaded once and shared by the first-order and display passes.
+    mesh: GpuMesh,
     /// First-order data.
     pub first_order: FirstOrderScene,
     /// Transfer data (atlases, schedule).
@@ -62,12 +77,14 @@ pub struct RenderScene {
     /// The dilation plan, built from the first-order pass's coverage (shared by both maps;
     /// apply it with [`crate::cpu::dilate::dilate`] for a CPU reference).
     pub dilate_plan: DilatePlan,
-    /// Dilation targets of the final map.
+    /// Dilation targets of the shown (by default the final) map.
     pub dilate_final: DilateTargets,
     /// Dilation targets of the first-order map.
     pub dilate_first_order: DilateTargets,
     /// Display data.
     pub display: DisplayScene,
+    /// The indirect map, allocated by the first frame that shows it.
+    indirect: OnceLock<IndirectTargets>,
 }
 
 /// Per-frame parameters.
@@ -83,6 +100,116 @@ pub struct FrameParams<'a> {
     pub specular: Option<Specular>,
 }
 
+/// The stages of a frame ([`FrameOptions::stages`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Stages {
+    /// First order (shadow maps + lighting).
+    pub first_order: bool,
+    /// Transfer.
+    pub transfer: bool,
+    /// The shown map: the indirect difference when [`Shown::Indirect`], then gutter
+    /// dilation of it (and of the first-order map in side-by-side mode).
+    pub dilate: bool,
+    /// Display.
+    pub display: bool,
+}
+
+impl Stages {
+    /// Every stage.
+    pub const ALL: Self = Self {
+        first_order: true,
+        transfer: true,
+        dilate: true,
+        display: true,
+    };
+    /// No stage.
+    pub const NONE: Self = Self {
+        first_order: false,
+        transfer: false,
+        dilate: false,
+        display: false,
+    };
+    /// The lightmaps: first order and transfer.
+    pub const LIGHTMAPS: Self = Self {
+        first_order: true,
+        transfer: true,
+        ..Self::NONE
+    };
+    /// First order only.
+    pub const FIRST_ORDER: Self = Self {
+        first_order: true,
+        ..Self::NONE
+    };
+    /// Transfer only.
+    pub const TRANSFER: Self = Self {
+        transfer: true,
+        ..Self::NONE
+    };
+    /// The shown map's dilation only.
+    pub const DILATE: Self = Self {
+        dilate: true,
+        ..Self::NONE
+    };
+    /// Display only.
+    pub const DISPLAY: Self = Self {
+        display: true,
+        ..Self::NONE
+    };
+}
+
+/// Names of the stages between consecutive frame timestamps.
+pub const TIMED_STAGES: [&str; 5] = ["first order", "transfer", "indirect", "dilate", "display"];
+
+/// Timestamps a frame writes with [`FrameOptions::timestamps`].
+pub const FRAME_TIMESTAMPS: u32 = TIMED_STAGES.len() as u32 + 1;
+
+/// Which lightmap the display shows (right half in side-by-side mode).
+#[derive(Clone, Copy, Debug, Default)]
+pub enum Shown<'a> {
+    /// The final lightmap (first order + transfer).
+    #[default]
+    Final,
+    /// The first-order lightmap.
+    FirstOrder,
+    /// Final − first order ([`crate::indirect`]).
+    Indirect,
+    /// A lightmap of the caller (e.g. a CPU reference), the lightmap size; `dilate: false`
+    /// shows it as it is (uncovered texels stay black). A dilated texture must have
+    /// `COPY_SRC` (the dilation pass copies it).
+    Texture {
+        /// The lightmap.
+        view: &'a wgpu::TextureView,
+        /// Dilate before display.
+        dilate: bool,
+    },
+}
+
+/// What [`Renderer::encode_frame`] records.
+#[derive(Clone, Copy, Debug)]
+pub struct FrameOptions<'a> {
+    /// Stages to record.
+    pub stages: Stages,
+    /// The lightmap the display shows.
+    pub shown: Shown<'a>,
+    /// Moving lights: re-render every shadow layer even when the lights did not move
+    /// ([`FirstOrderScene::invalidate_shadow_maps`]); otherwise the shadow maps of unchanged
+    /// lights are reused.
+    pub moving_lights: bool,
+    /// Query set of at least [`FRAME_TIMESTAMPS`] timestamps to write between the stages.
+    pub timestamps: Option<&'a wgpu::QuerySet>,
+}
+
+impl Default for FrameOptions<'_> {
+    fn default() -> Self {
+        Self {
+            stages: Stages::ALL,
+            shown: Shown::Final,
+            moving_lights: false,
+            timestamps: None,
+        }
+    }
+}
+
 /// Everything a frame produced (textures owned by the scene, overwritten next frame).
 #[derive(Clone, Debug)]
 pub struct FrameOutput {
@@ -90,7 +217,8 @@ pub struct FrameOutput {
     pub first_order_tex: wgpu::Texture,
     /// Final lightmap (accumulation format), undilated.
     pub final_lightmap_tex: wgpu::Texture,
-    /// Dilated final lightmap.
+    /// The dilated shown lightmap (the final map unless [`FrameOptions::shown`] says
+    /// otherwise).
     pub dilated_final_tex: wgpu::Texture,
     /// The displayed image (`Rgba8Unorm`, sRGB-encoded values).
     pub color_tex: wgpu::Texture,
@@ -104,12 +232,28 @@ impl Renderer {
             transfer: TransferPass::new(gpu, &options.transfer)?,
             dilate: DilatePass::new(gpu, &options.dilate)?,
             display: DisplayPass::new(gpu, &options.display)?,
-            side_by_side: options.display.side_by_side,
+            indirect: IndirectPass::new(gpu)?,
         })
     }
 
-    /// Uploads the scene for every pass. The lightmap size is the albedo map's. Also renders
-    /// one first-order map without lights and reads its coverage back, for the dilation plan.
+    /// The options of every pass (the display's as last set).
+    pub fn options(&self) -> RendererOptions {
+        RendererOptions {
+            first_order: *self.first_order.options(),
+            transfer: *self.transfer.options(),
+            dilate: *self.dilate.options(),
+            display: *self.display.options(),
+        }
+    }
+
+    /// The display pass's lightmap filter.
+    pub fn display_filter(&self) -> LightmapFilter {
+        self.display.filter()
+    }
+
+    /// Uploads the scene for every pass (the mesh once). The lightmap size is the albedo
+    /// map's. Also renders one first-order map without lights and reads its coverage back,
+    /// for the dilation plan.
     pub fn prepare(
         &self,
         gpu: &Gpu,
@@ -119,7 +263,8 @@ impl Renderer {
         pieces: &[TransferPiece],
     ) -> Result<RenderScene, PassError> {
         let size = [albedo.width, albedo.height];
-        let first_order = self.first_order.prepare(gpu, mesh, albedo)?;
+        let mesh = GpuMesh::upload(gpu, mesh)?;
+        let first_order = self.first_order.prepare_mesh(gpu, &mesh, albedo)?;
         let coverage = self.coverage(gpu, &first_order)?;
         let dilate_plan = self.dilate.plan(&coverage)?;
         Ok(RenderScene {
@@ -129,7 +274,9 @@ impl Renderer {
             dilate_first_order: self.dilate.prepare(gpu, &dilate_plan)?,
             dilate_plan,
             first_order,
-            display: self.display.prepare(gpu, mesh)?,
+            display: self.display.prepare_mesh(gpu, &mesh)?,
+            mesh,
+            indirect: OnceLock::new(),
         })
     }
 
@@ -149,88 +296,167 @@ impl Renderer {
         gpu.read_texel_image("ortm.frame.coverage", &fo.first_order_tex)
     }
 
-    /// Records the lightmap passes only (first order, transfer); returns
-    /// `(first_order_tex, final_lightmap_tex)`.
-    pub fn encode_lightmaps(
+    /// Replaces the scene's transfer work with `pieces` of `atlases` (uploaded again), e.g.
+    /// those of the first K maps.
+    pub fn set_pieces(
         &self,
         gpu: &Gpu,
-        encoder: &mut wgpu::CommandEncoder,
-        scene: &RenderScene,
-        lights: &[LightDesc],
-    ) -> Result<(wgpu::Texture, wgpu::Texture), PassError> {
-        let fo = self.first_order.encode(
-            gpu,
-            encoder,
-            &FirstOrderInputs {
-                scene: &scene.first_order,
-                lights,
-            },
-        )?;
-        let fo_view = util::view(&fo.first_order_tex);
-        let tr = self.transfer.encode(
-            gpu,
-            encoder,
-            &TransferInputs {
-                scene: &scene.transfer,
-                first_order: &fo_view,
-            },
-        );
-        Ok((fo.first_order_tex, tr.final_lightmap_tex))
+        scene: &mut RenderScene,
+        atlases: &[AtlasData],
+        pieces: &[TransferPiece],
+    ) -> Result<(), PassError> {
+        scene.transfer = self
+            .transfer
+            .prepare(gpu, scene.lightmap_size, atlases, pieces)?;
+        Ok(())
     }
 
-    /// Records a whole frame.
-    pub fn encode(
+    /// Rebuilds the display pass and the scene's display targets for `options` (image size,
+    /// side-by-side); the mesh is not uploaded again.
+    pub fn set_display(
+        &mut self,
+        gpu: &Gpu,
+        scene: &mut RenderScene,
+        options: &DisplayOptions,
+    ) -> Result<(), PassError> {
+        let pass = DisplayPass::new(gpu, options)?;
+        scene.display = pass.prepare_mesh(gpu, &scene.mesh)?;
+        self.display = pass;
+        Ok(())
+    }
+
+    /// Records a frame: the stages of `options.stages`, with timestamps between them.
+    pub fn encode_frame(
         &self,
         gpu: &Gpu,
         encoder: &mut wgpu::CommandEncoder,
         scene: &RenderScene,
         params: &FrameParams<'_>,
+        options: &FrameOptions<'_>,
     ) -> Result<FrameOutput, PassError> {
-        let (fo_tex, final_tex) = self.encode_lightmaps(gpu, encoder, scene, params.lights)?;
-        let final_view = util::view(&final_tex);
-        let dil_final = self.dilate.encode(
-            gpu,
-            encoder,
-            &DilateInputs {
-                targets: &scene.dilate_final,
-                source: &final_view,
-            },
-        );
-        let dil_final_view = util::view(&dil_final.dilated_tex);
-        let dil_fo_view = if self.side_by_side {
-            let fo_view = util::view(&fo_tex);
-            let d = self.dilate.encode(
-                gpu,
-                encoder,
-                &DilateInputs {
-                    targets: &scene.dilate_first_order,
-                    source: &fo_view,
-                },
-            );
-            Some(util::view(&d.dilated_tex))
-        } else {
-            None
+        let stamp = |enc: &mut wgpu::CommandEncoder, i: u32| {
+            if let Some(q) = options.timestamps {
+                enc.write_timestamp(q, i);
+            }
         };
-        let out = self.display.encode(
-            gpu,
-            encoder,
-            &DisplayInputs {
+        let stages = options.stages;
+        stamp(encoder, 0);
+        if stages.first_order {
+            if options.moving_lights {
+                scene.first_order.invalidate_shadow_maps();
+            }
+            let inputs = FirstOrderInputs {
+                scene: &scene.first_order,
+                lights: params.lights,
+            };
+            self.first_order.encode(gpu, encoder, &inputs)?;
+        }
+        stamp(encoder, 1);
+        let fo_view = util::view(scene.first_order.output());
+        if stages.transfer {
+            let inputs = TransferInputs {
+                scene: &scene.transfer,
+                first_order: &fo_view,
+            };
+            self.transfer.encode(gpu, encoder, &inputs);
+        }
+        stamp(encoder, 2);
+        let source = self.shown_source(gpu, encoder, scene, options, &fo_view)?;
+        stamp(encoder, 3);
+        let (shown, left) = self.dilate_shown(gpu, encoder, scene, stages.dilate, source, &fo_view);
+        stamp(encoder, 4);
+        if stages.display {
+            let inputs = DisplayInputs {
                 scene: &scene.display,
-                final_lightmap: &dil_final_view,
+                final_lightmap: &shown,
                 lightmap_size: scene.lightmap_size,
-                first_order: dil_fo_view.as_ref(),
+                first_order: left.as_ref(),
                 camera: params.camera,
                 exposure: params.exposure,
                 lights: params.lights,
                 specular: params.specular,
-            },
-        )?;
+            };
+            self.display.encode(gpu, encoder, &inputs)?;
+        }
+        stamp(encoder, 5);
         Ok(FrameOutput {
-            first_order_tex: fo_tex,
-            final_lightmap_tex: final_tex,
-            dilated_final_tex: dil_final.dilated_tex,
-            color_tex: out.color_tex,
+            first_order_tex: scene.first_order.output().clone(),
+            final_lightmap_tex: scene.transfer.output().clone(),
+            dilated_final_tex: scene.dilate_final.output().clone(),
+            color_tex: scene.display.color().clone(),
         })
+    }
+
+    /// The map [`FrameOptions::shown`] names (recording the indirect difference when it is
+    /// shown and the dilate stage runs), and whether to dilate it.
+    fn shown_source(
+        &self,
+        gpu: &Gpu,
+        encoder: &mut wgpu::CommandEncoder,
+        scene: &RenderScene,
+        options: &FrameOptions<'_>,
+        fo_view: &wgpu::TextureView,
+    ) -> Result<(wgpu::TextureView, bool), PassError> {
+        Ok(match options.shown {
+            Shown::Final => (util::view(scene.transfer.output()), true),
+            Shown::FirstOrder => (fo_view.clone(), true),
+            Shown::Texture { view, dilate } => (view.clone(), dilate),
+            Shown::Indirect => {
+                if scene.indirect.get().is_none() {
+                    let targets = self.indirect.prepare(gpu, scene.lightmap_size)?;
+                    let _ = scene.indirect.set(targets);
+                }
+                let targets = scene
+                    .indirect
+                    .get()
+                    .ok_or_else(|| PassError::InvalidInput {
+                        what: "RenderScene".into(),
+                        problem: "indirect map missing (internal bug)".into(),
+                    })?;
+                if options.stages.dilate {
+                    let final_view = util::view(scene.transfer.output());
+                    let inputs = IndirectInputs {
+                        targets,
+                        first_order: fo_view,
+                        final_map: &final_view,
+                    };
+                    self.indirect.encode(gpu, encoder, &inputs);
+                }
+                (util::view(targets.output()), true)
+            }
+        })
+    }
+
+    /// Dilates `source` (when `dilate`) and, in side-by-side mode, the first-order map
+    /// (recording only when `record`); returns the views the display reads: the shown map
+    /// and the left half's map.
+    fn dilate_shown(
+        &self,
+        gpu: &Gpu,
+        encoder: &mut wgpu::CommandEncoder,
+        scene: &RenderScene,
+        record: bool,
+        (source, dilate): (wgpu::TextureView, bool),
+        fo_view: &wgpu::TextureView,
+    ) -> (wgpu::TextureView, Option<wgpu::TextureView>) {
+        let mut dilated = |targets: &DilateTargets, source: &wgpu::TextureView| {
+            if record {
+                self.dilate
+                    .encode(gpu, encoder, &DilateInputs { targets, source });
+            }
+            util::view(targets.output())
+        };
+        let shown = if dilate {
+            dilated(&scene.dilate_final, &source)
+        } else {
+            source
+        };
+        let left = self
+            .display
+            .options()
+            .side_by_side
+            .then(|| dilated(&scene.dilate_first_order, fo_view));
+        (shown, left)
     }
 
     /// Renders a frame and reads the image back.
@@ -245,7 +471,7 @@ impl Renderer {
             .create_command_encoder(&wgpu::CommandEncoderDescriptor {
                 label: Some("ortm.frame.encoder"),
             });
-        let out = self.encode(gpu, &mut enc, scene, params)?;
+        let out = self.encode_frame(gpu, &mut enc, scene, params, &FrameOptions::default())?;
         gpu.submit_and_wait("ortm.frame", enc)?;
         gpu.read_rgba8("ortm.frame.color", &out.color_tex)
     }
@@ -263,11 +489,22 @@ impl Renderer {
             .create_command_encoder(&wgpu::CommandEncoderDescriptor {
                 label: Some("ortm.frame.lightmaps_encoder"),
             });
-        let (fo, fin) = self.encode_lightmaps(gpu, &mut enc, scene, lights)?;
+        let params = FrameParams {
+            lights,
+            // Not used: the display stage is not recorded.
+            camera: Camera::default(),
+            exposure: 1.0,
+            specular: None,
+        };
+        let options = FrameOptions {
+            stages: Stages::LIGHTMAPS,
+            ..Default::default()
+        };
+        let out = self.encode_frame(gpu, &mut enc, scene, &params, &options)?;
         gpu.submit_and_wait("ortm.frame.lightmaps", enc)?;
         Ok((
-            gpu.read_texel_image("ortm.frame.first_order", &fo)?,
-            gpu.read_texel_image("ortm.frame.final", &fin)?,
+            gpu.read_texel_image("ortm.frame.first_order", &out.first_order_tex)?,
+            gpu.read_texel_image("ortm.frame.final", &out.final_lightmap_tex)?,
         ))
     }
 }

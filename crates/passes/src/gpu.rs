@@ -401,35 +401,28 @@ impl Gpu {
         Ok(tex)
     }
 
-    /// Copies a 2D texture (layer 0, mip 0) into a CPU byte vector with tight rows.
-    fn read_texture_bytes(
+    /// Records a copy of a 2D texture (layer 0, mip 0) of `bytes_per_texel` into a new
+    /// `MAP_READ` buffer labelled `label`, rows padded to `COPY_BYTES_PER_ROW_ALIGNMENT`;
+    /// returns the buffer and its row length in bytes. Read it with [`Gpu::map_read`] after
+    /// the encoder was submitted.
+    pub fn record_readback(
         &self,
-        what: &str,
+        label: &str,
+        encoder: &mut wgpu::CommandEncoder,
         tex: &wgpu::Texture,
         bytes_per_texel: u32,
-    ) -> Result<Vec<u8>, PassError> {
+    ) -> (wgpu::Buffer, u32) {
         let (w, h) = (tex.width(), tex.height());
-        let tight = w * bytes_per_texel;
-        let padded =
-            tight.div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT) * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
+        let padded = (w * bytes_per_texel).div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT)
+            * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
         let buffer = self.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("ortm.gpu.readback"),
-            size: padded as u64 * h as u64,
+            label: Some(label),
+            size: u64::from(padded) * u64::from(h),
             usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
             mapped_at_creation: false,
         });
-        let mut enc = self
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                label: Some("ortm.gpu.readback"),
-            });
-        enc.copy_texture_to_buffer(
-            wgpu::TexelCopyTextureInfo {
-                texture: tex,
-                mip_level: 0,
-                origin: wgpu::Origin3d::ZERO,
-                aspect: wgpu::TextureAspect::All,
-            },
+        encoder.copy_texture_to_buffer(
+            tex.as_image_copy(),
             wgpu::TexelCopyBufferInfo {
                 buffer: &buffer,
                 layout: wgpu::TexelCopyBufferLayout {
@@ -444,10 +437,28 @@ impl Gpu {
                 depth_or_array_layers: 1,
             },
         );
+        (buffer, padded)
+    }
+
+    /// Copies a 2D texture (layer 0, mip 0) into a CPU byte vector with tight rows.
+    fn read_texture_bytes(
+        &self,
+        what: &str,
+        tex: &wgpu::Texture,
+        bytes_per_texel: u32,
+    ) -> Result<Vec<u8>, PassError> {
+        let tight = tex.width() * bytes_per_texel;
+        let mut enc = self
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("ortm.gpu.readback"),
+            });
+        let (buffer, padded) =
+            self.record_readback("ortm.gpu.readback", &mut enc, tex, bytes_per_texel);
         self.submit_and_wait(what, enc)?;
         let bytes = self.map_read(what, &buffer)?;
-        let mut out = Vec::with_capacity(tight as usize * h as usize);
-        for row in 0..h as usize {
+        let mut out = Vec::with_capacity(tight as usize * tex.height() as usize);
+        for row in 0..tex.height() as usize {
             let start = row * padded as usize;
             out.extend_from_slice(&bytes[start..start + tight as usize]);
         }

@@ -1,15 +1,21 @@
 //! ortm's real-time wgpu passes: first-order lightmap, offset radiance transfer (paper
-//! Eq. 9, blend and compute paths), gutter dilation, display, and benchmarks.
+//! Eq. 9, blend and compute paths), indirect light, gutter dilation and display.
 //!
 //! # Frame
 //! ```text
-//! lights ─▶ first_order ─▶ transfer (blend | compute) ─▶ dilate ─▶ display ─▶ RGBA8 image
+//! lights ─▶ first_order ─▶ transfer (blend | compute) ─▶ [indirect] ─▶ dilate ─▶ display ─▶ RGBA8 image
 //!              ▲ mesh, albedo     ▲ atlases + pieces (from the binning stage)
 //! ```
-//! Each pass is a struct built once with `new(&Gpu, &Options)` and recorded per frame with
-//! `encode(&Gpu, encoder, &inputs) -> Output`; [`frame::Renderer`] chains them. Every
-//! pass has a CPU mirror of the same name in [`cpu`]; the tests compare them on the
-//! lavapipe software adapter. See `docs/render.md` for measurements and the file map.
+//! Each pass is a struct built once with `new(&Gpu, &Options)`, given its per-scene data
+//! by `prepare`, and recorded per frame with `encode(&Gpu, encoder, &inputs) -> Output`.
+//! [`frame::Renderer`] owns one of each and is the one frame script:
+//! [`Renderer::prepare`] uploads a scene (the mesh once, [`mesh::GpuMesh`]) and
+//! [`Renderer::encode_frame`] records a frame; its [`frame::FrameOptions`] choose the
+//! stages (the benchmarks time one at a time), the lightmap shown (final, first order,
+//! indirect, or a caller's texture), moving or static lights, and timestamps
+//! ([`timestamps::Timestamps`]). Every pass has a CPU mirror of the same name in [`cpu`];
+//! the tests compare them on the lavapipe software adapter. See `docs/render.md` for
+//! measurements and the file map.
 //!
 //! # Conventions
 //! See [`types`]: SI units (m, W/sr, W/m²), lightmap texel `(x, y)` centre
@@ -18,23 +24,24 @@
 //!
 //! This crate does not depend on `ortm`; the CLI converts its types into [`types`].
 
-pub mod bench;
 pub mod cpu;
-pub mod demo;
 pub mod dilate;
 pub mod display;
 pub mod error;
 pub mod first_order;
 pub mod frame;
 pub mod gpu;
+pub mod indirect;
+pub mod mesh;
 pub mod pairing;
 pub mod schedule;
+pub mod timestamps;
 pub mod transfer;
 pub mod transfer_gather;
 pub mod types;
 pub mod util;
 
 pub use error::PassError;
-pub use frame::{FrameParams, Renderer, RendererOptions};
+pub use frame::{FrameOptions, FrameParams, Renderer, RendererOptions};
 pub use gpu::Gpu;
 pub use types::{AlbedoMap, AtlasData, LightDesc, MeshData, TexelImage, TransferPiece};

@@ -182,56 +182,110 @@ pub fn pair_schedule(
         .iter()
         .flat_map(|b| b.instances.iter().map(move |i| (b.atlas, *i)))
         .collect();
-    let mut max_abs = Vec::with_capacity(items.len());
-    for (k, (a, inst)) in items.iter().enumerate() {
-        let atlas = atlases
-            .get(*a as usize)
-            .ok_or_else(|| PassError::InvalidInput {
-                what: format!("schedule instance {k}"),
-                problem: format!("names atlas {a} but only {} were given", atlases.len()),
-            })?;
-        let inside = atlas.rgb.len() == atlas.width as usize * atlas.height as usize
-            && inst.src[0] as u64 + inst.size[0] as u64 <= atlas.width as u64
-            && inst.src[1] as u64 + inst.size[1] as u64 <= atlas.height as u64;
-        if !inside {
-            return Err(PassError::InvalidInput {
-                what: format!("schedule instance {k}"),
-                problem: format!(
-                    "its source rectangle ({}, {}) + {}×{} is not inside atlas {a} ({}×{}, {} \
-                     values); build the schedule from these atlases",
-                    inst.src[0],
-                    inst.src[1],
-                    inst.size[0],
-                    inst.size[1],
-                    atlas.width,
-                    atlas.height,
-                    atlas.rgb.len()
-                ),
-            });
-        }
-        let mut m = 0f32;
-        for j in 0..inst.size[1] {
-            let row = ((inst.src[1] + j) * atlas.width + inst.src[0]) as usize;
-            for v in &atlas.rgb[row..row + inst.size[0] as usize] {
-                for c in v {
-                    m = m.max(if c.is_finite() {
-                        c.abs()
-                    } else {
-                        f32::INFINITY
-                    });
-                }
+    let max_abs = items
+        .iter()
+        .enumerate()
+        .map(|(k, (a, inst))| piece_max_abs(k, *a, inst, atlases))
+        .collect::<Result<Vec<f32>, PassError>>()?;
+    let pairs = greedy_pairs(&items, &max_abs);
+    let mut used = vec![false; items.len()];
+    for &(i, j) in &pairs {
+        used[i] = true;
+        used[j] = true;
+    }
+    let singles = singles(schedule.lightmap_size, &items, &used);
+    let page_w = PAGE_WIDTH_MAX.min(max_side);
+    let boxes: Vec<([u32; 2], [u32; 2])> = pairs
+        .iter()
+        .map(|&(i, j)| bbox(&items[i].1, &items[j].1))
+        .collect();
+    let (order, place, page_heights) = shelf_pack(&boxes, page_w, max_side)?;
+    let mut pages: Vec<PairPage> = page_heights
+        .iter()
+        .map(|&h| PairPage {
+            width: page_w,
+            height: h,
+            texels: vec![[0; 4]; page_w as usize * h as usize],
+            instances: Vec::new(),
+        })
+        .collect();
+    for &p in &order {
+        let (i, j) = pairs[p];
+        let (page, px, py) = place[p];
+        let a = (&items[i], scale_exponent(max_abs[i]));
+        let b = (&items[j], scale_exponent(max_abs[j]));
+        write_pair(&mut pages[page], [px, py], boxes[p], a, b, atlases);
+    }
+    Ok(PairedSchedule {
+        lightmap_size: schedule.lightmap_size,
+        singles,
+        pages,
+        pairs: pairs.len(),
+    })
+}
+
+/// The largest `|value|` of instance `k` (reading `atlas`; ∞ when one is not finite),
+/// after checking that its source rectangle lies inside the atlas.
+fn piece_max_abs(
+    k: usize,
+    a: u32,
+    inst: &PieceInstance,
+    atlases: &[AtlasData],
+) -> Result<f32, PassError> {
+    let atlas = atlases
+        .get(a as usize)
+        .ok_or_else(|| PassError::InvalidInput {
+            what: format!("schedule instance {k}"),
+            problem: format!("names atlas {a} but only {} were given", atlases.len()),
+        })?;
+    let inside = atlas.rgb.len() == atlas.width as usize * atlas.height as usize
+        && inst.src[0] as u64 + inst.size[0] as u64 <= atlas.width as u64
+        && inst.src[1] as u64 + inst.size[1] as u64 <= atlas.height as u64;
+    if !inside {
+        return Err(PassError::InvalidInput {
+            what: format!("schedule instance {k}"),
+            problem: format!(
+                "its source rectangle ({}, {}) + {}×{} is not inside atlas {a} ({}×{}, {} \
+                 values); build the schedule from these atlases",
+                inst.src[0],
+                inst.src[1],
+                inst.size[0],
+                inst.size[1],
+                atlas.width,
+                atlas.height,
+                atlas.rgb.len()
+            ),
+        });
+    }
+    let mut m = 0f32;
+    for j in 0..inst.size[1] {
+        let row = ((inst.src[1] + j) * atlas.width + inst.src[0]) as usize;
+        for v in &atlas.rgb[row..row + inst.size[0] as usize] {
+            for c in v {
+                m = m.max(if c.is_finite() {
+                    c.abs()
+                } else {
+                    f32::INFINITY
+                });
             }
         }
-        max_abs.push(m);
     }
+    Ok(m)
+}
+
+/// `(origin, size)` of the bounding box of two instances' destination rectangles.
+fn bbox(p: &PieceInstance, q: &PieceInstance) -> ([u32; 2], [u32; 2]) {
+    let x0 = p.dst[0].min(q.dst[0]);
+    let y0 = p.dst[1].min(q.dst[1]);
+    let x1 = (p.dst[0] + p.size[0]).max(q.dst[0] + q.size[0]);
+    let y1 = (p.dst[1] + p.size[1]).max(q.dst[1] + q.size[1]);
+    ([x0, y0], [x1 - x0, y1 - y0])
+}
+
+/// The pairing rule of the module docs: every pair of finite instances with a positive
+/// saving, taken greedily by saving (ties by index); returns `(i, j)` index pairs.
+fn greedy_pairs(items: &[(u32, PieceInstance)], max_abs: &[f32]) -> Vec<(usize, usize)> {
     let area = |i: &PieceInstance| i.size[0] as f64 * i.size[1] as f64;
-    let bbox = |p: &PieceInstance, q: &PieceInstance| {
-        let x0 = p.dst[0].min(q.dst[0]);
-        let y0 = p.dst[1].min(q.dst[1]);
-        let x1 = (p.dst[0] + p.size[0]).max(q.dst[0] + q.size[0]);
-        let y1 = (p.dst[1] + p.size[1]).max(q.dst[1] + q.size[1]);
-        ([x0, y0], [x1 - x0, y1 - y0])
-    };
     let mut candidates: Vec<(f64, u32, u32)> = Vec::new();
     for i in 0..items.len() {
         if !max_abs[i].is_finite() {
@@ -260,10 +314,17 @@ pub fn pair_schedule(
             pairs.push((i, j));
         }
     }
+    pairs
+}
 
-    // Singles: unpaired instances per atlas, in input order.
+/// The unpaired instances (`!used`) per atlas, in input order.
+fn singles(
+    lightmap_size: [u32; 2],
+    items: &[(u32, PieceInstance)],
+    used: &[bool],
+) -> FrameSchedule {
     let mut singles = FrameSchedule {
-        lightmap_size: schedule.lightmap_size,
+        lightmap_size,
         batches: Vec::new(),
     };
     for (k, (a, inst)) in items.iter().enumerate() {
@@ -278,17 +339,24 @@ pub fn pair_schedule(
             }),
         }
     }
+    singles
+}
 
-    // Shelf packing of the bounding boxes, tallest first.
-    let page_w = PAGE_WIDTH_MAX.min(max_side);
-    let mut order: Vec<usize> = (0..pairs.len()).collect();
-    let boxes: Vec<([u32; 2], [u32; 2])> = pairs
-        .iter()
-        .map(|&(i, j)| bbox(&items[i].1, &items[j].1))
-        .collect();
+/// Shelf packing of the pairs' bounding `boxes` into pages `page_w` wide and at most
+/// `max_side` high, tallest first. Returns the packing order, `(page, x, y)` per pair and
+/// each page's height.
+#[allow(
+    clippy::type_complexity,
+    reason = "three parallel results of one packing"
+)]
+fn shelf_pack(
+    boxes: &[([u32; 2], [u32; 2])],
+    page_w: u32,
+    max_side: u32,
+) -> Result<(Vec<usize>, Vec<(usize, u32, u32)>, Vec<u32>), PassError> {
+    let mut order: Vec<usize> = (0..boxes.len()).collect();
     order.sort_by(|&a, &b| boxes[b].1[1].cmp(&boxes[a].1[1]).then(a.cmp(&b)));
-    // (page, x, y) per pair.
-    let mut place = vec![(0usize, 0u32, 0u32); pairs.len()];
+    let mut place = vec![(0usize, 0u32, 0u32); boxes.len()];
     let mut page_heights: Vec<u32> = Vec::new();
     let (mut x, mut y, mut shelf_h) = (0u32, 0u32, 0u32);
     for &p in &order {
@@ -320,66 +388,57 @@ pub fn pair_schedule(
         shelf_h = shelf_h.max(h);
         page_heights[page] = page_heights[page].max(y + h);
     }
-    let mut pages: Vec<PairPage> = page_heights
-        .iter()
-        .map(|&h| PairPage {
-            width: page_w,
-            height: h,
-            texels: vec![[0; 4]; page_w as usize * h as usize],
-            instances: Vec::new(),
-        })
-        .collect();
-    for &p in &order {
-        let (i, j) = pairs[p];
-        let ((ai, a), (bi, b)) = (&items[i], &items[j]);
-        let (dst, size) = boxes[p];
-        let (page, px, py) = place[p];
-        let ka = scale_exponent(max_abs[i]);
-        let kb = scale_exponent(max_abs[j]);
-        let value = |atlas: u32, inst: &PieceInstance, k: i32, t: [u32; 2]| -> [u16; 3] {
-            let inside = t[0] >= inst.dst[0]
-                && t[1] >= inst.dst[1]
-                && t[0] < inst.dst[0] + inst.size[0]
-                && t[1] < inst.dst[1] + inst.size[1];
-            if !inside {
-                return [0; 3];
-            }
-            let at = &atlases[atlas as usize];
-            let s =
-                (inst.src[1] + t[1] - inst.dst[1]) * at.width + inst.src[0] + t[0] - inst.dst[0];
-            let s2 = 2f32.powi(k);
-            at.rgb[s as usize].map(|c| f32_to_f16_normal(c * s2))
-        };
-        let pg = &mut pages[page];
-        for jj in 0..size[1] {
-            for ii in 0..size[0] {
-                let t = [dst[0] + ii, dst[1] + jj];
-                let va = value(*ai, a, ka, t);
-                let vb = value(*bi, b, kb, t);
-                let lo_hi = |l: u16, h: u16| l as u32 | (h as u32) << 16;
-                pg.texels[((py + jj) * pg.width + px + ii) as usize] = [
-                    lo_hi(va[0], va[1]),
-                    lo_hi(va[2], vb[0]),
-                    lo_hi(vb[1], vb[2]),
-                    0,
-                ];
-            }
+    Ok((order, place, page_heights))
+}
+
+/// Writes one pair's texels (layout in the module docs) at `origin` of `page` and appends
+/// its instance. `(dst, size)` is the pair's bounding box; `a` and `b` are the two
+/// `((atlas, instance), scale exponent)`.
+fn write_pair(
+    page: &mut PairPage,
+    origin: [u32; 2],
+    (dst, size): ([u32; 2], [u32; 2]),
+    a: (&(u32, PieceInstance), i32),
+    b: (&(u32, PieceInstance), i32),
+    atlases: &[AtlasData],
+) {
+    let (((ai, ia), ka), ((bi, ib), kb)) = (a, b);
+    let value = |atlas: u32, inst: &PieceInstance, k: i32, t: [u32; 2]| -> [u16; 3] {
+        let inside = t[0] >= inst.dst[0]
+            && t[1] >= inst.dst[1]
+            && t[0] < inst.dst[0] + inst.size[0]
+            && t[1] < inst.dst[1] + inst.size[1];
+        if !inside {
+            return [0; 3];
         }
-        pg.instances.push(PairInstance {
-            src: [px, py],
-            dst,
-            size,
-            offset_a: a.offset,
-            offset_b: b.offset,
-            scale: [2f32.powi(-ka), 2f32.powi(-kb)],
-        });
+        let at = &atlases[atlas as usize];
+        let s = (inst.src[1] + t[1] - inst.dst[1]) * at.width + inst.src[0] + t[0] - inst.dst[0];
+        let s2 = 2f32.powi(k);
+        at.rgb[s as usize].map(|c| f32_to_f16_normal(c * s2))
+    };
+    let [px, py] = origin;
+    for jj in 0..size[1] {
+        for ii in 0..size[0] {
+            let t = [dst[0] + ii, dst[1] + jj];
+            let va = value(*ai, ia, ka, t);
+            let vb = value(*bi, ib, kb, t);
+            let lo_hi = |l: u16, h: u16| l as u32 | (h as u32) << 16;
+            page.texels[((py + jj) * page.width + px + ii) as usize] = [
+                lo_hi(va[0], va[1]),
+                lo_hi(va[2], vb[0]),
+                lo_hi(vb[1], vb[2]),
+                0,
+            ];
+        }
     }
-    Ok(PairedSchedule {
-        lightmap_size: schedule.lightmap_size,
-        singles,
-        pages,
-        pairs: pairs.len(),
-    })
+    page.instances.push(PairInstance {
+        src: origin,
+        dst,
+        size,
+        offset_a: ia.offset,
+        offset_b: ib.offset,
+        scale: [2f32.powi(-ka), 2f32.powi(-kb)],
+    });
 }
 
 #[cfg(test)]

@@ -181,6 +181,13 @@ pub struct TransferScene {
     final_tex: wgpu::Texture,
 }
 
+impl TransferScene {
+    /// The final lightmap the last `encode` wrote (accumulation format).
+    pub fn output(&self) -> &wgpu::Texture {
+        &self.final_tex
+    }
+}
+
 /// GPU objects of the paired path.
 #[derive(Debug)]
 struct PairGpu {
@@ -275,7 +282,8 @@ impl TransferPass {
             device,
             "ortm.transfer.shader",
             &format!(
-                "{}{}{QUAD_WGSL}{}",
+                "{}{}{}{QUAD_WGSL}{}",
+                util::FULLSCREEN_WGSL,
                 reads.wgsl(0, 1, "first_order", f32x4),
                 reads.wgsl(1, 0, "atlas", f32x4),
                 include_str!("../shaders/transfer.wgsl")
@@ -402,34 +410,10 @@ impl TransferPass {
         pieces: &[TransferPiece],
     ) -> Result<TransferScene, PassError> {
         gpu.check_texture_size("lightmap", lightmap_size[0], lightmap_size[1])?;
-        let mut sizes = Vec::with_capacity(atlases.len());
-        for (i, a) in atlases.iter().enumerate() {
-            let n = a.width as usize * a.height as usize;
-            if a.rgb.len() != n {
-                return Err(PassError::BadLength {
-                    what: format!("atlases[{i}].rgb"),
-                    expected: n,
-                    got: a.rgb.len(),
-                    hint: "width·height RGB texels".into(),
-                });
-            }
-            sizes.push([a.width, a.height]);
-        }
+        let sizes = atlas_sizes(atlases)?;
         let schedule = build_schedule(lightmap_size, &sizes, pieces)?;
         let device = &gpu.device;
-        let mut atlas_views = Vec::with_capacity(atlases.len());
-        for (i, a) in atlases.iter().enumerate() {
-            let rgba: Vec<[f32; 4]> = a.rgb.iter().map(|c| [c[0], c[1], c[2], 0.0]).collect();
-            let tex = gpu.create_rgba32f_texture(
-                &format!("ortm.transfer.atlas{i}"),
-                a.width,
-                a.height,
-                &rgba,
-                // The compute path reads atlases as sampled textures.
-                wgpu::TextureUsages::TEXTURE_BINDING | self.options.texel_reads.usage(),
-            )?;
-            atlas_views.push(util::view(&tex));
-        }
+        let atlas_views = self.upload_atlases(gpu, atlases)?;
         let params = util::buffer_init(
             device,
             "ortm.transfer.params",
@@ -465,18 +449,7 @@ impl TransferPass {
                 (Vec::new(), Some(scene), tex)
             }
         };
-        let (paired, pair_gpu) =
-            if self.options.path == TransferPath::Blend && self.options.pair_pieces {
-                let limit = device.limits().max_texture_dimension_2d;
-                let mut paired = pair_schedule(&schedule, atlases, limit)?;
-                let g = Self::upload_pairs(gpu, &paired, self.options.texel_reads)?;
-                for page in &mut paired.pages {
-                    page.texels = Vec::new();
-                }
-                (Some(paired), Some(g))
-            } else {
-                (None, None)
-            };
+        let (paired, pair_gpu) = self.prepare_pairs(gpu, &schedule, atlases)?;
         gpu.check("ortm.transfer.prepare")?;
         Ok(TransferScene {
             schedule,
@@ -488,6 +461,48 @@ impl TransferPass {
             pair_gpu,
             final_tex,
         })
+    }
+
+    /// One RGBA32F texture per atlas (RGB, A = 0); returns their views.
+    fn upload_atlases(
+        &self,
+        gpu: &Gpu,
+        atlases: &[AtlasData],
+    ) -> Result<Vec<wgpu::TextureView>, PassError> {
+        let mut atlas_views = Vec::with_capacity(atlases.len());
+        for (i, a) in atlases.iter().enumerate() {
+            let rgba: Vec<[f32; 4]> = a.rgb.iter().map(|c| [c[0], c[1], c[2], 0.0]).collect();
+            let tex = gpu.create_rgba32f_texture(
+                &format!("ortm.transfer.atlas{i}"),
+                a.width,
+                a.height,
+                &rgba,
+                // The compute path reads atlases as sampled textures.
+                wgpu::TextureUsages::TEXTURE_BINDING | self.options.texel_reads.usage(),
+            )?;
+            atlas_views.push(util::view(&tex));
+        }
+        Ok(atlas_views)
+    }
+
+    /// The paired schedule and its GPU objects (blend path with `pair_pieces`; `None`s
+    /// otherwise). The pages' texels are dropped once uploaded.
+    fn prepare_pairs(
+        &self,
+        gpu: &Gpu,
+        schedule: &FrameSchedule,
+        atlases: &[AtlasData],
+    ) -> Result<(Option<PairedSchedule>, Option<PairGpu>), PassError> {
+        if self.options.path != TransferPath::Blend || !self.options.pair_pieces {
+            return Ok((None, None));
+        }
+        let limit = gpu.device.limits().max_texture_dimension_2d;
+        let mut paired = pair_schedule(schedule, atlases, limit)?;
+        let g = Self::upload_pairs(gpu, &paired, self.options.texel_reads)?;
+        for page in &mut paired.pages {
+            page.texels = Vec::new();
+        }
+        Ok((Some(paired), Some(g)))
     }
 
     fn upload_pairs(
@@ -636,6 +651,24 @@ impl TransferPass {
             }
         }
     }
+}
+
+/// `[width, height]` per atlas, after checking each holds `width·height` values.
+fn atlas_sizes(atlases: &[AtlasData]) -> Result<Vec<[u32; 2]>, PassError> {
+    let mut sizes = Vec::with_capacity(atlases.len());
+    for (i, a) in atlases.iter().enumerate() {
+        let n = a.width as usize * a.height as usize;
+        if a.rgb.len() != n {
+            return Err(PassError::BadLength {
+                what: format!("atlases[{i}].rgb"),
+                expected: n,
+                got: a.rgb.len(),
+                hint: "width·height RGB texels".into(),
+            });
+        }
+        sizes.push([a.width, a.height]);
+    }
+    Ok(sizes)
 }
 
 /// One vertex buffer of piece instances per atlas batch, labelled `ortm.transfer.WHAT.atlasN`.

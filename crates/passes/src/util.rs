@@ -253,7 +253,12 @@ pub fn colour_pipeline(
     })
 }
 
-/// [`colour_pipeline`] for a full-screen triangle drawn by the shader's `vs_fullscreen`.
+/// `shaders/fullscreen.wgsl`: the `vs_fullscreen` vertex shader (one triangle covering the
+/// target), prepended to every shader that draws with [`fullscreen_pipeline`].
+pub const FULLSCREEN_WGSL: &str = include_str!("../shaders/fullscreen.wgsl");
+
+/// [`colour_pipeline`] for a full-screen triangle drawn by `vs_fullscreen` (the module's
+/// source must include [`FULLSCREEN_WGSL`]).
 pub fn fullscreen_pipeline(
     device: &wgpu::Device,
     label: &str,

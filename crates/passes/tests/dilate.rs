@@ -289,18 +289,14 @@ fn plans_of_another_size_are_errors() {
 
 #[test]
 fn frame_plan_is_the_first_order_coverage_and_dilates_like_the_mirror() {
-    use passes::demo::{blur_transfer, demo_lights, floor_and_box};
-    use passes::frame::{FrameParams, Renderer};
+    use common::demo::{demo_lights, prepare_demo};
+    use passes::frame::{FrameOptions, FrameParams, Renderer};
 
     let gpu = gpu();
     let size = 64;
     let options = common::demo_renderer_options(32, 16);
     let renderer = Renderer::new(&gpu, &options).unwrap();
-    let (mesh, albedo) = floor_and_box(size);
-    let (atlases, pieces) = blur_transfer([size, size], 2, 1, 0.02);
-    let scene = renderer
-        .prepare(&gpu, &mesh, &albedo, &atlases, &pieces)
-        .unwrap();
+    let (scene, _) = prepare_demo(&gpu, &renderer, size);
     let lights = demo_lights();
     let params = FrameParams {
         lights: &lights,
@@ -309,7 +305,9 @@ fn frame_plan_is_the_first_order_coverage_and_dilates_like_the_mirror() {
         specular: None,
     };
     let mut enc = gpu.device.create_command_encoder(&Default::default());
-    let out = renderer.encode(&gpu, &mut enc, &scene, &params).unwrap();
+    let out = renderer
+        .encode_frame(&gpu, &mut enc, &scene, &params, &FrameOptions::default())
+        .unwrap();
     gpu.submit_and_wait("test.frame", enc).unwrap();
     let read = |what, t| gpu.read_texel_image(what, t).unwrap();
     let fo = read("fo", &out.first_order_tex);

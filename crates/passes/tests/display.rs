@@ -6,10 +6,10 @@
 
 mod common;
 
+use common::demo::floor_and_box;
 use common::gpu;
 use glam::Vec3;
 use passes::cpu::display::{bilinear, shade, specular, tonemap};
-use passes::demo::floor_and_box;
 use passes::dilate::{DilateInputs, DilateOptions, DilatePass};
 use passes::display::{
     BACKGROUND, Camera, DisplayInputs, DisplayOptions, DisplayPass, LightmapFilter, Specular,

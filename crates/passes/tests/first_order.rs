@@ -9,11 +9,11 @@
 
 mod common;
 
+use common::demo::{demo_lights, floor_and_box};
 use common::gpu;
 use glam::Vec3;
 use passes::AlbedoMap;
 use passes::cpu::first_order as mirror;
-use passes::demo::{demo_lights, floor_and_box};
 use passes::first_order::{
     FirstOrderInputs, FirstOrderOptions, FirstOrderPass, FirstOrderScene, LIGHT_DIRECTIONAL,
     LIGHT_POINT, shadow_layers,

@@ -1,17 +1,22 @@
-//! The frame script ([`passes::frame::Renderer`]) and the benchmark report on the demo
-//! scene, and device loss turning into an error.
+//! The frame script ([`passes::frame::Renderer::encode_frame`]) on the demo scene: the final
+//! map against the CPU mirror, a frame recorded stage by stage (as the benchmarks do) equal
+//! to the whole frame, frame timestamps; the demo mesh itself; device loss turning into an
+//! error.
 
 mod common;
 
+use common::demo::{demo_lights, floor_and_box, prepare_demo};
 use common::gpu;
-use passes::bench::{TimingSource, bench_frame};
-use passes::demo::{blur_transfer, demo_lights, floor_and_box};
-use passes::frame::{FrameParams, Renderer, RendererOptions};
+use glam::Vec3;
+use passes::frame::{
+    FRAME_TIMESTAMPS, FrameOptions, FrameParams, RenderScene, Renderer, RendererOptions, Stages,
+};
+use passes::timestamps::Timestamps;
 use passes::transfer::{TransferOptions, TransferPath};
-use passes::{PassError, cpu};
+use passes::{Gpu, PassError, cpu};
 
 #[test]
-fn renderer_final_map_matches_mirror_and_bench_reports_every_pass() {
+fn renderer_final_map_matches_mirror_and_stages_make_the_frame() {
     let gpu = gpu();
     let size = 64;
     let options = RendererOptions {
@@ -24,11 +29,7 @@ fn renderer_final_map_matches_mirror_and_bench_reports_every_pass() {
         ..common::demo_renderer_options(64, 32)
     };
     let renderer = Renderer::new(&gpu, &options).unwrap();
-    let (mesh, albedo) = floor_and_box(size);
-    let (atlases, pieces) = blur_transfer([size, size], 2, 1, 0.02);
-    let scene = renderer
-        .prepare(&gpu, &mesh, &albedo, &atlases, &pieces)
-        .unwrap();
+    let (scene, atlases) = prepare_demo(&gpu, &renderer, size);
     let lights = demo_lights();
 
     let (fo, fin) = renderer.render_lightmaps(&gpu, &scene, &lights).unwrap();
@@ -63,25 +64,98 @@ fn renderer_final_map_matches_mirror_and_bench_reports_every_pass() {
         exposure: 1.0,
         specular: None,
     };
-    let report = bench_frame(&gpu, &renderer, &scene, &params, 2).unwrap();
-    // first order (moving lights), transfer, dilation, display, roofline, first order
-    // (static lights).
-    assert_eq!(report.rows.len(), 6);
-    assert!(
-        report.rows[5].name.contains("static"),
-        "{:?}",
-        report.rows[5]
+    assert_stages_make_the_frame(&gpu, &renderer, &scene, &params);
+    assert_frame_timestamps(&gpu, &renderer, &scene, &params);
+}
+
+/// The whole frame, then the same frame one stage per submission (the benchmarks' way):
+/// each stage reads what the previous one left in the scene; static lights give the same
+/// image as moving ones.
+fn assert_stages_make_the_frame(
+    gpu: &Gpu,
+    renderer: &Renderer,
+    scene: &RenderScene,
+    params: &FrameParams<'_>,
+) {
+    let frame = |stages: &[Stages], moving_lights: bool| {
+        for &stages in stages {
+            let mut enc = gpu.device.create_command_encoder(&Default::default());
+            let options = FrameOptions {
+                stages,
+                moving_lights,
+                ..Default::default()
+            };
+            renderer
+                .encode_frame(gpu, &mut enc, scene, params, &options)
+                .unwrap();
+            gpu.submit_and_wait("test.frame", enc).unwrap();
+        }
+        gpu.read_rgba8("test.frame", scene.display.color()).unwrap()
+    };
+    let whole = frame(&[Stages::ALL], true);
+    let staged = frame(
+        &[
+            Stages::FIRST_ORDER,
+            Stages::TRANSFER,
+            Stages::DILATE,
+            Stages::DISPLAY,
+        ],
+        true,
     );
-    let expected_blends = scene.transfer.schedule.texel_blends() + (size * size) as u64;
-    assert_eq!(report.rows[1].texel_blends, expected_blends);
+    assert_eq!(whole, staged, "stage by stage ≠ the whole frame");
     assert_eq!(
-        report.timing == TimingSource::GpuTimestamps,
-        gpu.supports_timestamps()
+        frame(&[Stages::ALL], false),
+        whole,
+        "reused shadow maps (static lights) must give the same image"
     );
-    for r in &report.rows {
-        assert!(r.ms.is_finite() && r.ms >= 0.0, "{r:?}");
+}
+
+/// Timestamps between the stages, when the adapter has them.
+fn assert_frame_timestamps(
+    gpu: &Gpu,
+    renderer: &Renderer,
+    scene: &RenderScene,
+    params: &FrameParams<'_>,
+) {
+    if gpu.supports_timestamps() {
+        let stamps = Timestamps::new(gpu, "test.timestamps", FRAME_TIMESTAMPS);
+        let mut enc = gpu.device.create_command_encoder(&Default::default());
+        let options = FrameOptions {
+            timestamps: Some(stamps.query_set()),
+            ..Default::default()
+        };
+        renderer
+            .encode_frame(gpu, &mut enc, scene, params, &options)
+            .unwrap();
+        stamps.resolve(&mut enc);
+        gpu.submit_and_wait("test.timestamps", enc).unwrap();
+        let ms = stamps.intervals_ms(gpu, "test.timestamps").unwrap();
+        assert_eq!(ms.len(), FRAME_TIMESTAMPS as usize - 1);
+        for m in ms {
+            assert!(m.is_finite() && m >= 0.0, "{m}");
+        }
     }
-    assert!(report.to_string().contains("roofline"));
+}
+
+#[test]
+fn demo_mesh_is_valid_and_normals_match_winding() {
+    let (m, a) = floor_and_box(64);
+    m.validate().unwrap();
+    assert_eq!(a.rgb.len(), 64 * 64);
+    for tri in m.indices.chunks_exact(3) {
+        let p = |i: u32| Vec3::from(m.positions_m[i as usize]);
+        let geo = (p(tri[1]) - p(tri[0]))
+            .cross(p(tri[2]) - p(tri[0]))
+            .normalize();
+        let n = Vec3::from(m.normals[tri[0] as usize]);
+        assert!(
+            (geo - n).length() < 1e-5,
+            "CCW winding must face the normal"
+        );
+    }
+    for uv in &m.lightmap_uvs {
+        assert!((0.0..=1.0).contains(&uv[0]) && (0.0..=1.0).contains(&uv[1]));
+    }
 }
 
 #[test]

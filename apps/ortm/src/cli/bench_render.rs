@@ -3,7 +3,7 @@
 //!
 //! # What is measured
 //! For each configuration: the atlases (1024², as in the paper) and pieces, then
-//! `passes::bench::bench_frame` on the blend path and (unless `--paths blend`) on the compute
+//! [`crate::bench::frame::bench_frame`] on the blend path and (unless `--paths blend`) on the compute
 //! path: first order (with shadow maps), transfer, dilation of the final map, display, and
 //! the full-screen additive-blend roofline at the lightmap size with as many blends as the
 //! transfer needs. Reported: milliseconds per pass (median of `--iterations` runs, GPU
@@ -32,15 +32,19 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::{Context, Result};
-use ortm::render;
+use ortm::atlas::AtlasSet;
 use ortm::bake::texels::TexelGrid;
+use ortm::render;
+use ortm::scene::Scene;
 use passes::Gpu;
-use passes::bench::{BenchReport, Statistic, bench_frame_stat};
 use passes::display::DisplayOptions;
 use passes::first_order::FirstOrderOptions;
 use passes::frame::{FrameParams, Renderer, RendererOptions};
 use passes::transfer::{TransferOptions, TransferPath};
 use passes::util::TexelReads;
+
+use crate::bench::frame::bench_frame;
+use crate::bench::timing::{BenchReport, BenchRow, Statistic};
 
 /// The paper's Table 1: (lightmap side, offsets, bins, FPS on a GeForce 6800).
 pub const TABLE_1: [(u32, usize, u32, f64); 8] = [
@@ -162,6 +166,15 @@ struct Row {
     paper: Option<(u32, f64)>,
 }
 
+/// One configuration to bench: its label, the bake directory (`None`: synthetic maps),
+/// and for synthetic maps the lightmap side and the number of offsets.
+struct Job {
+    label: String,
+    bake: Option<PathBuf>,
+    size: u32,
+    offsets: usize,
+}
+
 /// Runs `ortm bench render`.
 pub fn run(a: Args) -> Result<()> {
     let (img_w, img_h) = render::parse_size(&a.image)?;
@@ -172,141 +185,8 @@ pub fn run(a: Args) -> Result<()> {
         gpu.adapter_info.name, gpu.adapter_info.backend, a.iterations, a.statistic, a.shadow_size
     );
     let mut rows = Vec::new();
-    let mut jobs: Vec<(String, Option<PathBuf>, u32, usize)> = Vec::new();
-    if a.bakes.is_empty() {
-        for &(size, n, _, _) in &TABLE_1 {
-            if a.sizes.contains(&size) && (a.offsets.is_empty() || a.offsets.contains(&n)) {
-                jobs.push((format!("synthetic {size}²/{n}"), None, size, n));
-            }
-        }
-    } else {
-        for d in &a.bakes {
-            jobs.push((d.display().to_string(), Some(d.clone()), 0, 0));
-        }
-    }
-    for (label, bake, size, n) in jobs {
-        let t0 = Instant::now();
-        let (scene, grid, set) = match &bake {
-            None => {
-                let mut scene = super::load_scene(&a.scene, Some(size))?;
-                scene.lightmap_size = (size, size);
-                let grid = TexelGrid::build_with_size(&scene, size, size)?;
-                // Jittered grid over the window |dx|, |dy| < size/window (importance-selected
-                // offsets of a real bake crowd near Δt = 0, where the transfer is strong).
-                let sub = (size / a.offset_window.max(1)).max(2);
-                let offsets = ortm::bake::offsets::select_jittered_grid(sub, sub, n, a.seed)?;
-                let maps = crate::bench::synthetic::synthetic_transfer_maps(&grid, &offsets)?;
-                let set = ortm::atlas::build_atlas_set(&maps, 1024, 1024)?;
-                (scene, grid, set)
-            }
-            Some(dir) => {
-                let (index, set, _) = render::load_bake_atlases(dir, render::DEFAULT_ATLAS_SIDE)
-                    .with_context(|| format!("reading bake directory '{}'", dir.display()))?;
-                let arg = index
-                    .as_ref()
-                    .and_then(render::scene_arg_from_settings)
-                    .unwrap_or_else(|| a.scene.clone());
-                let (w, h) = set.lightmap_size;
-                let mut scene = super::load_scene(&arg, (w == h).then_some(w))?;
-                scene.lightmap_size = (w, h);
-                if let Some(index) = &index {
-                    render::check_scene(dir, index, &scene, &arg)?;
-                }
-                let grid = TexelGrid::build_with_size(&scene, w, h)?;
-                (scene, grid, set)
-            }
-        };
-        let (w, h) = set.lightmap_size;
-        let stats = set.stats();
-        eprintln!(
-            "{label}: {} maps, {} atlases, {} pieces (prepared in {:.1} s)",
-            stats.maps,
-            stats.atlases,
-            stats.pieces,
-            t0.elapsed().as_secs_f64()
-        );
-        let (atlases, pieces) = render::transfer_inputs(&set, (w, h))?;
-        let lights: Vec<_> = scene.lights.iter().map(render::light_desc).collect();
-        let mesh = render::mesh_data(&scene.mesh);
-        let albedo = render::albedo_map(&grid);
-        let aspect = img_w as f32 / img_h as f32;
-        let params = FrameParams {
-            lights: &lights,
-            camera: render::default_camera(&scene.mesh, aspect, 40.0),
-            exposure: 1.0,
-            specular: None,
-        };
-        let texel_reads = match a.texel_reads {
-            Reads::Auto => None,
-            Reads::Sampled => Some(TexelReads::Sampled),
-            Reads::Storage => Some(TexelReads::Storage),
-        };
-        let time_path = |path: TransferPath, pair_pieces: bool| -> Result<BenchReport> {
-            let options = RendererOptions {
-                first_order: FirstOrderOptions {
-                    shadow_map_size: a.shadow_size,
-                    max_shadow_layers: render::shadow_layers_for(&scene.lights),
-                    texel_reads,
-                    ..Default::default()
-                },
-                transfer: TransferOptions {
-                    path,
-                    pair_pieces,
-                    texel_reads: texel_reads.unwrap_or(gpu.best_texel_reads()),
-                    ..TransferOptions::best_for(&gpu)
-                },
-                display: DisplayOptions {
-                    width: img_w,
-                    height: img_h,
-                    side_by_side: false,
-                },
-                ..Default::default()
-            };
-            let renderer = Renderer::new(&gpu, &options)?;
-            let rs = renderer.prepare(&gpu, &mesh, &albedo, &atlases, &pieces)?;
-            let statistic = match a.statistic {
-                Stat::Median => Statistic::Median,
-                Stat::Min => Statistic::Min,
-            };
-            Ok(bench_frame_stat(
-                &gpu,
-                &renderer,
-                &rs,
-                &params,
-                a.iterations,
-                statistic,
-            )?)
-        };
-        let blend_timed = matches!(a.paths, Paths::Blend | Paths::Both);
-        let blend = if blend_timed && a.pair != Pair::On {
-            Some(time_path(TransferPath::Blend, false)?)
-        } else {
-            None
-        };
-        let paired = if blend_timed && a.pair != Pair::Off {
-            Some(time_path(TransferPath::Blend, true)?)
-        } else {
-            None
-        };
-        let compute = match a.paths {
-            Paths::Compute | Paths::Both => Some(time_path(TransferPath::Compute, false)?),
-            Paths::Blend => None,
-        };
-        let paper = TABLE_1
-            .iter()
-            .find(|r| w == h && r.0 == w && r.1 == stats.maps)
-            .map(|r| (r.2, r.3));
-        rows.push(Row {
-            label,
-            size: w,
-            maps: stats.maps,
-            bins: stats.atlases,
-            pieces_per_map: stats.mean_pieces_per_map,
-            blend,
-            paired,
-            compute,
-            paper,
-        });
+    for job in jobs(&a) {
+        rows.push(bench_job(&a, &gpu, (img_w, img_h), job)?);
     }
     if let Some(r) = rows.iter().find_map(|r| {
         r.blend
@@ -317,8 +197,181 @@ pub fn run(a: Args) -> Result<()> {
         println!("timing: {}", r.timing);
     }
     print_table(&rows);
+    print_cpu_table(&rows);
     print_paired(&rows);
     Ok(())
+}
+
+/// The configurations: every `--bake`, else the rows of Table 1 that `--sizes` and
+/// `--offsets` select.
+fn jobs(a: &Args) -> Vec<Job> {
+    if !a.bakes.is_empty() {
+        return a
+            .bakes
+            .iter()
+            .map(|d| Job {
+                label: d.display().to_string(),
+                bake: Some(d.clone()),
+                size: 0,
+                offsets: 0,
+            })
+            .collect();
+    }
+    TABLE_1
+        .iter()
+        .filter(|&&(size, n, _, _)| {
+            a.sizes.contains(&size) && (a.offsets.is_empty() || a.offsets.contains(&n))
+        })
+        .map(|&(size, n, _, _)| Job {
+            label: format!("synthetic {size}²/{n}"),
+            bake: None,
+            size,
+            offsets: n,
+        })
+        .collect()
+}
+
+/// The scene, its texel grid and the atlas set of a job: synthetic maps (jittered-grid
+/// offsets, [`crate::bench::synthetic::synthetic_transfer_maps`]) or a bake's atlases.
+fn load_job(a: &Args, job: &Job) -> Result<(Scene, TexelGrid, AtlasSet)> {
+    let Some(dir) = &job.bake else {
+        let size = job.size;
+        let mut scene = super::load_scene(&a.scene, Some(size))?;
+        scene.lightmap_size = (size, size);
+        let grid = TexelGrid::build_with_size(&scene, size, size)?;
+        // Jittered grid over the window |dx|, |dy| < size/window (importance-selected
+        // offsets of a real bake crowd near Δt = 0, where the transfer is strong).
+        let sub = (size / a.offset_window.max(1)).max(2);
+        let offsets = ortm::bake::offsets::select_jittered_grid(sub, sub, job.offsets, a.seed)?;
+        let maps = crate::bench::synthetic::synthetic_transfer_maps(&grid, &offsets)?;
+        let set = ortm::atlas::build_atlas_set(&maps, 1024, 1024)?;
+        return Ok((scene, grid, set));
+    };
+    let (index, set, _) = render::load_bake_atlases(dir, render::DEFAULT_ATLAS_SIDE)
+        .with_context(|| format!("reading bake directory '{}'", dir.display()))?;
+    let arg = index
+        .as_ref()
+        .and_then(render::scene_arg_from_settings)
+        .unwrap_or_else(|| a.scene.clone());
+    let (w, h) = set.lightmap_size;
+    let mut scene = super::load_scene(&arg, (w == h).then_some(w))?;
+    scene.lightmap_size = (w, h);
+    if let Some(index) = &index {
+        render::check_scene(dir, index, &scene, &arg)?;
+    }
+    let grid = TexelGrid::build_with_size(&scene, w, h)?;
+    Ok((scene, grid, set))
+}
+
+/// The renderer of one timed path: `--shadow-size`, `--texel-reads`, the display at
+/// `--image` size, the transfer `path` (paired or not), the rest as `ortm render`.
+fn renderer_options(
+    a: &Args,
+    gpu: &Gpu,
+    scene: &Scene,
+    (img_w, img_h): (u32, u32),
+    path: TransferPath,
+    pair_pieces: bool,
+) -> RendererOptions {
+    let texel_reads = match a.texel_reads {
+        Reads::Auto => None,
+        Reads::Sampled => Some(TexelReads::Sampled),
+        Reads::Storage => Some(TexelReads::Storage),
+    };
+    RendererOptions {
+        first_order: FirstOrderOptions {
+            shadow_map_size: a.shadow_size,
+            max_shadow_layers: render::shadow_layers_for(&scene.lights),
+            texel_reads,
+            ..Default::default()
+        },
+        transfer: TransferOptions {
+            path,
+            pair_pieces,
+            texel_reads: texel_reads.unwrap_or(gpu.best_texel_reads()),
+            ..TransferOptions::best_for(gpu)
+        },
+        display: DisplayOptions {
+            width: img_w,
+            height: img_h,
+            side_by_side: false,
+        },
+        ..Default::default()
+    }
+}
+
+/// Loads a job and times the transfer paths `--paths` and `--pair` select.
+fn bench_job(a: &Args, gpu: &Gpu, (img_w, img_h): (u32, u32), job: Job) -> Result<Row> {
+    let t0 = Instant::now();
+    let (scene, grid, set) = load_job(a, &job)?;
+    let (w, h) = set.lightmap_size;
+    let stats = set.stats();
+    eprintln!(
+        "{}: {} maps, {} atlases, {} pieces (prepared in {:.1} s)",
+        job.label,
+        stats.maps,
+        stats.atlases,
+        stats.pieces,
+        t0.elapsed().as_secs_f64()
+    );
+    let (atlases, pieces) = render::transfer_inputs(&set, (w, h))?;
+    let lights: Vec<_> = scene.lights.iter().map(render::light_desc).collect();
+    let mesh = render::mesh_data(&scene.mesh);
+    let albedo = render::albedo_map(&grid);
+    let aspect = img_w as f32 / img_h as f32;
+    let params = FrameParams {
+        lights: &lights,
+        camera: render::default_camera(&scene.mesh, aspect, 40.0),
+        exposure: 1.0,
+        specular: None,
+    };
+    let statistic = match a.statistic {
+        Stat::Median => Statistic::Median,
+        Stat::Min => Statistic::Min,
+    };
+    let time_path = |path: TransferPath, pair_pieces: bool| -> Result<BenchReport> {
+        let options = renderer_options(a, gpu, &scene, (img_w, img_h), path, pair_pieces);
+        let renderer = Renderer::new(gpu, &options)?;
+        let rs = renderer.prepare(gpu, &mesh, &albedo, &atlases, &pieces)?;
+        Ok(bench_frame(
+            gpu,
+            &renderer,
+            &rs,
+            &params,
+            a.iterations,
+            statistic,
+        )?)
+    };
+    let blend_timed = matches!(a.paths, Paths::Blend | Paths::Both);
+    let blend = if blend_timed && a.pair != Pair::On {
+        Some(time_path(TransferPath::Blend, false)?)
+    } else {
+        None
+    };
+    let paired = if blend_timed && a.pair != Pair::Off {
+        Some(time_path(TransferPath::Blend, true)?)
+    } else {
+        None
+    };
+    let compute = match a.paths {
+        Paths::Compute | Paths::Both => Some(time_path(TransferPath::Compute, false)?),
+        Paths::Blend => None,
+    };
+    let paper = TABLE_1
+        .iter()
+        .find(|r| w == h && r.0 == w && r.1 == stats.maps)
+        .map(|r| (r.2, r.3));
+    Ok(Row {
+        label: job.label,
+        size: w,
+        maps: stats.maps,
+        bins: stats.atlases,
+        pieces_per_map: stats.mean_pieces_per_map,
+        blend,
+        paired,
+        compute,
+        paper,
+    })
 }
 
 /// The paired blend path's rows (`--pair on|both`): its transfer time, CPU time, both
@@ -379,6 +432,26 @@ fn print_paired(rows: &[Row]) {
     }
 }
 
+impl Row {
+    /// The blend report the main tables show: the unpaired blend path when timed, else the
+    /// paired one (`--pair on`).
+    fn blend_report(&self) -> &Option<BenchReport> {
+        if self.blend.is_some() {
+            &self.blend
+        } else {
+            &self.paired
+        }
+    }
+}
+
+/// Row `i` of a report ([`bench_frame`]'s rows: first order (moving lights), transfer,
+/// dilate, display, roofline, first order (static lights)).
+fn get(rep: &Option<BenchReport>, i: usize) -> Option<&BenchRow> {
+    rep.as_ref().and_then(|x| x.rows.get(i))
+}
+
+/// The main table: per configuration the pass times, blend rates against the roofline and
+/// the frame rates, beside the paper's.
 fn print_table(rows: &[Row]) {
     println!(
         "{:<24} {:>5} {:>5} {:>5} {:>6} {:>12} {:>9} {:>9} {:>9} {:>10} {:>8} {:>8} {:>10} {:>10} {:>9} {:>8} {:>8} {:>10}",
@@ -402,60 +475,7 @@ fn print_table(rows: &[Row]) {
         "paper fps"
     );
     for r in rows {
-        // Rows of bench_frame: first order (moving lights), transfer, dilate, display,
-        // roofline, first order (static lights).
-        fn get(rep: &Option<BenchReport>, i: usize) -> Option<&passes::bench::BenchRow> {
-            rep.as_ref().and_then(|x| x.rows.get(i))
-        }
-        // The unpaired blend path when timed, else the paired one (`--pair on`).
-        let blend_rep = if r.blend.is_some() {
-            &r.blend
-        } else {
-            &r.paired
-        };
-        let any = blend_rep.as_ref().or(r.compute.as_ref());
-        let ms = |i: usize| any.and_then(|x| x.rows.get(i)).map(|x| x.ms);
-        let blend = get(blend_rep, 1);
-        let compute = get(&r.compute, 1);
-        let roof = get(blend_rep, 4).or(get(&r.compute, 4));
-        let transfer_ms = blend.or(compute).map(|x| x.ms);
-        let frame_ms = [ms(0), transfer_ms, ms(2), ms(3)]
-            .iter()
-            .try_fold(0.0, |acc, v| v.map(|v| acc + v));
-        let static_ms = [ms(5), transfer_ms, ms(2), ms(3)]
-            .iter()
-            .try_fold(0.0, |acc, v| v.map(|v| acc + v));
-        let f = |v: Option<f64>, p: usize| v.map_or("—".to_string(), |v| format!("{v:.p$}"));
-        let e = |v: Option<f64>| v.map_or("—".to_string(), |v| format!("{v:.3e}"));
-        let blends = blend.or(compute).map_or(0, |x| x.texel_blends);
-        let rate = blend.or(compute).map(|x| x.blends_per_s);
-        println!(
-            "{:<24} {:>5} {:>5} {:>5} {:>6.2} {:>12} {:>9} {:>9} {:>9} {:>10} {:>8} {:>8} {:>10} {:>10} {:>9} {:>8} {:>8} {:>10}",
-            r.label,
-            r.size,
-            r.maps,
-            r.bins,
-            r.pieces_per_map,
-            blends,
-            f(ms(0), 2),
-            f(ms(5), 2),
-            f(blend.map(|x| x.ms), 2),
-            f(compute.map(|x| x.ms), 2),
-            f(ms(2), 2),
-            f(ms(3), 2),
-            e(rate),
-            e(roof.map(|x| x.blends_per_s)),
-            f(
-                rate.zip(roof.map(|x| x.blends_per_s))
-                    .map(|(a, b)| 100.0 * a / b),
-                1
-            ),
-            f(frame_ms.map(|m| 1000.0 / m), 2),
-            f(static_ms.map(|m| 1000.0 / m), 2),
-            r.paper.map_or("—".to_string(), |(bins, fps)| format!(
-                "{fps:.2} ({bins} bins)"
-            )),
-        );
+        print_row(r);
     }
     println!(
         "fps = 1000 / (first order + transfer (blend if timed) + dilation + display) with moving \
@@ -466,6 +486,58 @@ fn print_table(rows: &[Row]) {
          contributions; fragments in the paired table below)"
     );
     println!();
+}
+
+/// One line of the main table.
+fn print_row(r: &Row) {
+    let blend_rep = r.blend_report();
+    let any = blend_rep.as_ref().or(r.compute.as_ref());
+    let ms = |i: usize| any.and_then(|x| x.rows.get(i)).map(|x| x.ms);
+    let blend = get(blend_rep, 1);
+    let compute = get(&r.compute, 1);
+    let roof = get(blend_rep, 4).or(get(&r.compute, 4));
+    let transfer_ms = blend.or(compute).map(|x| x.ms);
+    let frame_ms = [ms(0), transfer_ms, ms(2), ms(3)]
+        .iter()
+        .try_fold(0.0, |acc, v| v.map(|v| acc + v));
+    let static_ms = [ms(5), transfer_ms, ms(2), ms(3)]
+        .iter()
+        .try_fold(0.0, |acc, v| v.map(|v| acc + v));
+    let f = |v: Option<f64>, p: usize| v.map_or("—".to_string(), |v| format!("{v:.p$}"));
+    let e = |v: Option<f64>| v.map_or("—".to_string(), |v| format!("{v:.3e}"));
+    let blends = blend.or(compute).map_or(0, |x| x.texel_blends);
+    let rate = blend.or(compute).map(|x| x.blends_per_s);
+    println!(
+        "{:<24} {:>5} {:>5} {:>5} {:>6.2} {:>12} {:>9} {:>9} {:>9} {:>10} {:>8} {:>8} {:>10} {:>10} {:>9} {:>8} {:>8} {:>10}",
+        r.label,
+        r.size,
+        r.maps,
+        r.bins,
+        r.pieces_per_map,
+        blends,
+        f(ms(0), 2),
+        f(ms(5), 2),
+        f(blend.map(|x| x.ms), 2),
+        f(compute.map(|x| x.ms), 2),
+        f(ms(2), 2),
+        f(ms(3), 2),
+        e(rate),
+        e(roof.map(|x| x.blends_per_s)),
+        f(
+            rate.zip(roof.map(|x| x.blends_per_s))
+                .map(|(a, b)| 100.0 * a / b),
+            1
+        ),
+        f(frame_ms.map(|m| 1000.0 / m), 2),
+        f(static_ms.map(|m| 1000.0 / m), 2),
+        r.paper.map_or("—".to_string(), |(bins, fps)| format!(
+            "{fps:.2} ({bins} bins)"
+        )),
+    );
+}
+
+/// The CPU time per run of every pass (the process's threads: lavapipe's work).
+fn print_cpu_table(rows: &[Row]) {
     println!(
         "CPU time per run, all threads of this process (lavapipe's work; independent of waiting \
          for cores other processes hold), ms:"
@@ -476,16 +548,11 @@ fn print_table(rows: &[Row]) {
     );
     for r in rows {
         let cpu = |rep: &Option<BenchReport>, i: usize| {
-            rep.as_ref()
-                .and_then(|x| x.rows.get(i))
+            get(rep, i)
                 .and_then(|x| x.cpu_ms)
                 .map_or("—".to_string(), |v| format!("{v:.2}"))
         };
-        let blend_rep = if r.blend.is_some() {
-            &r.blend
-        } else {
-            &r.paired
-        };
+        let blend_rep = r.blend_report();
         let any = if blend_rep.is_some() {
             blend_rep
         } else {

@@ -378,7 +378,8 @@ impl Running {
             self.egui_renderer.render(&mut pass, jobs, &screen);
         }
         let capture = self.capture_window.take().map(|p| {
-            let (buffer, padded) = copy_to_buffer(gpu, &mut enc, &frame.texture);
+            let (buffer, padded) =
+                gpu.record_readback("ortm.view.window_screenshot", &mut enc, &frame.texture, 4);
             (p, buffer, padded)
         });
         gpu.queue.submit(extra.into_iter().chain([enc.finish()]));
@@ -723,39 +724,4 @@ fn initial_state(data: &ViewerInput, view: &ViewRenderer, opts: &RunOptions) -> 
         app.k = k.min(app.map_count);
     }
     app
-}
-
-/// Records a copy of a 4-byte-per-texel texture into a new `MAP_READ` buffer; returns it and
-/// its padded row length in bytes.
-fn copy_to_buffer(
-    gpu: &Gpu,
-    enc: &mut wgpu::CommandEncoder,
-    tex: &wgpu::Texture,
-) -> (wgpu::Buffer, u32) {
-    let (w, h) = (tex.width(), tex.height());
-    let padded =
-        (4 * w).div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT) * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
-    let buffer = gpu.device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("ortm.view.window_screenshot"),
-        size: u64::from(padded) * u64::from(h),
-        usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
-        mapped_at_creation: false,
-    });
-    enc.copy_texture_to_buffer(
-        tex.as_image_copy(),
-        wgpu::TexelCopyBufferInfo {
-            buffer: &buffer,
-            layout: wgpu::TexelCopyBufferLayout {
-                offset: 0,
-                bytes_per_row: Some(padded),
-                rows_per_image: Some(h),
-            },
-        },
-        wgpu::Extent3d {
-            width: w,
-            height: h,
-            depth_or_array_layers: 1,
-        },
-    );
-    (buffer, padded)
 }

@@ -6,5 +6,6 @@
 pub mod dilate;
 pub mod display;
 pub mod first_order;
+pub mod indirect;
 pub mod transfer;
 pub mod transfer_gather;

@@ -1,7 +1,9 @@
 //! Shared helpers of the integration tests: a seeded random generator (SplitMix64, so the
-//! tests need no extra crates) and GPU creation.
+//! tests need no extra crates), GPU creation, and the demo scene ([`demo`]).
 
 #![allow(dead_code, reason = "each test binary uses a different subset")]
+
+pub mod demo;
 
 use passes::Gpu;
 use passes::gpu::ExclusiveGpu;

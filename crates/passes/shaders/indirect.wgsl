@@ -1,4 +1,9 @@
-// ortm view: indirect light = final − first order (W/m², RGB); alpha = first-order coverage.
+// Indirect light: out = final − first order (RGB, W/m²), alpha = first-order coverage.
+// Host side: src/indirect.rs; CPU mirror: src/cpu/indirect.rs.
+//
+// Bindings (group 0, must match `IndirectPass` in indirect.rs): 0 = first-order map,
+// 1 = final map (both float textures of the lightmap size, textureLoad), 2 = output
+// (RGBA32F storage texture, write).
 @group(0) @binding(0) var first_order: texture_2d<f32>;
 @group(0) @binding(1) var final_map: texture_2d<f32>;
 @group(0) @binding(2) var out_map: texture_storage_2d<rgba32float, write>;

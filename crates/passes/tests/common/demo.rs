@@ -1,5 +1,5 @@
-//! A small built-in scene — a 2 m × 2 m floor with a 0.5 m box on it — with a lightmap
-//! layout, used by the tests, the benchmarks and `ortm render --demo`.
+//! The tests' scene — a 2 m × 2 m floor with a 0.5 m box on it — with a lightmap layout,
+//! three lights and a synthetic blur transfer.
 //!
 //! # Layout
 //! The floor spans `x, z ∈ [−1, 1]` m at `y = 0` (normal +y); the box is centred at
@@ -12,7 +12,8 @@
 
 use glam::Vec3;
 
-use crate::types::{AlbedoMap, AtlasData, LightDesc, MeshData, TransferPiece};
+use passes::frame::{RenderScene, Renderer};
+use passes::{AlbedoMap, AtlasData, Gpu, LightDesc, MeshData, TransferPiece};
 
 /// Builds the floor-and-box mesh for a `size×size` lightmap and its per-chart albedo
 /// (floor 0.6 grey, box (0.7, 0.35, 0.25)).
@@ -131,28 +132,13 @@ pub fn blur_transfer(
     (vec![atlas], pieces)
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn mesh_is_valid_and_normals_match_winding() {
-        let (m, a) = floor_and_box(64);
-        m.validate().unwrap();
-        assert_eq!(a.rgb.len(), 64 * 64);
-        for tri in m.indices.chunks_exact(3) {
-            let p = |i: u32| Vec3::from(m.positions_m[i as usize]);
-            let geo = (p(tri[1]) - p(tri[0]))
-                .cross(p(tri[2]) - p(tri[0]))
-                .normalize();
-            let n = Vec3::from(m.normals[tri[0] as usize]);
-            assert!(
-                (geo - n).length() < 1e-5,
-                "CCW winding must face the normal"
-            );
-        }
-        for uv in &m.lightmap_uvs {
-            assert!((0.0..=1.0).contains(&uv[0]) && (0.0..=1.0).contains(&uv[1]));
-        }
-    }
+/// The frame tests' scene: [`floor_and_box`] on a `size²` lightmap with the blur transfer
+/// of radius 2 (weight 0.02 per piece), prepared for `renderer`; returns it and the atlases.
+pub fn prepare_demo(gpu: &Gpu, renderer: &Renderer, size: u32) -> (RenderScene, Vec<AtlasData>) {
+    let (mesh, albedo) = floor_and_box(size);
+    let (atlases, pieces) = blur_transfer([size, size], 2, 1, 0.02);
+    let scene = renderer
+        .prepare(gpu, &mesh, &albedo, &atlases, &pieces)
+        .unwrap();
+    (scene, atlases)
 }
