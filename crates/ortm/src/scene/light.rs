@@ -79,6 +79,26 @@ impl Light {
         }
     }
 
+    /// The position in metres (point and spot lights); `None` for a directional light.
+    pub fn position(&self) -> Option<Vec3> {
+        match *self {
+            Light::Point { position_m, .. } | Light::Spot { position_m, .. } => Some(position_m),
+            Light::Directional { .. } => None,
+        }
+    }
+
+    /// The strength: intensity in W/sr (point, spot) or irradiance in W/m² (directional).
+    pub fn strength(&self) -> f32 {
+        match *self {
+            Light::Point { intensity_w_sr, .. } | Light::Spot { intensity_w_sr, .. } => {
+                intensity_w_sr
+            }
+            Light::Directional {
+                irradiance_w_m2, ..
+            } => irradiance_w_m2,
+        }
+    }
+
     /// Where the light points or travels (spot and directional lights); `None` for a point
     /// light.
     pub fn direction(&self) -> Option<Vec3> {
@@ -263,36 +283,32 @@ impl<E: Fn(String) -> SpecError> Fields<'_, E> {
 }
 
 /// Writes the light's text form ([`LIGHT_SYNTAX`], colour always given; numbers in Rust's
-/// shortest round-trip form), which [`parse_light`] reads back.
+/// shortest round-trip form), which [`parse_light`] reads back. Fields in the syntax's
+/// order: type, position, direction, strength, cone angles, colour.
 impl fmt::Display for Light {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         let v = |v: Vec3| format!("{},{},{}", v.x, v.y, v.z);
-        match *self {
-            Light::Point {
-                position_m,
-                color,
-                intensity_w_sr,
-            } => write!(f, "point:{}:{intensity_w_sr}:{}", v(position_m), v(color)),
-            Light::Spot {
-                position_m,
-                direction,
-                color,
-                intensity_w_sr,
-                inner_deg,
-                outer_deg,
-            } => write!(
-                f,
-                "spot:{}:{}:{intensity_w_sr}:{inner_deg},{outer_deg}:{}",
-                v(position_m),
-                v(direction),
-                v(color)
-            ),
-            Light::Directional {
-                direction,
-                color,
-                irradiance_w_m2,
-            } => write!(f, "dir:{}:{irradiance_w_m2}:{}", v(direction), v(color)),
+        let kind = match self {
+            Light::Directional { .. } => "dir",
+            other => other.type_name(),
+        };
+        f.write_str(kind)?;
+        if let Some(p) = self.position() {
+            write!(f, ":{}", v(p))?;
         }
+        if let Some(d) = self.direction() {
+            write!(f, ":{}", v(d))?;
+        }
+        write!(f, ":{}", self.strength())?;
+        if let Light::Spot {
+            inner_deg,
+            outer_deg,
+            ..
+        } = self
+        {
+            write!(f, ":{inner_deg},{outer_deg}")?;
+        }
+        write!(f, ":{}", v(self.color()))
     }
 }
 
