@@ -1,9 +1,11 @@
 //! The `ortm` command-line tool: a thin layer over the `ortm` library. `src/cli/` holds the
 //! subcommands (arguments, progress bars and printing only; the work is the library's),
-//! `src/view/` the interactive viewer, `src/bench/` benchmark data.
+//! `src/view/` the interactive viewer, `src/bench/` benchmark data, `src/output.rs` the files
+//! both write for people (PNG frames and screenshots).
 
 mod bench;
 mod cli;
+mod output;
 mod view;
 
 use clap::Parser;

@@ -14,8 +14,8 @@ use ortm::atlas::{
     build_atlas_set, read_atlas_index, read_atlas_set, write_atlas_set,
 };
 use ortm::bake_dir::{BakeIndex, BakeKey};
-use ortm::maps::{self, TransferMap};
 use ortm::io::FileError;
+use ortm::maps::{self, TransferMap};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 

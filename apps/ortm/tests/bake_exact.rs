@@ -7,15 +7,15 @@ mod common;
 use std::sync::Arc;
 
 use glam::{IVec2, Vec3};
-use ortm::bake::{self, BakeSettings, Selector};
 use ortm::bake::eval::{Reference, random_light_setups};
 use ortm::bake::lighting;
-use ortm::maps;
 use ortm::bake::raycast::Visibility;
-use ortm::scene::Scene;
 use ortm::bake::texels::TexelGrid;
 use ortm::bake::transport::dense::DenseTransport;
 use ortm::bake::transport::{Effects, Kernels, Transport, texel_patches};
+use ortm::bake::{self, BakeSettings, Selector};
+use ortm::maps;
+use ortm::scene::Scene;
 
 fn head(size: u32) -> Scene {
     let (mesh, _, _) = ortm::scene::obj::load_obj(

@@ -10,10 +10,10 @@ use common::{LUMA, exitance, final_all, final_at, senders};
 use glam::Vec3;
 use ortm::bake::lighting;
 use ortm::bake::raycast::Visibility;
-use ortm::scene::{Light, Scene};
 use ortm::bake::texels::TexelGrid;
 use ortm::bake::transport::dense::DenseTransport;
 use ortm::bake::transport::{Effects, Transport, texel_patches};
+use ortm::scene::{Light, Scene};
 use rayon::prelude::*;
 
 fn head(size: u32) -> Scene {

@@ -18,11 +18,11 @@ use std::f64::consts::PI;
 
 use common::{final_at, luminance, senders};
 use glam::{Vec2, Vec3};
-use ortm::bake::{self, BakeSettings};
 use ortm::bake::lighting;
-use ortm::scene::{Albedo, Light, Material, Mesh, MeshTriangle, Scene, Subsurface};
 use ortm::bake::texels::TexelGrid;
 use ortm::bake::transport::{Effects, Transport};
+use ortm::bake::{self, BakeSettings};
+use ortm::scene::{Albedo, Light, Material, Mesh, MeshTriangle, Scene, Subsurface};
 
 /// Skin1 of Jensen et al. 2001 (mm⁻¹), dipole, from the `faces` crate.
 fn skin1() -> Subsurface {

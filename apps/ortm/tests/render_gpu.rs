@@ -15,13 +15,13 @@ mod common;
 
 use glam::{IVec2, Vec3};
 use ortm::atlas::build_atlas_set;
-use ortm::bake::{BakeEvent, bake_maps};
-use ortm::maps::TransferMap;
 use ortm::bake::raycast::Visibility;
-use ortm::render;
-use ortm::scene::Scene;
 use ortm::bake::texels::TexelGrid;
 use ortm::bake::transport::{Effects, Transport};
+use ortm::bake::{BakeEvent, bake_maps};
+use ortm::maps::TransferMap;
+use ortm::render;
+use ortm::scene::Scene;
 use passes::display::{Camera, DisplayOptions};
 use passes::first_order::FirstOrderOptions;
 use passes::frame::{FrameParams, Renderer, RendererOptions};

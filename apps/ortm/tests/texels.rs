@@ -3,8 +3,8 @@
 mod common;
 
 use glam::{Vec2, Vec3};
-use ortm::scene::{Albedo, Material, Mesh, MeshTriangle, Scene};
 use ortm::bake::texels::{TexelError, TexelGrid};
+use ortm::scene::{Albedo, Material, Mesh, MeshTriangle, Scene};
 
 fn scene_with(mesh: Mesh, size: u32) -> Scene {
     Scene {

@@ -14,8 +14,6 @@ mod render;
 mod solve;
 mod view;
 
-pub(crate) use render::save_png_atomic;
-
 use std::path::PathBuf;
 
 use anyhow::{Context, Result};

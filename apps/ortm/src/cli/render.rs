@@ -17,7 +17,7 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use anyhow::{Context, Result};
+use anyhow::Result;
 use ortm::bake::texels::TexelGrid;
 use ortm::render::{
     self, AtlasSource, BakeAndScene, CAMERA_SYNTAX, DEFAULT_ATLAS_SIDE, to_lightmap,
@@ -115,12 +115,6 @@ pub struct Args {
     first_order_out: Option<PathBuf>,
 }
 
-/// Saves a PNG atomically ([`ortm::io::write_png_atomic`]), naming the file on failure.
-pub fn save_png_atomic(img: &image::RgbaImage, path: &Path) -> Result<()> {
-    ortm::io::write_png_atomic(img, path)
-        .with_context(|| format!("cannot write image '{}'", path.display()))
-}
-
 /// Runs `ortm render`.
 pub fn run(a: Args) -> Result<()> {
     let t0 = Instant::now();
@@ -161,7 +155,7 @@ pub fn run(a: Args) -> Result<()> {
     };
     let img = renderer.render_image(&gpu, &rscene, &params)?;
     let t_gpu = t1.elapsed().as_secs_f64();
-    save_png_atomic(&img, &a.output)?;
+    crate::output::save_png_atomic(&img, &a.output)?;
     if let Some(p) = &a.lightmap_out {
         write_lightmap_exr(p, &to_lightmap(&fin))?;
     }

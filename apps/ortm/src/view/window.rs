@@ -403,7 +403,7 @@ impl Running {
                     img.put_pixel(x as u32, y as u32, image::Rgba(rgba));
                 }
             }
-            crate::cli::save_png_atomic(&img, &path)?;
+            crate::output::save_png_atomic(&img, &path)?;
         }
         self.window.pre_present_notify();
         gpu.queue.present(frame);
@@ -631,7 +631,7 @@ impl Running {
     /// Writes the last rendered 3D image (read back from the GPU) as PNG.
     fn screenshot(&self, path: &Path) -> Result<()> {
         let img = self.view.read_image()?;
-        crate::cli::save_png_atomic(&img, path)
+        crate::output::save_png_atomic(&img, path)
     }
 }
 
