@@ -256,6 +256,26 @@ fn specular_highlight_matches_mirror_at_centre() {
     }
 }
 
+/// Mean R+G+B of the mesh (non-background) pixels in columns `x0..x1` of a frame; at least
+/// 100 such pixels.
+fn mean_mesh_rgb(img: &image::RgbaImage, x0: u32, x1: u32) -> f64 {
+    let mut s = 0.0;
+    let mut n = 0.0;
+    for y in 0..img.height() {
+        for x in x0..x1 {
+            let p = img.get_pixel(x, y).0;
+            if p != BACKGROUND {
+                s += p[0] as f64 + p[1] as f64 + p[2] as f64;
+                n += 1.0;
+            }
+        }
+    }
+    assert!(n > 100.0, "columns {x0}..{x1}: too few mesh pixels ({n})");
+    s / n
+}
+
+/// One scenario chained by hand (first order → dilation → display, each pass's inputs spelled
+/// out, as a caller without `Renderer` would): it reads best as one function.
 #[test]
 fn end_to_end_frame_lit_side_is_brighter() {
     let gpu = gpu();
@@ -345,22 +365,7 @@ fn end_to_end_frame_lit_side_is_brighter() {
     gpu.submit_and_wait("test.frame", enc).unwrap();
     let img = gpu.read_rgba8("test.frame", &out.color_tex).unwrap();
 
-    let mean = |x0: u32, x1: u32| {
-        let mut s = 0.0;
-        let mut n = 0.0;
-        for y in 0..96 {
-            for x in x0..x1 {
-                let p = img.get_pixel(x, y).0;
-                if p != BACKGROUND {
-                    s += p[0] as f64 + p[1] as f64 + p[2] as f64;
-                    n += 1.0;
-                }
-            }
-        }
-        assert!(n > 100.0, "columns {x0}..{x1}: too few mesh pixels ({n})");
-        s / n
-    };
-    let (left, right) = (mean(0, 32), mean(64, 96));
+    let (left, right) = (mean_mesh_rgb(&img, 0, 32), mean_mesh_rgb(&img, 64, 96));
     assert!(
         right > left + 30.0,
         "lit (+x) side {right} not brighter than {left}"

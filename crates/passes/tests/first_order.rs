@@ -15,8 +15,8 @@ use glam::Vec3;
 use passes::AlbedoMap;
 use passes::cpu::first_order as mirror;
 use passes::first_order::{
-    FirstOrderInputs, FirstOrderOptions, FirstOrderPass, FirstOrderScene, LIGHT_DIRECTIONAL,
-    LIGHT_POINT, shadow_layers,
+    FirstOrderInputs, FirstOrderOptions, FirstOrderPass, FirstOrderScene, GpuLight,
+    LIGHT_DIRECTIONAL, LIGHT_POINT, shadow_layers,
 };
 use passes::util::TexelReads;
 use passes::{Gpu, LightDesc, MeshData, TexelImage};
@@ -55,11 +55,8 @@ fn point_light_inside_bounds_uses_cube_faces_and_matches_mirror() {
     check(&lights, 6);
 }
 
-/// Compares GPU and mirror for `lights`; the first light must be a point light whose
-/// shadow takes `point_layers` layers.
-fn check(lights: &[LightDesc], point_layers: u32) {
-    let (mesh, _) = floor_and_box(SIZE);
-    // A per-texel albedo pattern, so a wrong texel lookup shows.
+/// A per-texel albedo pattern, so a wrong texel lookup shows.
+fn patterned_albedo() -> AlbedoMap {
     let mut albedo = AlbedoMap::uniform(SIZE, SIZE, [0.0; 3]);
     for y in 0..SIZE {
         for x in 0..SIZE {
@@ -70,6 +67,78 @@ fn check(lights: &[LightDesc], point_layers: u32) {
             ];
         }
     }
+    albedo
+}
+
+/// Both ways of reading the albedo and G-buffer textures give the lightmap `got`.
+fn assert_texel_reads_agree(
+    gpu: &Gpu,
+    options: &FirstOrderOptions,
+    (mesh, albedo): (&MeshData, &AlbedoMap),
+    lights: &[LightDesc],
+    got: &TexelImage,
+) {
+    for reads in [TexelReads::Sampled, TexelReads::Storage] {
+        if reads == TexelReads::Storage && !gpu.supports_storage_reads() {
+            eprintln!("adapter has no read-only storage textures: storage reads not tested");
+            continue;
+        }
+        let options = FirstOrderOptions {
+            texel_reads: Some(reads),
+            ..*options
+        };
+        let pass = FirstOrderPass::new(gpu, &options).unwrap();
+        let scene = pass.prepare(gpu, mesh, albedo).unwrap();
+        let other = render_first_order(gpu, &pass, &scene, lights, "test.first_order_reads");
+        assert_eq!(&other, got, "{reads:?} texel reads");
+    }
+}
+
+/// Shadow state at a surface point and on a disc of 4 shadow-map texels around it, over the
+/// lights that face it: (the same for every point of the disc, shadowed by some light,
+/// unshadowed irradiance summed over the lights).
+fn shadow_state(
+    mesh: &MeshData,
+    lights: &[GpuLight],
+    position: Vec3,
+    normal: Vec3,
+    shadow_map_size: u32,
+) -> (bool, bool, Vec3) {
+    let (t1, t2) = normal.any_orthonormal_pair();
+    let mut stable = true;
+    let mut any_shadowed = false;
+    let mut unshadowed = Vec3::ZERO;
+    for l in lights {
+        let e = mirror::unshadowed_irradiance(l, position, normal);
+        if e.max_element() <= 0.0 {
+            continue;
+        }
+        unshadowed += e;
+        let texel_m = if l.kind == LIGHT_DIRECTIONAL {
+            l.cone[3] / shadow_map_size as f32
+        } else {
+            l.cone[2] * Vec3::from_slice(&l.position[..3]).distance(position)
+                / shadow_map_size as f32
+        };
+        let r = 4.0 * texel_m;
+        let v0 = mirror::occluded(mesh, l, position, normal);
+        any_shadowed |= v0;
+        for k in 0..8 {
+            let a = k as f32 * std::f32::consts::TAU / 8.0;
+            let q = position + r * (a.cos() * t1 + a.sin() * t2);
+            if mirror::occluded(mesh, l, q, normal) != v0 {
+                stable = false;
+            }
+        }
+    }
+    (stable, any_shadowed, unshadowed)
+}
+
+/// Compares GPU and mirror for `lights`; the first light must be a point light whose
+/// shadow takes `point_layers` layers.
+fn check(lights: &[LightDesc], point_layers: u32) {
+    let (mesh, _) = floor_and_box(SIZE);
+    let albedo = patterned_albedo();
     let options = FirstOrderOptions {
         shadow_map_size: 512,
         max_shadow_layers: 8,
@@ -86,21 +155,7 @@ fn check(lights: &[LightDesc], point_layers: u32) {
         "shadow layers of the point light"
     );
     let got = render_first_order(&gpu, &pass, &scene, lights, "test.first_order");
-    // Both ways of reading the albedo and G-buffer textures give the same lightmap.
-    for reads in [TexelReads::Sampled, TexelReads::Storage] {
-        if reads == TexelReads::Storage && !gpu.supports_storage_reads() {
-            eprintln!("adapter has no read-only storage textures: storage reads not tested");
-            continue;
-        }
-        let options = FirstOrderOptions {
-            texel_reads: Some(reads),
-            ..options
-        };
-        let pass = FirstOrderPass::new(&gpu, &options).unwrap();
-        let scene = pass.prepare(&gpu, &mesh, &albedo).unwrap();
-        let other = render_first_order(&gpu, &pass, &scene, lights, "test.first_order_reads");
-        assert_eq!(other, got, "{reads:?} texel reads");
-    }
+    assert_texel_reads_agree(&gpu, &options, (&mesh, &albedo), lights, &got);
 
     let want = mirror::first_order(&mesh, &albedo, lights);
     for (i, (g, w)) in got.rgba.iter().zip(&want.rgba).enumerate() {
@@ -113,34 +168,8 @@ fn check(lights: &[LightDesc], point_layers: u32) {
     let gl = mirror::packed_lights(&mesh, lights);
     let (mut lit, mut shadowed, mut edge) = (0, 0, 0);
     for s in mirror::rasterize_uv(&mesh, SIZE, SIZE) {
-        // Shadow state at the texel and on a disc of 4 shadow texels around it.
-        let (t1, t2) = s.normal.any_orthonormal_pair();
-        let mut stable = true;
-        let mut any_shadowed = false;
-        let mut unshadowed = Vec3::ZERO;
-        for l in &gl {
-            let e = mirror::unshadowed_irradiance(l, s.position, s.normal);
-            if e.max_element() <= 0.0 {
-                continue;
-            }
-            unshadowed += e;
-            let texel_m = if l.kind == LIGHT_DIRECTIONAL {
-                l.cone[3] / options.shadow_map_size as f32
-            } else {
-                l.cone[2] * Vec3::from_slice(&l.position[..3]).distance(s.position)
-                    / options.shadow_map_size as f32
-            };
-            let r = 4.0 * texel_m;
-            let v0 = mirror::occluded(&mesh, l, s.position, s.normal);
-            any_shadowed |= v0;
-            for k in 0..8 {
-                let a = k as f32 * std::f32::consts::TAU / 8.0;
-                let q = s.position + r * (a.cos() * t1 + a.sin() * t2);
-                if mirror::occluded(&mesh, l, q, s.normal) != v0 {
-                    stable = false;
-                }
-            }
-        }
+        let (stable, any_shadowed, unshadowed) =
+            shadow_state(&mesh, &gl, s.position, s.normal, options.shadow_map_size);
         if !stable {
             edge += 1;
             continue;

@@ -21,6 +21,8 @@
 //! [`crate::maps::MapsError`]; the file-level ones are [`crate::io::FileError`]s worded for a
 //! bake directory.
 
+#[cfg(test)]
+mod fixtures;
 pub mod index;
 pub mod key;
 pub mod map_file;

@@ -144,27 +144,9 @@ fn check_finished(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::Lightmap;
     use crate::bake_dir::write_map_file;
-    use crate::maps::TransferMap;
 
-    fn settings() -> serde_json::Value {
-        serde_json::json!({"offsets": 3, "seed": 42, "nested": {"b": [1, 2.5], "a": "x"}})
-    }
-
-    fn maps() -> Vec<TransferMap> {
-        (0..3)
-            .map(|i| {
-                let mut full = Lightmap::new(16, 8);
-                if i != 1 {
-                    full.set(i, 2, [0.25, 0.5, 1.0 / (i as f32 + 3.0)]);
-                    full.set(10, 7, [1e-6, 0.0, 0.0]);
-                }
-                TransferMap::from_full(IVec2::new(i as i32 - 1, 2), 0.1 * i as f64, 1.5, &full)
-                    .unwrap()
-            })
-            .collect()
-    }
+    use crate::bake_dir::fixtures::{maps, settings};
 
     #[test]
     fn resume_scan_keeps_only_valid_files_of_this_bake() {
