@@ -14,9 +14,8 @@
 //! - any other texel: none (it stays 0).
 //!
 //! A filled texel gets its source's RGB with alpha [`FILLED_ALPHA`]. This is the usual
-//! practice of lightmap tools. (Before, ortm ran `rings` full-screen passes, each filling one
-//! ring with the *mean* of the non-empty 8-neighbours; on lavapipe at 256² that took ~9.3 ms
-//! of CPU per map, this ~0.5 ms — figures in `docs/render.md`, section *Dilation*.)
+//! practice of lightmap tools; the plan makes the per-frame cost one copy plus the gutter
+//! rectangles (timings in `docs/render.md`, section *Dilation*).
 //!
 //! # Data flow
 //! [`DilatePass::prepare`] uploads a plan once: its sources as an `R32Uint` texture
