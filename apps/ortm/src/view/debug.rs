@@ -10,7 +10,7 @@
 //! any exposure.
 //!
 //! # The reference
-//! [`reference`] computes the first order on the CPU with ray-cast shadows
+//! [`reference()`] computes the first order on the CPU with ray-cast shadows
 //! ([`ortm::bake::lighting::first_order`], exact point-to-light visibility instead of shadow maps)
 //! and applies the *same* atlas pieces on the CPU ([`ortm::atlas::apply_atlas_pieces`], Eq. 9
 //! in f64): it shows what the GPU should display, up to shadow-map aliasing and float

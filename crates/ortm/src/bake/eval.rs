@@ -1,5 +1,5 @@
 //! Accuracy of a bake against the exact solve: relative RMSE of the indirect term
-//! `B − B_o` produced by a set of transfer maps (Eq. 9, [`crate::maps::apply`]) versus the dense
+//! `B − B_o` produced by a set of transfer maps (Eq. 9, [`crate::maps::apply()`]) versus the dense
 //! solution ([`crate::bake::transport::dense`]), averaged over random light set-ups.
 //!
 //! Used by the convergence tests and by `ortm bench bake`. [`ear_texels`] picks the head's ear

@@ -1,10 +1,10 @@
 //! The bake: from a scene to a directory of offset transfer maps (paper Sec. 3, 3.1, 5.1).
 //!
 //! # Data flow
-//! scene → [`TexelGrid`] → [`Transport`] (BVH, coarse remainder) → offset selection
+//! scene → [`TexelGrid`](texels::TexelGrid) → [`Transport`](transport::Transport) (BVH, coarse remainder) → offset selection
 //! ([`crate::bake::offsets`], importance-sampled or jittered grid) → Voronoi cells and `TVA` →
 //! one transfer map per offset, `TR(t, t+Δt)·TVA(t, Δt)` (Eq. 10) → cropped OpenEXR files and
-//! `index.json` ([`crate::maps`]).
+//! `index.json` ([`crate::bake_dir`]).
 //!
 //! # Transfer map values
 //! With `R(t, t')` the transfer of [`crate::bake::transport`] (dimensionless, it already contains the
@@ -18,7 +18,7 @@
 //!
 //! # Importance
 //! The transference of an offset (the data points of the importance density) is the maximum
-//! (or average, [`ImportanceMetric`]) over receivers of the largest channel of `|R(t, t+Δt)|`,
+//! (or average, [`ImportanceMetric`](offsets::ImportanceMetric)) over receivers of the largest channel of `|R(t, t+Δt)|`,
 //! evaluated on an evenly strided subset of at most [`BakeSettings::selection_receivers`]
 //! receivers.
 //!

@@ -3,7 +3,7 @@
 //! Everything here is in SI units: positions in metres (a scene file's `metres_per_unit`
 //! has already been applied), radiant intensity in W/sr, irradiance in W/m².
 //!
-//! Scenes come from a TOML scene file ([`file`], format in `docs/scene-format.md`) or are
+//! Scenes come from a TOML scene file ([`file`](mod@file), format in `docs/scene-format.md`) or are
 //! built in code ([`cornell`]). Meshes are read from OBJ by [`obj`], which validates them.
 //! Lights and their one text form (`--light`) live in [`light`].
 //! Named subsurface coefficient sets live in [`presets`], the profile they define in
