@@ -7,16 +7,12 @@
 mod common;
 
 use libfuzzer_sys::fuzz_target;
-use sha2::{Digest, Sha256};
 
 fuzz_target!(|data: &[u8]| {
     let dir = common::scratch("atlas_exr");
     let fixture = std::fs::read_to_string(common::fixture_dir().join("atlases.json"))
         .expect("fixture atlases.json");
-    let digest: String = Sha256::digest(data)
-        .iter()
-        .map(|b| format!("{b:02x}"))
-        .collect();
+    let digest = ortm::io::sha256_hex(data);
     // Replace the first atlas's "bytes" and "sha256" values (the fixture has one atlas).
     let mut text = String::new();
     for line in fixture.lines() {

@@ -10,8 +10,6 @@ mod common;
 use std::fs;
 use std::path::Path;
 
-use sha2::{Digest, Sha256};
-
 /// The regression inputs of `target` (at least one).
 fn cases(target: &str) -> Vec<(String, Vec<u8>)> {
     let dir = common::data("fuzz").join(target);
@@ -69,10 +67,7 @@ fn map_exr_regressions() {
 fn atlas_exr_regressions() {
     for (name, bytes) in cases("atlas_exr") {
         let dir = scratch();
-        let digest: String = Sha256::digest(&bytes)
-            .iter()
-            .map(|b| format!("{b:02x}"))
-            .collect();
+        let digest = ortm::io::sha256_hex(&bytes);
         common::edit_json(&dir.path().join("atlases.json"), |v| {
             v["atlases"][0]["bytes"] = bytes.len().into();
             v["atlases"][0]["sha256"] = digest.into();

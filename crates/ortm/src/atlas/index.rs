@@ -63,7 +63,7 @@ fn remove_stale_temp_files(dir: &Path) {
         let name = e.file_name();
         let name = name.to_string_lossy();
         let ours = name.starts_with(".atlas_") || name.starts_with(".atlases.json.");
-        if ours && name.ends_with(".tmp") && e.file_type().is_ok_and(|t| t.is_file()) {
+        if ours && crate::io::is_temp_name(&name) && e.file_type().is_ok_and(|t| t.is_file()) {
             let _ = fs::remove_file(e.path());
         }
     }

@@ -60,7 +60,7 @@ pub fn scan_finished_maps(
         };
         // Symbolic links are never reused (they could point outside the bake directory).
         let regular = entry.file_type().is_ok_and(|t| t.is_file());
-        if name.starts_with('.') && name.ends_with(".tmp") {
+        if crate::io::is_temp_name(&name) {
             if regular {
                 scan.stale_temp.push(entry.path());
             }

@@ -21,6 +21,12 @@ fn temp_path(path: &Path) -> PathBuf {
     dir.join(format!(".{name}.{}-{n}.tmp", std::process::id()))
 }
 
+/// Whether a file name is one [`write_atomic`] gives its temporary files (`.<name>….tmp`):
+/// directory readers skip such files and may delete them as leftovers of interrupted writes.
+pub fn is_temp_name(name: &str) -> bool {
+    name.starts_with('.') && name.ends_with(".tmp")
+}
+
 /// Writes `bytes` to `path` atomically: a temporary file in the same directory (so the rename
 /// stays on one file system), `fsync`, then rename over `path`. On failure the temporary file
 /// is removed and `path` is untouched.

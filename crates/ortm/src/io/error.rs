@@ -25,7 +25,7 @@ impl DirKind {
     }
 
     /// The index that lists the files ("index", "atlas index").
-    fn index(self) -> &'static str {
+    pub(super) fn index(self) -> &'static str {
         match self {
             Self::Bake => "index",
             Self::Atlas => "atlas index",
@@ -33,7 +33,7 @@ impl DirKind {
     }
 
     /// The directory ("bake", "atlas").
-    fn dir(self) -> &'static str {
+    pub(super) fn dir(self) -> &'static str {
         match self {
             Self::Bake => "bake",
             Self::Atlas => "atlas",

@@ -16,7 +16,7 @@ use exr::prelude::traits::{ReadChannels, ReadLayers, WritableImage};
 use exr::prelude::{Compression, LineOrder, SmallVec};
 
 /// The first four bytes of every OpenEXR file.
-pub const MAGIC: [u8; 4] = [0x76, 0x2f, 0x31, 0x01];
+const MAGIC: [u8; 4] = [0x76, 0x2f, 0x31, 0x01];
 
 /// Whether `bytes` starts with the OpenEXR magic number.
 pub fn has_magic(bytes: &[u8]) -> bool {

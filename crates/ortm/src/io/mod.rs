@@ -23,11 +23,8 @@ pub mod limits;
 mod read;
 mod versioned;
 
-pub use atomic::{write_atomic, write_png_atomic};
+pub use atomic::{is_temp_name, write_atomic, write_png_atomic};
 pub use digest::{hex, is_hex_digest, sha256_hex};
 pub use error::{DirKind, FileError};
-pub use read::{
-    ListedFile, Unresolved, plain_file_name, read_bounded, read_listed, resolve_in_dir,
-    resolve_listed,
-};
+pub use read::{ListedFile, plain_file_name, read_bounded, read_listed, resolve_listed};
 pub use versioned::{VersionedError, from_versioned_json, to_versioned_json};

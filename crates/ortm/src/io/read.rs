@@ -57,7 +57,7 @@ pub fn plain_file_name(name: &str) -> bool {
 
 /// Why a file name from an index does not resolve to a regular file inside its directory.
 #[derive(Debug, Clone, PartialEq, Eq)]
-pub enum Unresolved {
+enum Unresolved {
     /// The file does not exist (or cannot be inspected).
     Missing,
     /// The name resolves (through a symbolic link) to this path outside the directory.
@@ -72,7 +72,7 @@ pub enum Unresolved {
 ///
 /// # Errors
 /// [`Unresolved`] saying why.
-pub fn resolve_in_dir(dir: &Path, name: &str) -> Result<(PathBuf, u64), Unresolved> {
+fn resolve_in_dir(dir: &Path, name: &str) -> Result<(PathBuf, u64), Unresolved> {
     let path = dir.join(name);
     let real = fs::canonicalize(&path).map_err(|_| Unresolved::Missing)?;
     let real_dir = fs::canonicalize(dir).map_err(|_| Unresolved::Missing)?;
@@ -112,10 +112,7 @@ pub fn resolve_listed(
             problem: format!(
                 "resolves to {}, outside the {} directory {}",
                 real.display(),
-                match kind {
-                    DirKind::Bake => "bake",
-                    DirKind::Atlas => "atlas",
-                },
+                kind.dir(),
                 dir.display()
             ),
             path,
@@ -162,11 +159,8 @@ pub fn read_listed(
     if len != bytes {
         return Err(size_error(path, len));
     }
-    let limit_name = match kind {
-        DirKind::Bake => "the size recorded in the index",
-        DirKind::Atlas => "the size recorded in the atlas index",
-    };
-    let content = match read_bounded(&path, bytes, limit_name) {
+    let limit_name = format!("the size recorded in the {}", kind.index());
+    let content = match read_bounded(&path, bytes, &limit_name) {
         Ok(b) => b,
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
             return Err(FileError::MissingFile { path, kind });

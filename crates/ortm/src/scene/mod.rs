@@ -217,7 +217,7 @@ pub fn scene_hash(scene: &Scene) -> String {
     }
     h.update(format!("{:?}", scene.materials).as_bytes());
     h.update(format!("{}", scene.allow_uv_overlap).as_bytes());
-    h.finalize().iter().map(|b| format!("{b:02x}")).collect()
+    crate::io::hex(&h.finalize())
 }
 
 /// Reads a whole text file, refusing files larger than `limit` bytes before reading and
