@@ -459,8 +459,6 @@ pub struct FirstOrderPass {
 pub struct FirstOrderScene {
     /// Lightmap `[W, H]`.
     pub lightmap_size: [u32; 2],
-    /// Mesh bounds (for shadow frusta).
-    pub bounds: Bounds,
     /// The mesh's buffers (shared with the display pass).
     mesh: GpuMesh,
     /// Per-frame uniforms: [`FirstOrderParams`], lights, layer matrices.
@@ -471,6 +469,13 @@ pub struct FirstOrderScene {
     bind_group: wgpu::BindGroup,
     shadow_bind_group: wgpu::BindGroup,
     output: wgpu::Texture,
+}
+
+impl FirstOrderScene {
+    /// Mesh bounds (for shadow frusta).
+    pub fn bounds(&self) -> &Bounds {
+        self.mesh.bounds()
+    }
 }
 
 /// The uniform buffers written every frame (bindings 0, 1, 2 of `first_order.wgsl`).
@@ -901,7 +906,6 @@ impl FirstOrderPass {
         gpu.check("ortm.first_order.prepare")?;
         Ok(FirstOrderScene {
             lightmap_size: size,
-            bounds: mesh.bounds,
             mesh: mesh.clone(),
             uniforms,
             shadow_layer_views,
@@ -1041,7 +1045,7 @@ impl FirstOrderPass {
     ) -> Result<(Vec<GpuLight>, Vec<[f32; 16]>), PassError> {
         let (gl, mats) = pack_lights(
             lights,
-            &scene.bounds,
+            scene.mesh.bounds(),
             self.options.shadow_map_size,
             self.options.max_shadow_layers,
         )?;
@@ -1104,7 +1108,7 @@ impl FirstOrderPass {
                         LightDesc::Directional { .. } => true,
                         LightDesc::Point { position_m, .. }
                         | LightDesc::Spot { position_m, .. } => {
-                            !scene.bounds.contains(Vec3::from(position_m))
+                            !scene.mesh.bounds().contains(Vec3::from(position_m))
                         }
                     });
             pass.set_pipeline(&self.shadow_pipelines[usize::from(cull)]);

@@ -402,17 +402,13 @@ impl Renderer {
             Shown::FirstOrder => (fo_view.clone(), true),
             Shown::Texture { view, dilate } => (view.clone(), dilate),
             Shown::Indirect => {
-                if scene.indirect.get().is_none() {
-                    let targets = self.indirect.prepare(gpu, scene.lightmap_size)?;
-                    let _ = scene.indirect.set(targets);
-                }
-                let targets = scene
-                    .indirect
-                    .get()
-                    .ok_or_else(|| PassError::InvalidInput {
-                        what: "RenderScene".into(),
-                        problem: "indirect map missing (internal bug)".into(),
-                    })?;
+                let targets = match scene.indirect.get() {
+                    Some(t) => t,
+                    None => {
+                        let t = self.indirect.prepare(gpu, scene.lightmap_size)?;
+                        scene.indirect.get_or_init(|| t)
+                    }
+                };
                 if options.stages.dilate {
                     let final_view = util::view(scene.transfer.output());
                     let inputs = IndirectInputs {

@@ -148,7 +148,7 @@ fn check(lights: &[LightDesc], point_layers: u32) {
     let gpu = gpu();
     let pass = FirstOrderPass::new(&gpu, &options).unwrap();
     let scene = pass.prepare(&gpu, &mesh, &albedo).unwrap();
-    let (g0, _) = shadow_layers(&lights[0], &scene.bounds, options.shadow_map_size);
+    let (g0, _) = shadow_layers(&lights[0], scene.bounds(), options.shadow_map_size);
     assert_eq!(g0.kind, LIGHT_POINT);
     assert_eq!(
         g0.layer_count, point_layers,
