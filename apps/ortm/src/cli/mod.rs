@@ -93,9 +93,10 @@ pub fn run(cli: Cli) -> Result<()> {
 pub fn load_scene(arg: &str, size: Option<u32>) -> Result<Scene> {
     let mut scene = match arg {
         "cornell" => {
-            if size.is_some_and(|s| s < 32) {
+            let min = ortm::scene::cornell::MIN_LIGHTMAP_SIZE;
+            if size.is_some_and(|s| s < min) {
                 anyhow::bail!(
-                    "the built-in cornell scene needs --size 32 or more (its charts have 2-texel gutters)"
+                    "the built-in cornell scene needs --size {min} or more (its charts have 2-texel gutters)"
                 );
             }
             ortm::scene::cornell::cornell_box(size.unwrap_or(64))

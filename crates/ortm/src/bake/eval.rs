@@ -19,8 +19,7 @@ use crate::scene::{Light, Scene};
 /// 1.5–3 bounding radii from the centre, random colours, intensities giving ~10 W/m² at the
 /// centre. Deterministic for `seed`.
 pub fn random_light_setups(scene: &Scene, count: usize, seed: u64) -> Vec<Vec<Light>> {
-    let (lo, hi) = scene.mesh.bounds();
-    let (centre, radius) = ((lo + hi) * 0.5, (hi - lo).length() * 0.5);
+    let (centre, radius) = scene.mesh.bounding_sphere().unwrap_or((Vec3::ZERO, 1.0));
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     (0..count)
         .map(|_| {
