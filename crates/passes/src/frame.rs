@@ -36,6 +36,7 @@ use crate::first_order::{FirstOrderInputs, FirstOrderOptions, FirstOrderPass, Fi
 use crate::gpu::Gpu;
 use crate::indirect::{IndirectInputs, IndirectPass, IndirectTargets};
 use crate::mesh::GpuMesh;
+use crate::timestamps::Timestamps;
 use crate::transfer::{TransferInputs, TransferOptions, TransferPass, TransferScene};
 use crate::types::{AlbedoMap, AtlasData, LightDesc, MeshData, TexelImage, TransferPiece};
 use crate::util;
@@ -195,8 +196,8 @@ pub struct FrameOptions<'a> {
     /// ([`FirstOrderScene::invalidate_shadow_maps`]); otherwise the shadow maps of unchanged
     /// lights are reused.
     pub moving_lights: bool,
-    /// Query set of at least [`FRAME_TIMESTAMPS`] timestamps to write between the stages.
-    pub timestamps: Option<&'a wgpu::QuerySet>,
+    /// Timestamps (at least [`FRAME_TIMESTAMPS`]) to write between the stages.
+    pub timestamps: Option<&'a Timestamps>,
 }
 
 impl Default for FrameOptions<'_> {
@@ -335,8 +336,8 @@ impl Renderer {
         options: &FrameOptions<'_>,
     ) -> Result<FrameOutput, PassError> {
         let stamp = |enc: &mut wgpu::CommandEncoder, i: u32| {
-            if let Some(q) = options.timestamps {
-                enc.write_timestamp(q, i);
+            if let Some(t) = options.timestamps {
+                t.write(enc, i);
             }
         };
         let stages = options.stages;

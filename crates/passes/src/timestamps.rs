@@ -53,11 +53,6 @@ impl Timestamps {
         }
     }
 
-    /// The query set (for [`crate::frame::FrameOptions::timestamps`]).
-    pub fn query_set(&self) -> &wgpu::QuerySet {
-        &self.queries
-    }
-
     /// Records timestamp `i`.
     pub fn write(&self, encoder: &mut wgpu::CommandEncoder, i: u32) {
         encoder.write_timestamp(&self.queries, i);

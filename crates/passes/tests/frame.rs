@@ -121,7 +121,7 @@ fn assert_frame_timestamps(
         let stamps = Timestamps::new(gpu, "test.timestamps", FRAME_TIMESTAMPS);
         let mut enc = gpu.device.create_command_encoder(&Default::default());
         let options = FrameOptions {
-            timestamps: Some(stamps.query_set()),
+            timestamps: Some(&stamps),
             ..Default::default()
         };
         renderer

@@ -167,7 +167,7 @@ impl ViewRenderer {
         };
         let options = FrameOptions {
             shown: map,
-            timestamps: self.timer.as_ref().map(Timestamps::query_set),
+            timestamps: self.timer.as_ref(),
             ..Default::default()
         };
         let out = self
