@@ -32,6 +32,7 @@ fn cube_patches(n: usize, rho: Vec3) -> Vec<Patch> {
                     area_m2: area,
                     rho,
                     material: 0,
+                    subsurface_scale: Vec3::ONE,
                 });
             }
         }
