@@ -369,7 +369,10 @@ fn irradiance_slack(t: &ortm::bake::texels::Texel, light: &Light, delta: f32) ->
             position_m,
             color,
             intensity_w_sr,
-        } => (color * intensity_w_sr / position_m.distance_squared(t.position_m), 0.0),
+        } => (
+            color * intensity_w_sr / position_m.distance_squared(t.position_m),
+            0.0,
+        ),
         Light::Spot {
             position_m,
             color,
@@ -592,7 +595,10 @@ fn point_spot_and_directional_first_order_match_ray_cast() {
         check.covered
     );
     for (l, (&got, least)) in check.shadowed.iter().zip([92, 12, 307]).enumerate() {
-        assert!(got >= least, "light {l}: only {got} shadowed texels compared");
+        assert!(
+            got >= least,
+            "light {l}: only {got} shadowed texels compared"
+        );
     }
     assert!(
         check.in_penumbra >= 33,

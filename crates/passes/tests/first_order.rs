@@ -79,8 +79,9 @@ fn assert_texel_reads_agree(
     got: &TexelImage,
 ) {
     for reads in [TexelReads::Sampled, TexelReads::Storage] {
-        if reads == TexelReads::Storage && !gpu.supports_storage_reads() {
-            eprintln!("adapter has no read-only storage textures: storage reads not tested");
+        if reads == TexelReads::Storage
+            && !common::has_storage_reads(gpu, "first-order storage reads")
+        {
             continue;
         }
         let options = FirstOrderOptions {

@@ -103,20 +103,13 @@ fn reference(c: &Case) -> (TexelImage, Vec<(f32, u32)>) {
     (out, mag)
 }
 
-/// `options` with [`TexelReads::Storage`], when the adapter supports it (lavapipe does; the
-/// tests print a note where it does not).
+/// `options` with [`TexelReads::Storage`], when the adapter supports it (lavapipe does; a
+/// failure where the adapter can but the device says it cannot, a note where it cannot).
 fn storage_reads(options: TransferOptions) -> Option<TransferOptions> {
-    if gpu().supports_storage_reads() {
-        Some(TransferOptions {
-            texel_reads: TexelReads::Storage,
-            ..options
-        })
-    } else {
-        eprintln!(
-            "adapter has no read-only storage textures in fragment shaders: storage reads not tested"
-        );
-        None
-    }
+    common::has_storage_reads(&gpu(), "transfer storage reads").then_some(TransferOptions {
+        texel_reads: TexelReads::Storage,
+        ..options
+    })
 }
 
 fn run_gpu(c: &Case, options: TransferOptions) -> TexelImage {

@@ -41,6 +41,91 @@ pub fn gpu() -> ExclusiveGpu {
     Gpu::new_headless_exclusive().unwrap_or_else(|e| panic!("{e}"))
 }
 
+/// The adapter [`Gpu::new_headless`] picks, requested again with the same options to ask what
+/// it offers (the device only has the optional features it was created with). Panics if
+/// this is not the adapter `gpu` runs on.
+fn adapter_of(gpu: &Gpu) -> wgpu::Adapter {
+    let instance =
+        wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
+    let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
+        power_preference: wgpu::PowerPreference::HighPerformance,
+        force_fallback_adapter: false,
+        compatible_surface: None,
+        apply_limit_buckets: false,
+    }))
+    .unwrap_or_else(|e| panic!("{e}"));
+    let info = adapter.get_info();
+    assert_eq!(
+        (&info.name, info.backend),
+        (&gpu.adapter_info.name, gpu.adapter_info.backend),
+        "a second request picked another adapter"
+    );
+    adapter
+}
+
+/// Whether to test `what`, which needs the optional `feature`: true when the device has it.
+/// When the device lacks it, a failure if the adapter offers it (the feature was not
+/// requested at device creation, so the path would go untested on an adapter that can run
+/// it); false with a note naming the adapter only where the adapter truly lacks it.
+pub fn has_feature(gpu: &Gpu, feature: wgpu::Features, what: &str) -> bool {
+    if gpu.device.features().contains(feature) {
+        return true;
+    }
+    let adapter = adapter_of(gpu);
+    assert!(
+        !adapter.features().contains(feature),
+        "{} offers {feature:?} but the device was created without it, so {what} would go untested",
+        gpu.adapter_info.name
+    );
+    eprintln!(
+        "note: {} ({:?}) lacks {feature:?}; {what} not tested",
+        gpu.adapter_info.name, gpu.adapter_info.backend
+    );
+    false
+}
+
+/// Whether to test `what`, which reads RGBA32F and RGBA32Uint textures as read-only storage
+/// textures in fragment shaders ([`passes::util::TexelReads::Storage`]): true when
+/// [`Gpu::supports_storage_reads`]. Otherwise the adapter is asked independently (both
+/// formats allow read-only storage access, fragment shaders may use storage, at least 4
+/// storage textures per stage): a failure if it can, false with a note naming it if not.
+pub fn has_storage_reads(gpu: &Gpu, what: &str) -> bool {
+    if gpu.supports_storage_reads() {
+        return true;
+    }
+    let adapter = adapter_of(gpu);
+    let readable = [
+        wgpu::TextureFormat::Rgba32Float,
+        wgpu::TextureFormat::Rgba32Uint,
+    ]
+    .into_iter()
+    .all(|f| {
+        let ff = adapter.get_texture_format_features(f);
+        ff.allowed_usages
+            .contains(wgpu::TextureUsages::STORAGE_BINDING)
+            && ff
+                .flags
+                .contains(wgpu::TextureFormatFeatureFlags::STORAGE_READ_ONLY)
+    });
+    let can = readable
+        && adapter
+            .get_downlevel_capabilities()
+            .flags
+            .contains(wgpu::DownlevelFlags::FRAGMENT_STORAGE)
+        && adapter.limits().max_storage_textures_per_shader_stage >= 4;
+    assert!(
+        !can,
+        "{} can read storage textures in fragment shaders but the device says it cannot, so {what} \
+         would go untested",
+        gpu.adapter_info.name
+    );
+    eprintln!(
+        "note: {} ({:?}) cannot read storage textures in fragment shaders; {what} not tested",
+        gpu.adapter_info.name, gpu.adapter_info.backend
+    );
+    false
+}
+
 /// Axis-aligned boxes `(centre, half extents)` in metres as one closed mesh with outward CCW
 /// faces, 4 vertices per face (so positions repeat across faces, as at UV seams). Face `k`
 /// of all boxes gets the lightmap chart at cell `k` of an 8×8 grid (one cell = 1/8 of the
