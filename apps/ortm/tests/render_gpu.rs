@@ -2,13 +2,17 @@
 //! skipped: a machine without an adapter fails with the passes' installation advice).
 //!
 //! 1. The GPU final lightmap equals the CPU reference of Eq. 9 (`ortm::maps::apply`) applied
-//!    to the GPU's own first-order lightmap (read back), for the Cornell box (32², 30
-//!    jittered-grid offsets) and the subsurface head (64², 40 offsets), with real baked maps
-//!    packed into atlases by `ortm::atlas::build_atlas_set`.
-//! 2. The GPU first-order lightmap (shadow maps) equals `ortm::bake::lighting::first_order` (exact
-//!    ray-cast shadows) on the Cornell box away from shadow edges.
-//! 3. A rendered Cornell frame matches the stored reference `tests/data/render/cornell_frame.png`
-//!    (tolerant metric). Regenerate it after an intended change of the display with
+//!    to the GPU's own first-order lightmap (read back) within a derived f32/binary16 bound,
+//!    for the Cornell box (32², 30 jittered-grid offsets) and the subsurface head (64², 40
+//!    offsets), with real baked maps packed into atlases by `ortm::atlas::build_atlas_set`;
+//!    the check also measures which atlas pieces it would miss if they were dropped.
+//! 2. The GPU first-order lightmap (shadow maps) equals `ortm::bake::lighting::first_order`
+//!    (exact ray-cast shadows, independent light formulas) away from shadow and light edges
+//!    within a derived bound: the Cornell box's point light, and a point, a spot (soft cone
+//!    edge crossing the surfaces) and a directional light.
+//! 3. A rendered Cornell frame matches the stored reference `tests/data/render/cornell_frame.png`:
+//!    coverage exactly, colour within one 8-bit rounding except at pixels that look up texels
+//!    near shadow edges. Regenerate it after an intended change of the frame with
 //!    `ORTM_UPDATE_REFERENCE=1 cargo test --test render_gpu reference_frame` and look at it.
 
 mod common;
@@ -23,7 +27,7 @@ use ortm::bake::{BakeEvent, bake_maps};
 use ortm::maps::TransferMap;
 use ortm::render;
 use ortm::scene::{Light, Scene};
-use passes::display::{Camera, DisplayOptions};
+use passes::display::{Camera, DisplayInputs, DisplayOptions, DisplayPass};
 use passes::first_order::FirstOrderOptions;
 use passes::frame::{FrameParams, Renderer, RendererOptions};
 use passes::gpu::ExclusiveGpu;
@@ -352,7 +356,7 @@ fn position_slack(scene: &Scene, t: &ortm::bake::texels::Texel) -> f32 {
 ///   rounding of cos ψ is amplified by the smoothstep's slope, at most `1.5/(cos θ_i − cos θ_o)`.
 fn irradiance_slack(t: &ortm::bake::texels::Texel, light: &Light, delta: f32) -> Vec3 {
     let e = |p: Vec3| {
-        let mut moved = t.clone();
+        let mut moved = *t;
         moved.position_m = p;
         irradiance_unshadowed(&moved, light)
     };
@@ -397,6 +401,39 @@ fn irradiance_slack(t: &ortm::bake::texels::Texel, light: &Light, delta: f32) ->
     grad2.map(f32::sqrt) + 2.0 * 64.0 * u * e_n * (1.0 + slope)
 }
 
+/// Per lightmap slot (`y·W + x`), bit `l` set when light `l` reaches the covered texel there
+/// (unshadowed `E ≠ 0`, i.e. front facing and inside a spot's outer cone, and unoccluded to
+/// ortm's ray cast); `u32::MAX` on uncovered slots.
+fn light_masks(scene: &Scene, grid: &TexelGrid, vis: &Visibility) -> Vec<u32> {
+    let mut mask = vec![u32::MAX; (grid.width * grid.height) as usize];
+    for t in &grid.texels {
+        let mut m = 0;
+        for (l, light) in scene.lights.iter().enumerate() {
+            let e = irradiance_unshadowed(t, light);
+            if e != Vec3::ZERO && ortm::bake::lighting::light_visible(t, light, vis) {
+                m |= 1 << l;
+            }
+        }
+        mask[(t.y * grid.width + t.x) as usize] = m;
+    }
+    mask
+}
+
+/// Whether a covered texel of `t`'s 3×3 neighbourhood has another light mask than `t`: `t` is
+/// near a shadow or light edge, where shadow maps (2×2 PCF, normal offset, their own
+/// rasterisation) and the ray cast legitimately differ.
+fn near_light_edge(grid: &TexelGrid, mask: &[u32], t: &ortm::bake::texels::Texel) -> bool {
+    let m = mask[(t.y * grid.width + t.x) as usize];
+    (-1..=1).any(|dy| {
+        (-1..=1).any(|dx| {
+            grid.at(t.x as i32 + dx, t.y as i32 + dy).is_some_and(|j| {
+                let n = &grid.texels[j as usize];
+                mask[(n.y * grid.width + n.x) as usize] != m
+            })
+        })
+    })
+}
+
 /// What [`first_order_vs_ray_cast`] found besides its assertions.
 struct FirstOrderCheck {
     /// Covered texels.
@@ -413,10 +450,7 @@ struct FirstOrderCheck {
 /// `ortm::bake::lighting::first_order` (ray-cast shadows), texel by texel away from shadow and
 /// light edges, within a derived bound; coverage must match exactly.
 ///
-/// A texel's mask has bit `l` set when light `l` reaches it (unshadowed `E ≠ 0`, i.e. front
-/// facing and inside a spot's outer cone, and unoccluded to the ray cast); texels whose 3×3
-/// neighbourhood is not all of one mask are near a shadow or light edge, where shadow maps
-/// (2×2 PCF, normal offset) and the ray cast legitimately differ, and are skipped. Elsewhere
+/// Texels near a shadow or light edge ([`light_masks`], [`near_light_edge`]) are skipped. Elsewhere
 /// `|GPU − CPU| ≤ ρ·Σ_l∈mask irradiance_slack(l)` (the albedo product and the sum over lights
 /// add a few more roundings of the total, inside the 64 u per side).
 fn first_order_vs_ray_cast(gpu: &Gpu, scene: &Scene, shadow_size: u32) -> FirstOrderCheck {
@@ -427,17 +461,7 @@ fn first_order_vs_ray_cast(gpu: &Gpu, scene: &Scene, shadow_size: u32) -> FirstO
         &grid,
         &ortm::bake::lighting::first_order(&grid, &scene.lights, &vis),
     );
-    let mut mask = vec![u32::MAX; (size * size) as usize];
-    for t in &grid.texels {
-        let mut m = 0;
-        for (l, light) in scene.lights.iter().enumerate() {
-            let e = irradiance_unshadowed(t, light);
-            if e != Vec3::ZERO && ortm::bake::lighting::light_visible(t, light, &vis) {
-                m |= 1 << l;
-            }
-        }
-        mask[(t.y * size + t.x) as usize] = m;
-    }
+    let mask = light_masks(scene, &grid, &vis);
     let r = renderer(gpu, scene, shadow_size, DisplayOptions::default());
     let rs = r
         .prepare(
@@ -466,15 +490,7 @@ fn first_order_vs_ray_cast(gpu: &Gpu, scene: &Scene, shadow_size: u32) -> FirstO
             t.x, t.y
         );
         let m = mask[(t.y * size + t.x) as usize];
-        let edge = (-1..=1).any(|dy| {
-            (-1..=1).any(|dx| {
-                grid.at(t.x as i32 + dx, t.y as i32 + dy).is_some_and(|j| {
-                    let n = &grid.texels[j as usize];
-                    mask[(n.y * size + n.x) as usize] != m
-                })
-            })
-        });
-        if edge {
+        if near_light_edge(&grid, &mask, t) {
             continue;
         }
         check.compared += 1;
@@ -607,6 +623,80 @@ fn point_spot_and_directional_first_order_match_ray_cast() {
     );
 }
 
+/// The pixels of `r`'s frame (same camera, size, side-by-side halves and lightmap filter)
+/// whose lightmap lookup touches a texel near a shadow edge ([`near_light_edge`]): the
+/// display pass run on an indicator lightmap that is 1 on those texels (and on the gutter
+/// texels within 2 of them, which the frame's dilation fills from them) and 0 elsewhere, in
+/// both halves, at an exposure that makes any positive weight visible. Such pixels are not
+/// black (uncovered ones keep the background colour).
+fn shadow_edge_pixels(
+    gpu: &Gpu,
+    r: &Renderer,
+    scene: &Scene,
+    grid: &TexelGrid,
+    camera: Camera,
+) -> image::RgbaImage {
+    let vis = Visibility::new(&scene.mesh);
+    let mask = light_masks(scene, grid, &vis);
+    let (w, h) = (grid.width, grid.height);
+    let mut edge = vec![false; (w * h) as usize];
+    for t in &grid.texels {
+        edge[(t.y * w + t.x) as usize] = near_light_edge(grid, &mask, t);
+    }
+    let mut texels = vec![[0f32; 4]; (w * h) as usize];
+    for y in 0..h as i32 {
+        for x in 0..w as i32 {
+            let covered = grid.at(x, y).is_some();
+            let reach = if covered { 0 } else { 2 };
+            let marked = (-reach..=reach).any(|dy| {
+                (-reach..=reach).any(|dx| {
+                    let (u, v) = (x + dx, y + dy);
+                    u >= 0
+                        && v >= 0
+                        && u < w as i32
+                        && v < h as i32
+                        && edge[(v as u32 * w + u as u32) as usize]
+                })
+            });
+            if marked {
+                texels[(y as u32 * w + x as u32) as usize] = [1.0, 1.0, 1.0, 1.0];
+            }
+        }
+    }
+    let indicator = gpu
+        .create_rgba32f_texture(
+            "test.shadow_edges",
+            w,
+            h,
+            &texels,
+            wgpu::TextureUsages::TEXTURE_BINDING,
+        )
+        .unwrap();
+    let view = indicator.create_view(&Default::default());
+    let options = r.options().display;
+    let pass = DisplayPass::with_filter(gpu, &options, r.display_filter()).unwrap();
+    let ds = pass.prepare(gpu, &render::mesh_data(&scene.mesh)).unwrap();
+    let mut enc = gpu.device.create_command_encoder(&Default::default());
+    let out = pass
+        .encode(
+            gpu,
+            &mut enc,
+            &DisplayInputs {
+                scene: &ds,
+                final_lightmap: &view,
+                lightmap_size: [w, h],
+                first_order: Some(&view),
+                camera,
+                exposure: 1e6,
+                lights: &[],
+                specular: None,
+            },
+        )
+        .unwrap();
+    gpu.submit_and_wait("test.shadow_edges", enc).unwrap();
+    gpu.read_rgba8("test.shadow_edges", &out.color_tex).unwrap()
+}
+
 #[test]
 fn reference_frame_matches_stored_png() {
     let gpu = gpu();
@@ -657,25 +747,66 @@ fn reference_frame_matches_stored_png() {
         })
         .to_rgba8();
     assert_eq!(want.dimensions(), img.dimensions());
-    let mut diffs: Vec<u8> = img
-        .as_raw()
-        .iter()
-        .zip(want.as_raw())
-        .map(|(a, b)| a.abs_diff(*b))
-        .collect();
-    let mean = diffs.iter().map(|&d| d as f64).sum::<f64>() / diffs.len() as f64;
-    let k = diffs.len() * 99 / 100;
-    let p99 = *diffs.select_nth_unstable(k).1;
-    eprintln!("frame vs reference: mean |Δ| {mean:.3}/255, 99th percentile {p99}/255");
-    assert!(mean < 2.0, "mean abs diff {mean}/255 ≥ 2/255");
-    assert!(p99 < 10, "99th percentile {p99}/255 ≥ 10/255");
-    // The image is not blank: the lit box differs from the background in most of its area.
     let bg = passes::display::BACKGROUND;
-    let non_bg = img.pixels().filter(|p| p.0 != bg).count();
-    assert!(
-        non_bg > (256 * 128) / 4,
-        "only {non_bg} non-background pixels"
+    // Coverage, exactly: the mesh's pixels are where the frame is not the background colour
+    // (no shaded pixel of the lit box comes out as (16, 16, 20)), and alpha is 255 on both.
+    let mut mesh = 0;
+    for (x, y, p) in img.enumerate_pixels() {
+        let q = want.get_pixel(x, y);
+        assert_eq!(
+            p.0[3], q.0[3],
+            "pixel ({x}, {y}): alpha {} vs {}",
+            p.0[3], q.0[3]
+        );
+        assert_eq!(
+            p.0 == bg,
+            q.0 == bg,
+            "pixel ({x}, {y}): {:?} vs reference {:?} (background {bg:?}): coverage differs",
+            p.0,
+            q.0
+        );
+        mesh += usize::from(p.0 != bg);
+    }
+    // Colour over the mesh's pixels. Both images round the same display function (bilinear
+    // lookup, B/π, exposure, Reinhard, the fitted sRGB) of lightmaps that agree within the
+    // bounds the tests above derive (binary16 transfer values: ≤ 2⁻¹¹ relative, < 0.1/255
+    // after the tone curve) to 8 bits, so a channel may differ by one rounding flip, |Δ| ≤ 1.
+    // Larger differences are allowed only at pixels whose lookup touches a texel near a
+    // shadow edge (`shadow_edge_pixels`): there the first order depends on the shadow maps'
+    // rasterisation and filtering, which differ between GPUs. Measured on lavapipe, which
+    // made the reference: 0 channels differ at all.
+    let sensitive = shadow_edge_pixels(&gpu, &r, &scene, &grid, camera);
+    let (mut flips, mut large) = (0, 0);
+    for (x, y, p) in img.enumerate_pixels() {
+        let q = want.get_pixel(x, y);
+        let d = (0..3).map(|c| p.0[c].abs_diff(q.0[c])).max().unwrap();
+        flips += usize::from(d == 1);
+        if d > 1 {
+            large += 1;
+            assert!(
+                sensitive.get_pixel(x, y).0[..3] != [0, 0, 0],
+                "pixel ({x}, {y}) away from shadow edges: {:?} vs reference {:?}",
+                p.0,
+                q.0
+            );
+        }
+    }
+    let near_edges = sensitive
+        .pixels()
+        .filter(|p| p.0 != bg && p.0[..3] != [0, 0, 0])
+        .count();
+    eprintln!(
+        "frame vs reference: {mesh} mesh pixels; {flips} differ by one, {large} by more (allowed \
+         only at the {near_edges} pixels that look up texels near shadow edges)"
     );
+    // The allowance stays a part of the frame (measured 3,150 of the 14,792 mesh pixels, the
+    // block shadows' outlines at 32² texels; 25 % margin).
+    assert!(
+        near_edges <= 3937,
+        "{near_edges} pixels near shadow edges: the allowance grew"
+    );
+    // The image is not blank: the lit box covers most of it.
+    assert!(mesh > (256 * 128) / 4, "only {mesh} non-background pixels");
 }
 
 #[test]
