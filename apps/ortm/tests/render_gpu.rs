@@ -227,8 +227,8 @@ fn check_final(
     }
     let live = set.pieces.len() - inert;
     eprintln!(
-        "final vs CPU apply: worst |Δ|/bound = {worst:.3e}; {} pieces, {inert} inert, {seen} of \
-         the {live} others would be seen if dropped; the weakest's largest term/bound = \
+        "final vs CPU apply: worst |Δ|/bound = {worst:.3e}; {} pieces, {inert} inert; of the {live} live ones {seen} \
+         would be seen if dropped; the weakest's largest term/bound = \
          {weakest:.3e}",
         set.pieces.len()
     );
