@@ -106,8 +106,8 @@ fn head_outgoing_power_never_exceeds_incoming_per_channel() {
 /// profile's total diffuse reflectance), in the pair evaluator nor in the exact solve. Before the
 /// subsurface weights were normalised per sender (`ortm::bake::transport`, "Subsurface
 /// weights") the head at 48² re-emitted 1.0008 / 1.008 / 1.025 (R/G/B) × the first order under
-/// the Fig. 5 light and 1.016 / 1.033 / 1.080 under the Fig. 4 light (texel centres of two
-/// charts nearly coinciding on the seams). Now (both solvers agree to 1e-6): Fig. 5
+/// the Fig. 5 light and 1.016 / 1.033 / 1.080 under the Fig. 4 light (overlapping texel
+/// footprints: stretched texels, and texel centres of two charts nearly coinciding on seams). Now (both solvers agree to 1e-6): Fig. 5
 /// 0.9740 / 0.9958 / 0.99984, Fig. 4 0.9761 / 0.9963 / 0.99985 — the discrete profile loses a
 /// little light (the midpoint rule between 8 mm texels, the neck's edge); the lower bound allows
 /// 25% more than the largest loss per channel.

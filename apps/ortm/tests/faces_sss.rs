@@ -285,7 +285,9 @@ fn slab_under_point_light_matches_direct_convolution() {
             worst = worst.max(rel.abs());
         }
     }
-    assert!(worst < 0.02, "worst relative difference {worst}");
+    // Measured: worst −0.161% (blue; −0.02% red, −0.03% green), the transfer's quadrature of the
+    // profile on 0.25 mm texels against the convolution; bound 25% above.
+    assert!(worst < 0.002, "worst relative difference {worst}");
 }
 
 /// A 20 mm × 10 mm slab of skin cut at x = 0 into two charts. In the 72×32 lightmap the right
