@@ -8,11 +8,11 @@ mod common;
 
 use common::{LUMA, exitance, final_all, final_at, senders};
 use glam::Vec3;
-use ortm::bake::lighting;
 use ortm::bake::raycast::Visibility;
 use ortm::bake::texels::TexelGrid;
 use ortm::bake::transport::dense::DenseTransport;
 use ortm::bake::transport::{Effects, Transport, texel_patches};
+use ortm::bake::{self, BakeSettings, lighting};
 use ortm::scene::{Light, Scene};
 use rayon::prelude::*;
 
@@ -26,11 +26,24 @@ fn figure_lights(id: &str) -> Vec<Light> {
     ortm::scene::head::figure_lights(faces::figures::figure(id).expect("figure"))
 }
 
+/// Power balance of the whole head at 48² (Figs. 4, 5, 6b lights; radiosity + subsurface, and
+/// subsurface alone; pair evaluator and exact solve). Every watt that enters the skin leaves it
+/// through the profile at most ρ̄ times (ρ̄ = the profile's total diffuse reflectance per
+/// channel, 0.436 / 0.227 / 0.131), and interreflection only returns some of the escaping light
+/// to the skin, where it again leaves at most ρ̄ times; so the power escaping the head is at
+/// most ρ̄ × the entering power, per channel (tolerance 1e-3 for f32 sums). Measured
+/// escaping/entering: with radiosity 0.408–0.418 (R), 0.215–0.221 (G), 0.124–0.127 (B);
+/// subsurface alone 0.4246–0.4262, 0.2261–0.2265, 0.13094–0.13098 (ρ̄ less the sub-texel and
+/// neck-edge losses of the discrete profile). The lower bounds are the smallest measured ratio
+/// less 25%.
 #[test]
 fn head_outgoing_power_never_exceeds_incoming_per_channel() {
     let scene = head(48);
     let grid = TexelGrid::build(&scene).unwrap();
     let vis = Visibility::new(&scene.mesh);
+    let skin = scene.materials[0].subsurface.as_ref().expect("skin");
+    let rho_bar = ortm::scene::subsurface::Profile::new(skin).total_reflectance();
+    let lowest_measured = Vec3::new(0.408, 0.215, 0.124);
     let area: Vec<f32> = grid.texels.iter().map(|t| t.area_m2).collect();
     let sum_a = |v: &[Vec3]| -> Vec3 { v.iter().zip(&area).map(|(b, a)| *b * *a).sum() };
     for effects in [
@@ -71,13 +84,17 @@ fn head_outgoing_power_never_exceeds_incoming_per_channel() {
                 let ratio = p_out / p_in;
                 println!("{effects:?} {fig} {label}: in {p_in} W, out {p_out} W, out/in {ratio}");
                 assert!(
-                    ratio.cmple(Vec3::ONE).all() && ratio.cmpgt(Vec3::ZERO).all(),
-                    "{effects:?} {fig} {label}: outgoing/incoming power {ratio}"
+                    ratio.cmple(rho_bar * (1.0 + 1e-3)).all()
+                        && ratio.cmpgt(lowest_measured * 0.75).all(),
+                    "{effects:?} {fig} {label}: outgoing/incoming power {ratio}, ρ̄ {rho_bar}"
                 );
                 if !effects.radiosity {
                     // No surface-to-surface exchange: all exitance leaves the head.
                     let r = sum_a(&b) / p_in;
-                    assert!(r.cmple(Vec3::ONE).all(), "{fig} {label}: ΣB·A / ΣE·A = {r}");
+                    assert!(
+                        r.cmple(rho_bar * (1.0 + 1e-3)).all(),
+                        "{fig} {label}: ΣB·A / ΣE·A = {r}, ρ̄ {rho_bar}"
+                    );
                 }
             }
         }
@@ -89,8 +106,11 @@ fn head_outgoing_power_never_exceeds_incoming_per_channel() {
 /// profile's total diffuse reflectance), in the pair evaluator nor in the exact solve. Before the
 /// subsurface weights were normalised per sender (`ortm::bake::transport`, "Subsurface
 /// weights") the head at 48² re-emitted 1.0008 / 1.008 / 1.025 (R/G/B) × the first order under
-/// the Fig. 5 light and 1.016 / 1.033 / 1.080 under the Fig. 4 light (texel centres of two
-/// charts nearly coinciding on the seams).
+/// the Fig. 5 light and 1.016 / 1.033 / 1.080 under the Fig. 4 light (overlapping texel
+/// footprints: stretched texels, and texel centres of two charts nearly coinciding on seams). Now (both solvers agree to 1e-6): Fig. 5
+/// 0.9740 / 0.9958 / 0.99984, Fig. 4 0.9761 / 0.9963 / 0.99985 — the discrete profile loses a
+/// little light (the midpoint rule between 8 mm texels, the neck's edge); the lower bound allows
+/// 25% more than the largest loss per channel.
 #[test]
 fn subsurface_alone_reemits_no_more_than_the_first_order() {
     let scene = head(48);
@@ -117,6 +137,78 @@ fn subsurface_alone_reemits_no_more_than_the_first_order() {
             assert!(
                 ratio.cmple(Vec3::splat(1.0 + 1e-3)).all(),
                 "{fig} {label}: subsurface re-emits {ratio} of the first order"
+            );
+            let largest_loss = Vec3::new(0.0260, 0.00423, 0.000165);
+            assert!(
+                ratio.cmpgt(Vec3::ONE - largest_loss * 1.25).all(),
+                "{fig} {label}: subsurface re-emits only {ratio} of the first order"
+            );
+        }
+    }
+}
+
+/// The face bake's energy, through the library's bake pipeline in the README's configuration
+/// (`ortm demo face`: the built-in head, 256² lightmap, 100 importance-sampled offsets,
+/// radiosity + subsurface, integrated cells, default seed), for the dipole and the exponential
+/// falloff: under each of the five face figures' lights, the final lightmap (`maps::apply` to
+/// the CPU first order) summed over texels (mean of R, G, B per texel, as the `energy:` line
+/// of `ortm render` sums it) against the first order's sum.
+///
+/// Measured (figures 3, 4, 5, 6a, 6b): dipole 0.9732 / 0.9656 / 0.9647 / 0.9681 / 0.9640,
+/// exponential 0.9961 / 0.9904 / 0.9890 / 0.9874 / 0.9886 — the interreflected light is
+/// outweighed by what the discrete profile loses between texels (the midpoint rule's shortfall,
+/// see `regular_grid_keeps_the_profile` in `ortm::bake::transport`) and at the neck's edge;
+/// the long-reaching exponential falloff loses less to the near field. Each falloff's band
+/// bounds the deficit `1 − ratio` between 0.75 × its smallest and 1.25 × its largest measured
+/// value. Before the subsurface weights were normalised the seams created light: 0.98–0.99
+/// (dipole) and 1.00–1.04 (exponential) in the GPU render's `energy:` lines.
+#[test]
+fn face_bake_final_energy_stays_near_the_first_order() {
+    let t0 = std::time::Instant::now();
+    let sum = |m: &ortm::Lightmap| -> f64 {
+        m.data
+            .iter()
+            .map(|p| (p[0] + p[1] + p[2]) as f64 / 3.0)
+            .sum()
+    };
+    // (falloff, smallest and largest measured deficit 1 − final/first order)
+    for (falloff, (least, most)) in [
+        (faces::Falloff::Dipole, (0.0268, 0.0360)),
+        (faces::Falloff::Exponential, (0.0039, 0.0126)),
+    ] {
+        let scene = ortm::scene::head::head_scene_with(falloff).expect("head scene");
+        let settings = BakeSettings {
+            size: scene.lightmap_size,
+            ..BakeSettings::default()
+        };
+        assert_eq!((settings.size, settings.offsets), ((256, 256), 100));
+        let grid = TexelGrid::build(&scene).unwrap();
+        let vis = Visibility::new(&scene.mesh);
+        let tr = Transport::new(&scene, &grid, settings.effects, settings.coarse_block);
+        let (offsets, _) = bake::select_offsets(&tr, &grid, &settings, &|_| {}).unwrap();
+        let maps = bake::bake_maps(&tr, &grid, &offsets, settings.cell_rule, &|_| {}).unwrap();
+        let ratios: Vec<f64> = faces::FIGURES
+            .iter()
+            .map(|f| {
+                let lights = ortm::scene::head::figure_lights(f);
+                let first =
+                    lighting::to_lightmap(&grid, &lighting::first_order(&grid, &lights, &vis));
+                let out = ortm::maps::apply(&maps, &first).unwrap();
+                sum(&out) / sum(&first)
+            })
+            .collect();
+        println!(
+            "{falloff:?}: final / first order summed over texels, figures {:?}: {ratios:.4?} \
+             ({:.0} s so far)",
+            faces::FIGURES.iter().map(|f| f.id).collect::<Vec<_>>(),
+            t0.elapsed().as_secs_f64()
+        );
+        let (lo, hi) = (1.0 - 1.25 * most, 1.0 - 0.75 * least);
+        for (f, r) in faces::FIGURES.iter().zip(&ratios) {
+            assert!(
+                (lo..=hi).contains(r),
+                "{falloff:?} {}: final / first order {r:.4}, expected {lo:.4}..{hi:.4}",
+                f.id
             );
         }
     }
@@ -164,8 +256,13 @@ fn backlit_ear_glows_with_subsurface_scattering() {
          radiosity only {rgb_rad} (luminance {without:.4e}); factor {factor:.2}"
     );
     assert!(without > 0.0, "interreflection alone reaches the ear");
-    // Measured: 152.7 (56 unlit ear-rim texels at 128², 0.88 m per model unit).
-    assert!(factor >= 50.0, "SSS / no SSS luminance factor {factor}");
+    // Measured: 120.4 (56 unlit ear-rim texels at 128², 0.88 m per model unit; 152.7 before the
+    // subsurface weights were normalised per sender, which scales down the senders of the thin
+    // ear, whose profile reaches both of its sides). Bounds: ±25%.
+    assert!(
+        (90.0..=150.5).contains(&factor),
+        "SSS / no SSS luminance factor {factor}"
+    );
     // The glow is warm: skin carries red furthest.
     assert!(rgb_sss.x > rgb_sss.y && rgb_sss.y > rgb_sss.z, "{rgb_sss}");
 }

@@ -285,7 +285,9 @@ fn slab_under_point_light_matches_direct_convolution() {
             worst = worst.max(rel.abs());
         }
     }
-    assert!(worst < 0.02, "worst relative difference {worst}");
+    // Measured: worst −0.161% (blue; −0.02% red, −0.03% green), the transfer's quadrature of the
+    // profile on 0.25 mm texels against the convolution; bound 25% above.
+    assert!(worst < 0.002, "worst relative difference {worst}");
 }
 
 /// A 20 mm × 10 mm slab of skin cut at x = 0 into two charts. In the 72×32 lightmap the right
@@ -310,7 +312,11 @@ fn seam_scene() -> Scene {
 }
 
 /// One scenario: the checks next to the seam, next to the lit chart in the lightmap and of the
-/// power across the seam all read the same bake.
+/// power across the seam all read the same bake. The seam rule of the integrated cells (a
+/// sender is counted at the physically nearest of its cell's site, the neighbouring sites and
+/// the receiver; `ortm::bake::cells`, "Seams") matters here: counting every sender at its own
+/// cell's site instead makes the baked maps 7.6% short next to the seam (bound 0.9%), up to 71%
+/// 1–2 mm further, and carry 0.55 / 0.72 / 0.85 of the power across it.
 #[test]
 fn subsurface_light_crosses_a_uv_seam_through_offset_maps() {
     // The two charts of `seam_scene`.
@@ -350,9 +356,9 @@ fn subsurface_light_crosses_a_uv_seam_through_offset_maps() {
         offsets.len()
     );
     // Right-half texels next to the seam (column 2: x ≈ 0.16 mm), and 1 mm, 2 mm further.
-    let mut near_seam = 0.0f32;
     let mut worst_exact = 0.0f64;
-    for c in [2u32, 5, 8] {
+    let mut worst_baked = [0.0f64; 3];
+    for (n, c) in [2u32, 5, 8].into_iter().enumerate() {
         for y in [8u32, 16, 24] {
             let i = grid.at(c as i32, y as i32).unwrap();
             let t = &grid.texels[i as usize];
@@ -375,20 +381,28 @@ fn subsurface_light_crosses_a_uv_seam_through_offset_maps() {
                     100.0 * rel_baked
                 );
                 worst_exact = worst_exact.max(rel_exact.abs());
-            }
-            if c == 2 {
-                near_seam += luminance(got);
+                worst_baked[n] = worst_baked[n].max(rel_baked.abs());
             }
         }
     }
-    // Next to the lit chart in the lightmap, 20 mm away on the surface: (almost) dark, where an
-    // image-space blur of the first-order lightmap would carry light.
-    let mut far = 0.0f32;
+    // Next to the lit chart in the lightmap (column 33, x ≈ 9.84 mm), 10 mm from the lit half on
+    // the surface: only the convolution's tail, where an image-space blur of the first-order
+    // lightmap would carry the light of the lit chart's texels at columns 38+.
+    let mut far_rel = (f64::INFINITY, 0.0f64);
     for y in [8, 16, 24] {
         let i = grid.at(33, y).unwrap();
-        far += luminance(baked[i as usize]);
+        let t = &grid.texels[i as usize];
+        let p = [t.position_m.x as f64, t.position_m.y as f64];
+        let want = convolve_rect(p, [-0.01, 0.0], [0.0, 0.01], &e_lit, &d);
+        let got = baked[i as usize];
+        let rel =
+            luminance(got) as f64 / luminance(Vec3::from_array(want.map(|v| v as f32))) as f64;
+        println!(
+            "column 33 row {y} (x = {:.2} mm): convolution {want:?}, baked maps {got}",
+            p[0] * 1e3
+        );
+        far_rel = (far_rel.0.min(rel), far_rel.1.max(rel));
     }
-    println!("luminance next to the seam {near_seam:.4e}, next to the lit chart in UV {far:.4e}");
     // Power that crosses the seam: Σ B·A over the unlit half, baked maps vs the transfer.
     let (mut p_baked, mut p_exact) = (Vec3::ZERO, Vec3::ZERO);
     for (i, t) in grid.texels.iter().enumerate() {
@@ -398,24 +412,52 @@ fn subsurface_light_crosses_a_uv_seam_through_offset_maps() {
         }
     }
     let p_rel = (p_baked - p_exact) / p_exact;
-    println!("power across the seam (W): baked {p_baked}, transfer {p_exact}, relative {p_rel}");
+    println!(
+        "power across the seam (W): baked {p_baked}, transfer {p_exact}, relative {p_rel}; \
+         worst relative error of the transfer next to the seam {worst_exact:.4}, of the baked \
+         maps per column (2, 5, 8) {worst_baked:.4?}; 10 mm away, baked / convolution \
+         luminance {:.3}..{:.3}",
+        far_rel.0, far_rel.1
+    );
+    // The importance sampling finds the seam: 38 of the 100 offsets jump it (25% margin).
+    assert!(seam_offsets >= 29, "{seam_offsets} offsets jump the seam");
+    // The transfer (the pair evaluator) against the convolution: measured 1.9% worst (blue,
+    // 1 mm from the seam); bound 25% above.
     assert!(
-        worst_exact < 0.05,
+        worst_exact < 0.024,
         "transfer across the seam: {worst_exact}"
     );
-    // The baked maps carry the light across the seam, though not exactly: with 100 importance-
-    // sampled offsets on this 2,048-texel layout they carry 0.54 / 0.71 / 0.85 of it (measured:
-    // the integrated cell rule samples a seam-crossing sender's first-order light at the
-    // receiver, dark here because the seam is also the lighting boundary; with Eq. 10 they
-    // overshot by 20–56%). Without seam-jumping offsets the error would be −100%.
+    // The baked maps, texel by texel: next to the seam they match the convolution (0.7% worst,
+    // the transfer's own error), 1 and 2 mm further they fall short (37% and 27% worst, see the
+    // power below); bounds 25% above.
+    for (bound, (col, worst)) in [0.009, 0.47, 0.34]
+        .into_iter()
+        .zip([2, 5, 8].into_iter().zip(worst_baked))
+    {
+        assert!(
+            worst < bound,
+            "baked maps at column {col}: worst relative error {worst}"
+        );
+    }
+    // The baked maps carry the light across the seam, though not all of it: 0.757 / 0.880 /
+    // 0.956 (R/G/B) of the transfer's power, measured, with 100 importance-sampled offsets on this
+    // 2,048-texel layout (the integrated cell rule counts a seam-crossing sender at the physically
+    // nearest site, which here can be the receiver itself, dark because the seam is also the
+    // lighting boundary; with Eq. 10 they overshot by 20–56%). Without seam-jumping offsets the
+    // error would be −100%. The shortfall per channel is bounded 25% above its measured value.
+    let shortfall = -p_rel;
+    for (c, bound) in [0.304f32, 0.150, 0.055].into_iter().enumerate() {
+        assert!(
+            shortfall[c] > 0.0 && shortfall[c] < bound,
+            "power across the seam, channel {c}: {p_rel}"
+        );
+    }
+    // 10 mm away only the convolution's tail arrives (0.1% of the light next to the seam; an
+    // image-space blur would carry there the light of the lit chart's texels 1.5 mm away in the
+    // lightmap, ~60× more). Measured: the baked maps hold 0.984–0.987 × the tail (luminance);
+    // bounds ±25%.
     assert!(
-        p_rel.abs().max_element() < 1.0,
-        "power across the seam: {p_rel}"
-    );
-    assert!(near_seam > 0.0);
-    // The convolution itself puts ~1e-3 of the seam's light at 10 mm (red travels far).
-    assert!(
-        far < 1e-2 * near_seam,
-        "far side {far} vs near seam {near_seam}"
+        far_rel.0 > 0.74 && far_rel.1 < 1.234,
+        "10 mm from the lit half: baked / convolution {far_rel:?}"
     );
 }
