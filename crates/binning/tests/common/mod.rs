@@ -33,7 +33,8 @@ impl SplitMix {
 /// - no two placements overlap in an atlas;
 /// - every texel of every source is placed exactly once;
 /// - the atlas count equals ⌈texels / atlas area⌉ and every atlas but the last is full;
-/// - blitting random data copies every texel bit-exactly and leaves the rest at the default.
+/// - blitting puts every source texel where its placement says (tagged data, then random f32
+///   bit patterns, copied bit-exactly) and leaves every other atlas texel at the default.
 pub fn check_packing(rects: &[SourceRect], packing: &Packing, seed: u64) {
     let atlas_cov = check_geometry(rects, packing);
     check_blit(rects, packing, &atlas_cov, seed);
@@ -110,13 +111,43 @@ pub fn check_geometry(rects: &[SourceRect], packing: &Packing) -> Vec<Vec<u8>> {
     atlas_cov
 }
 
-/// The blit half of [`check_packing`], given the coverage maps from [`check_geometry`].
-fn check_blit(rects: &[SourceRect], packing: &Packing, atlas_cov: &[Vec<u8>], seed: u64) {
+/// Where the placement rules put each atlas texel: `Some((source index, x, y))` for a texel that
+/// placement `p` covers — source texel `(p.src_x + i, p.src_y + j)` goes to atlas texel
+/// `(p.dst_x + i, p.dst_y + j)` of atlas `p.atlas`, unrotated and unflipped (the `Placement`
+/// docs) — and `None` for a texel no placement covers. Built from the placements alone, never
+/// from the blit's output, so the blit check below is independent of the code it checks.
+fn expected_sources(
+    rects: &[SourceRect],
+    packing: &Packing,
+) -> Vec<Vec<Option<(usize, u32, u32)>>> {
     let (aw, ah) = (packing.atlas_w as usize, packing.atlas_h as usize);
-    let n_atlas = packing.atlas_count as usize;
+    let mut expect = vec![vec![None; aw * ah]; packing.atlas_count as usize];
+    for p in &packing.placements {
+        let s = rects
+            .iter()
+            .position(|r| r.id == p.source)
+            .expect("unknown source id");
+        for j in 0..p.h {
+            for i in 0..p.w {
+                let t = (p.dst_y + j) as usize * aw + (p.dst_x + i) as usize;
+                expect[p.atlas as usize][t] = Some((s, p.src_x + i, p.src_y + j));
+            }
+        }
+    }
+    expect
+}
 
-    // Tagged blit: every non-default atlas texel names (source, x, y); each appears exactly once
-    // and only where the coverage map says a piece lies.
+/// The blit half of [`check_packing`], given the coverage maps from [`check_geometry`]: every
+/// atlas texel must hold the source texel [`expected_sources`] assigns it, so a piece written
+/// transposed, flipped, shifted or from the wrong source fails.
+fn check_blit(rects: &[SourceRect], packing: &Packing, atlas_cov: &[Vec<u8>], seed: u64) {
+    let aw = packing.atlas_w as usize;
+    let n_atlas = packing.atlas_count as usize;
+    let expect = expected_sources(rects, packing);
+
+    // Tagged blit: each source texel holds `[source + 1, x, y]` (0 is the default, so an
+    // uncovered atlas texel must stay `[0, 0, 0]`); each atlas texel must decode to the source
+    // texel the placements assign it.
     let tags: Vec<Vec<[u32; 3]>> = rects
         .iter()
         .enumerate()
@@ -129,29 +160,29 @@ fn check_blit(rects: &[SourceRect], packing: &Packing, atlas_cov: &[Vec<u8>], se
     let tag_refs: Vec<&[[u32; 3]]> = tags.iter().map(Vec::as_slice).collect();
     let tagged = blit(packing, &tag_refs).expect("blit tags");
     assert_eq!(tagged.len(), n_atlas);
-    let mut seen: Vec<Vec<u8>> = rects
-        .iter()
-        .map(|r| vec![0u8; r.w as usize * r.h as usize])
-        .collect();
     for (a, img) in tagged.iter().enumerate() {
-        assert_eq!(img.len(), aw * ah);
+        assert_eq!(img.len(), expect[a].len());
         for (t, tag) in img.iter().enumerate() {
-            if atlas_cov[a][t] == 0 {
-                assert_eq!(*tag, [0, 0, 0], "uncovered atlas texel written");
-                continue;
-            }
-            let s = tag[0] as usize - 1;
-            let k = tag[2] as usize * rects[s].w as usize + tag[1] as usize;
-            seen[s][k] += 1;
-            assert_eq!(seen[s][k], 1, "source texel copied twice");
+            let want = expect[a][t].map_or([0, 0, 0], |(s, x, y)| [s as u32 + 1, x, y]);
+            // The geometry check's coverage agrees with the placements (same rule, two codes).
+            assert_eq!(
+                atlas_cov[a][t] == 1,
+                expect[a][t].is_some(),
+                "coverage of atlas {a} texel {t}"
+            );
+            assert_eq!(
+                *tag,
+                want,
+                "atlas {a} texel ({}, {}) holds [source + 1, x, y] = {tag:?}, the placements \
+                 put {want:?} there",
+                t % aw,
+                t / aw
+            );
         }
     }
-    assert!(
-        seen.iter().flatten().all(|&c| c == 1),
-        "a source texel is missing from the atlases"
-    );
 
-    // Bit-exact copy of arbitrary f32 RGB data (any bit pattern, NaNs included).
+    // Bit-exact copy of arbitrary f32 RGB data (any bit pattern, NaNs included), expected texel
+    // by texel from the placements.
     let mut rng = SplitMix(seed);
     let data: Vec<Vec<[f32; 3]>> = rects
         .iter()
@@ -165,17 +196,15 @@ fn check_blit(rects: &[SourceRect], packing: &Packing, atlas_cov: &[Vec<u8>], se
     let atlases = blit(packing, &refs).expect("blit data");
     for (a, img) in atlases.iter().enumerate() {
         for (t, v) in img.iter().enumerate() {
-            let tag = tagged[a][t];
-            let expect = if tag == [0, 0, 0] {
-                [0.0f32; 3]
-            } else {
-                let s = tag[0] as usize - 1;
-                data[s][tag[2] as usize * rects[s].w as usize + tag[1] as usize]
-            };
+            let want = expect[a][t].map_or([0.0f32; 3], |(s, x, y)| {
+                data[s][y as usize * rects[s].w as usize + x as usize]
+            });
             assert_eq!(
                 v.map(f32::to_bits),
-                expect.map(f32::to_bits),
-                "texel not bit-exact"
+                want.map(f32::to_bits),
+                "atlas {a} texel ({}, {}) not a bit-exact copy of its source texel",
+                t % aw,
+                t / aw
             );
         }
     }

@@ -8,6 +8,23 @@ use std::sync::atomic::{AtomicU64, Ordering};
 /// Monotonic counter that keeps temporary names unique within the process.
 static TMP_COUNTER: AtomicU64 = AtomicU64::new(0);
 
+/// Environment variable of the crash-test hook ([`stop_in_this_write`]).
+const STOP_IN_WRITE_VAR: &str = "ORTM_TEST_STOP_IN_WRITE";
+
+/// How long a write stopped by the crash-test hook waits to be killed before it fails.
+const STOP_WAIT: std::time::Duration = std::time::Duration::from_secs(120);
+
+/// Crash-test hook (docs/bake-format.md, "Crash tests"): whether this call of [`write_atomic`]
+/// is the `N`-th of the process (counted from 1 over all threads) when the environment variable
+/// `ORTM_TEST_STOP_IN_WRITE` holds `N`. Unset (or not a number), no write stops and nothing is
+/// counted.
+fn stop_in_this_write() -> Option<u64> {
+    static STOP_AT: std::sync::OnceLock<Option<u64>> = std::sync::OnceLock::new();
+    static WRITES: AtomicU64 = AtomicU64::new(0);
+    let n = (*STOP_AT.get_or_init(|| std::env::var(STOP_IN_WRITE_VAR).ok()?.parse().ok()))?;
+    (WRITES.fetch_add(1, Ordering::Relaxed) + 1 == n).then_some(n)
+}
+
 /// The temporary name [`write_atomic`] writes `path` under: `.<name>.<pid>-<n>.tmp` in the same
 /// directory (hidden, unique per process and call). Readers of bake and atlas directories treat
 /// `.*.tmp` files as leftovers of interrupted writes.
@@ -31,12 +48,29 @@ pub fn is_temp_name(name: &str) -> bool {
 /// stays on one file system), `fsync`, then rename over `path`. On failure the temporary file
 /// is removed and `path` is untouched.
 ///
+/// With the crash-test hook `ORTM_TEST_STOP_IN_WRITE=N` set, the process's `N`-th call writes
+/// only the first half of `bytes` to the temporary file, prints
+/// `ORTM_TEST_STOP_IN_WRITE: stopped in write N: <temporary path>` to stderr and sleeps, so that
+/// a test can kill the process in the middle of that write; if it is not killed within two
+/// minutes, the call fails (the temporary file is removed).
+///
 /// # Errors
 /// The `std::io::Error` of creating, writing, syncing or renaming.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
     let tmp = temp_path(path);
     let result = (|| {
         let mut f = fs::File::create(&tmp)?;
+        if let Some(n) = stop_in_this_write() {
+            f.write_all(&bytes[..bytes.len() / 2])?;
+            eprintln!(
+                "{STOP_IN_WRITE_VAR}: stopped in write {n}: {}",
+                tmp.display()
+            );
+            std::thread::sleep(STOP_WAIT);
+            return Err(std::io::Error::other(format!(
+                "{STOP_IN_WRITE_VAR}: write {n} was not killed within {STOP_WAIT:?}"
+            )));
+        }
         f.write_all(bytes)?;
         f.sync_all()?;
         drop(f);

@@ -337,6 +337,19 @@ fn assign_materials(
     }
 }
 
+/// Why a path that must name a regular file does not: it is missing, or it is something else
+/// (a folder, a device such as `/dev/zero`, a FIFO), which is refused before reading.
+fn not_a_file(path: &Path) -> String {
+    if path.exists() {
+        format!(
+            "names {}, which is not a regular file (a folder, device or FIFO)",
+            path.display()
+        )
+    } else {
+        format!("names {}, which does not exist", path.display())
+    }
+}
+
 /// 1-based line of byte offset `offset` in `text`.
 fn line_of(text: &str, offset: usize) -> usize {
     let end = offset.min(text.len());
@@ -444,7 +457,7 @@ impl Ctx<'_> {
             return Err(self.err(
                 Some(mesh.span()),
                 "mesh",
-                format!("names {}, which does not exist", mesh_path.display()),
+                not_a_file(&mesh_path),
                 "correct the path (it is relative to the scene file's folder)",
             ));
         }
@@ -625,7 +638,7 @@ impl Ctx<'_> {
             return Err(self.err(
                 Some(span.clone()),
                 field,
-                format!("names {}, which does not exist", file.display()),
+                not_a_file(file),
                 "correct the path (it is relative to the scene file's folder)",
             ));
         }
