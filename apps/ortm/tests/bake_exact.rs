@@ -37,9 +37,55 @@ fn head(size: u32) -> Scene {
     }
 }
 
+/// Each covered texel's form factor to the Cornell box's open side (the square z = L,
+/// 0 ≤ x, y ≤ L), with occlusion: the fraction of `n × n` stratified cosine-weighted rays from the
+/// texel that cross that square without hitting the mesh (jittered with a fixed seed). Independent
+/// of the texel-to-texel form factors: only the box's geometry and the ray caster.
+fn open_side_form_factors(grid: &TexelGrid, vis: &Visibility, n: u32) -> Vec<f64> {
+    use rand::{RngExt, SeedableRng};
+    let l = ortm::scene::cornell::BOX_SIZE_M;
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+    grid.texels
+        .iter()
+        .map(|t| {
+            let nrm = t.face_normal;
+            let (t1, t2) = ortm::bake::transport::form_factor::tangent_frame(nrm);
+            let p = t.position_m + nrm * 1e-4;
+            let mut hits = 0u32;
+            for a in 0..n {
+                for b in 0..n {
+                    let u1 = (a as f32 + rng.random::<f32>()) / n as f32;
+                    let u2 = (b as f32 + rng.random::<f32>()) / n as f32;
+                    let (r, phi) = (u1.sqrt(), std::f32::consts::TAU * u2);
+                    let d = t1 * (r * phi.cos()) + t2 * (r * phi.sin()) + nrm * (1.0 - u1).sqrt();
+                    if d.z <= 0.0 {
+                        continue;
+                    }
+                    let q = p + d * ((l - p.z) / d.z);
+                    if (0.0..=l).contains(&q.x)
+                        && (0.0..=l).contains(&q.y)
+                        && vis.visible(p, q, 1e-5)
+                    {
+                        hits += 1;
+                    }
+                }
+            }
+            hits as f64 / (n * n) as f64
+        })
+        .collect()
+}
+
 #[test]
 fn cornell_exact_solve_conserves_energy() {
-    for size in [32, 64] {
+    // Energy balance of the exact solve (emitted = absorbed + escaped through the open side, to
+    // 1e-4), and the escaped power against what the geometry alone predicts: each texel's
+    // radiosity × area × form factor to the open side (`open_side_form_factors`, 1,024 rays per
+    // texel). The texel-to-texel form factors' rows fall short of 1 − F_open by their
+    // discretisation error, so a little more escapes than the geometry says: measured 4.14 %
+    // more at 32² and 1.82 % at 64² (worst channel; 20.1 % / 20.6 % of the red channel's emitted
+    // power escapes). The bounds are those + 25 %. The ray-cast estimate's own noise, over
+    // seeds 5–10: 3.33–4.14 % at 32², 1.18–1.94 % at 64², inside the bounds for every seed.
+    for (size, bound) in [(32, 0.052), (64, 0.023)] {
         let scene = ortm::scene::cornell::cornell_box(size);
         let grid = TexelGrid::build(&scene).unwrap();
         let vis = Arc::new(Visibility::new(&scene.mesh));
@@ -50,6 +96,7 @@ fn cornell_exact_solve_conserves_energy() {
         let b_o = common::exitance(&grid, &e_d);
         let b = dense.solve(&b_o);
         let row_sums = dense.form_factor_row_sums();
+        let open = open_side_form_factors(&grid, &vis, 32);
         for ch in 0..3 {
             let (mut emitted, mut absorbed, mut escaped) = (0.0f64, 0.0f64, 0.0f64);
             for i in 0..dense.n {
@@ -67,8 +114,23 @@ fn cornell_exact_solve_conserves_energy() {
                 balance < 1e-4,
                 "{size}²: channel {ch}: emitted {emitted} W, absorbed {absorbed} W, escaped {escaped} W"
             );
-            // The open box loses a plausible share through its front.
-            assert!(escaped > 0.02 * emitted && escaped < 0.6 * emitted);
+            // What leaves through the open side, from the geometry alone: each texel's radiosity
+            // times its area times its form factor to the opening, estimated by ray casting.
+            let expected: f64 = (0..dense.n)
+                .map(|i| b[i][ch] as f64 * patches[i].area_m2 as f64 * open[i])
+                .sum();
+            eprintln!(
+                "{size}²: channel {ch}: escaped {:.4} of the emitted power (from the opening's form \
+                 factors {:.4}); ratio {:.4}",
+                escaped / emitted,
+                expected / emitted,
+                escaped / expected
+            );
+            assert!(
+                (escaped / expected - 1.0).abs() < bound,
+                "{size}²: channel {ch}: escaped {escaped} W, the open side's form factors give \
+                 {expected} W"
+            );
         }
     }
 }
@@ -272,5 +334,12 @@ fn cornell_offsets_converge() {
     );
     for w in errs.windows(2) {
         assert!(w[1] < w[0], "error must fall as K grows: {errs:?}");
+    }
+    // README's figures (measured 1.2396 / 0.9717 / 0.7186), each bounded at + 25 %.
+    for (e, bound) in errs.iter().zip([1.55, 1.21, 0.90]) {
+        assert!(
+            e < &bound,
+            "K = 50/100/200: {errs:?}, bounds 1.55 / 1.21 / 0.90"
+        );
     }
 }
