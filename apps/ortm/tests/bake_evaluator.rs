@@ -66,3 +66,38 @@ fn evaluator_error_at_the_default_cluster_size_cornell_64() {
         "{block}×{block} clusters: mean error {mean} (measured 0.146 at 8×8)"
     );
 }
+
+#[test]
+fn evaluator_error_of_the_bench_row_head_64() {
+    // README's "Figures" row, as `ortm bench transport` computes it: the head (the built-in
+    // scene) at 64², 4×4 clusters, the first random light set-up of seed 11, all pairs.
+    let mut scene = ortm::scene::head::head_scene().expect("head scene (../shared/faces/head.obj)");
+    scene.lightmap_size = (64, 64);
+    let grid = TexelGrid::build(&scene).unwrap();
+    let lights = random_light_setups(&scene, 1, 11);
+    let radiosity = Effects {
+        radiosity: true,
+        subsurface: false,
+    };
+    let subsurface = Effects {
+        radiosity: false,
+        subsurface: true,
+    };
+    let mut errors = Vec::new();
+    for effects in [radiosity, subsurface, Effects::default()] {
+        let t = std::time::Instant::now();
+        let (firsts, exact) = exact_solutions(&scene, &grid, effects, &lights);
+        let t_exact = t.elapsed();
+        let tr = Transport::new(&scene, &grid, effects, 4);
+        errors.push(common::evaluator_error(&tr, &firsts[0], &exact[0]));
+        eprintln!(
+            "{effects:?}: {:.3e} (exact {t_exact:?}, all {:?})",
+            errors[errors.len() - 1],
+            t.elapsed()
+        );
+    }
+    eprintln!(
+        "head 64², 4×4 clusters, relative RMSE of the indirect term vs the exact solve \
+         (radiosity / subsurface / both): {errors:.4?}"
+    );
+}
