@@ -32,6 +32,7 @@ fn cube_patches(n: usize, rho: Vec3) -> Vec<Patch> {
                     area_m2: area,
                     rho,
                     material: 0,
+                    subsurface_scale: Vec3::ONE,
                 });
             }
         }
@@ -54,16 +55,22 @@ fn white_furnace_closed_box() {
     let dense = DenseTransport::new(&patches, &kernels());
     let b_o = vec![Vec3::splat(2.0); patches.len()];
     let b = dense.solve(&b_o);
+    let mut worst = 0f32;
     for (i, bi) in b.iter().enumerate() {
         for c in 0..3 {
             let expected = 2.0 / (1.0 - rho[c]);
+            let rel = (bi[c] - expected).abs() / expected;
+            worst = worst.max(rel);
+            // Measured 4.2e-3 (ρ = 0.7 amplifies the form factors' row-sum error by
+            // ρ/(1−ρ) ≈ 2.3); bound: measured + 25 %.
             assert!(
-                (bi[c] - expected).abs() < 0.02 * expected,
+                rel < 5.3e-3,
                 "patch {i} channel {c}: {} vs {expected}",
                 bi[c]
             );
         }
     }
+    eprintln!("white furnace: worst relative error {worst:.3e}");
 }
 
 #[test]
@@ -79,9 +86,14 @@ fn assembled_form_factors_are_reciprocal_and_rows_sum_to_one() {
             assert!((a - b).abs() <= 1e-9 + 1e-6 * a.abs());
         }
     }
+    let mut worst = 0f64;
     for s in dense.form_factor_row_sums() {
-        assert!((s - 1.0).abs() < 0.02, "row sum {s}");
+        worst = worst.max((s - 1.0).abs());
+        // A closed surface sees only itself: every row sums to 1 up to the quadrature error of
+        // the near-field form factors at edges and corners, measured 3.1e-3 (+ 25 %).
+        assert!((s - 1.0).abs() < 3.9e-3, "row sum {s}");
     }
+    eprintln!("closed cube: worst |row sum − 1| {worst:.3e}");
 }
 
 #[test]

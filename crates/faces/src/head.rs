@@ -105,6 +105,9 @@ mod tests {
         let slice: Vec<&Vec3> = head.iter().filter(|p| p.y > 0.02 && p.y < 0.04).collect();
         let width = slice.iter().map(|p| p.x).fold(f32::MIN, f32::max)
             - slice.iter().map(|p| p.x).fold(f32::MAX, f32::min);
+        // The measurement the scale rests on (module doc, README): 0.252 and 0.167 units.
+        assert!((depth - 0.252).abs() < 0.002, "depth {depth} units");
+        assert!((width - 0.167).abs() < 0.002, "width {width} units");
         let (depth_m, width_m) = (depth * HEAD_METRES_PER_UNIT, width * HEAD_METRES_PER_UNIT);
         // Nose tip to back of the skull ≈ 0.19–0.23 m; width above the ears ≈ 0.13–0.16 m.
         assert!((0.19..0.23).contains(&depth_m), "depth {depth_m} m");

@@ -111,10 +111,13 @@ mod tests {
             flips += u32::from(diff > 0.0);
         }
         assert!(worst < 0.012, "worst |Δ| {worst}/255");
-        // A rounding flip needs the exact value within `worst` of a boundary (k + 0.5)/255.
+        // A rounding flip needs the exact value within `worst` of a boundary (k + 0.5)/255, so
+        // at most a fraction 2·worst of the bytes can flip; the fit's error is mostly well below
+        // its worst, and 29,403 of 4,000,001 (0.735 %) flip, as docs/render.md says. Bound: that
+        // count + 25 %.
         assert!(
-            (flips as f64) < 2.0 * 0.012 * n as f64,
-            "{flips} of {n} bytes differ"
+            (flips as f64) < 0.0092 * n as f64,
+            "{flips} of {n} bytes differ (docs/render.md: 29,403)"
         );
         eprintln!("fitted sRGB: worst |Δ| {worst:.4}/255, {flips} of {n} bytes off by one");
         // Endpoints and the junction with the linear segment.

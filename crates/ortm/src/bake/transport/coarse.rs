@@ -84,6 +84,7 @@ pub fn cluster_texels(grid: &TexelGrid, patches: &[Patch], block: u32) -> (Vec<u
                 area_m2: a,
                 rho: rho / a,
                 material,
+                subsurface_scale: Vec3::ONE,
             }
         })
         .collect();
@@ -91,9 +92,12 @@ pub fn cluster_texels(grid: &TexelGrid, patches: &[Patch], block: u32) -> (Vec<u
 }
 
 impl Remainder {
-    /// Clusters the texels, solves the cluster system densely and keeps `R − R_fine`.
+    /// Clusters the texels, solves the cluster system densely and keeps `R − R_fine`. The
+    /// clusters' subsurface weights are normalised over the clusters
+    /// ([`Kernels::normalise_subsurface`]) for both, as the dense solve does.
     pub fn new(grid: &TexelGrid, patches: &[Patch], kernels: &Kernels, block: u32) -> Self {
-        let (cluster_of, clusters) = cluster_texels(grid, patches, block);
+        let (cluster_of, mut clusters) = cluster_texels(grid, patches, block);
+        kernels.normalise_subsurface(&mut clusters);
         let n = clusters.len();
         let dense = DenseTransport::new(&clusters, kernels);
         let full = dense.transfer();

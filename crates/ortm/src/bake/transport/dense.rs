@@ -31,8 +31,13 @@ pub struct DenseTransport {
 
 impl DenseTransport {
     /// Assembles the system: `n(n−1)/2` visibility rays (in parallel), plus the subsurface
-    /// weights of translucent pairs.
+    /// weights of translucent pairs, normalised over `patches` here
+    /// ([`Kernels::normalise_subsurface`], whatever the patches' `subsurface_scale`), so the
+    /// exact solve uses the weights of the pair evaluator ([`super::Transport`]).
     pub fn new(patches: &[Patch], kernels: &Kernels) -> Self {
+        let mut patches = patches.to_vec();
+        kernels.normalise_subsurface(&mut patches);
+        let patches = &patches[..];
         let n = patches.len();
         // Symmetric c_ij = F_ij / A_j, upper triangle computed in parallel, rows of the full matrix.
         let rows: Vec<Vec<f32>> = (0..n)

@@ -1,0 +1,148 @@
+//! The closed sphere lit by a point light at its centre: an analytic case for the whole chain of
+//! first order and transport (texel rasterizer, `lighting`, form factors, visibility, dense solve).
+//!
+//! Inside a sphere every point sees every other with the form factor `dF = dA / A_sphere`
+//! (the sphere's classic property), so radiosity obeys `B(x) = B_o(x) + ρ·mean_A(B)`, whose
+//! solution is `B(x) = B_o(x) + ρ/(1−ρ)·mean_A(B_o)`, for any first order `B_o`. With the light
+//! at the centre, `B_o = ρ·I/r²` on the true sphere, and `B = B_o/(1−ρ)` (the brief's case).
+//! The mesh is a latitude-longitude polyhedron, so both laws hold up to its tessellation; the
+//! bounds are the measured deviations plus about 25 %.
+
+mod common;
+
+use std::f32::consts::PI;
+
+use glam::{Vec2, Vec3};
+use ortm::bake::lighting;
+use ortm::bake::raycast::Visibility;
+use ortm::bake::texels::TexelGrid;
+use ortm::bake::transport::dense::DenseTransport;
+use ortm::bake::transport::{Effects, Transport, texel_patches};
+use ortm::scene::{Albedo, Light, Material, Mesh, MeshTriangle, Scene};
+
+const RADIUS_M: f32 = 1.0;
+const INTENSITY_W_SR: f32 = 10.0;
+const RHO: Vec3 = Vec3::new(0.3, 0.5, 0.8);
+
+/// A latitude-longitude sphere seen from inside: normals point to the centre, triangles are
+/// counter-clockwise seen from the centre, and the lightmap UVs are the (non-overlapping)
+/// equirectangular map `u = φ/2π`, `v = 1 − θ/π`, squeezed into `[0.01, 0.99]²` so that the
+/// seam and the poles stay off the lightmap's border.
+fn sphere_scene(n_lat: u32, n_lon: u32, size: (u32, u32)) -> Scene {
+    let mut mesh = Mesh {
+        positions_m: Vec::new(),
+        uvs: Vec::new(),
+        normals: Vec::new(),
+        triangles: Vec::new(),
+    };
+    let squeeze = |t: f32| 0.01 + 0.98 * t;
+    for i in 0..=n_lat {
+        let theta = PI * i as f32 / n_lat as f32;
+        for j in 0..=n_lon {
+            let phi = 2.0 * PI * j as f32 / n_lon as f32;
+            let dir = Vec3::new(
+                theta.sin() * phi.cos(),
+                theta.cos(),
+                theta.sin() * phi.sin(),
+            );
+            mesh.positions_m.push(dir * RADIUS_M);
+            mesh.normals.push(-dir);
+            mesh.uvs.push(Vec2::new(
+                squeeze(j as f32 / n_lon as f32),
+                squeeze(1.0 - i as f32 / n_lat as f32),
+            ));
+        }
+    }
+    let at = |i: u32, j: u32| i * (n_lon + 1) + j;
+    let mut push = |idx: [u32; 3]| {
+        mesh.triangles.push(MeshTriangle {
+            position: idx,
+            uv: idx,
+            normal: idx,
+            material: 0,
+        })
+    };
+    for i in 0..n_lat {
+        for j in 0..n_lon {
+            let (a, b, c, d) = (at(i, j), at(i, j + 1), at(i + 1, j + 1), at(i + 1, j));
+            // (b − a) × (c − a) points outward (along φ̂ × θ̂ = r̂), so these orders wind
+            // counter-clockwise seen from the centre; the pole rows keep only their
+            // non-degenerate triangle.
+            if i > 0 {
+                push([a, c, b]);
+            }
+            if i + 1 < n_lat {
+                push([a, d, c]);
+            }
+        }
+    }
+    Scene {
+        name: "sphere".into(),
+        mesh,
+        materials: vec![Material {
+            name: "grey".into(),
+            albedo: Albedo::Constant(RHO),
+            subsurface: None,
+        }],
+        lights: vec![Light::Point {
+            position_m: Vec3::ZERO,
+            color: Vec3::ONE,
+            intensity_w_sr: INTENSITY_W_SR,
+        }],
+        lightmap_size: size,
+        allow_uv_overlap: false,
+    }
+}
+
+#[test]
+fn closed_sphere_with_a_central_point_light_matches_the_analytic_radiosity() {
+    let scene = sphere_scene(24, 48, (96, 48));
+    let grid = TexelGrid::build(&scene).unwrap();
+    let vis = Visibility::new(&scene.mesh);
+    let e = lighting::irradiance(&grid, &scene.lights, &vis);
+    let b_o = common::exitance(&grid, &e);
+    let effects = Effects {
+        radiosity: true,
+        subsurface: false,
+    };
+    let transport = Transport::new(&scene, &grid, effects, 1);
+    let dense = DenseTransport::new(&texel_patches(&grid), &transport.kernels);
+    let b = dense.solve(&b_o);
+
+    let area: Vec<f32> = grid.texels.iter().map(|t| t.area_m2).collect();
+    let total_area: f32 = area.iter().sum();
+    let mean_b_o: Vec3 = b_o.iter().zip(&area).map(|(v, a)| *v * *a).sum::<Vec3>() / total_area;
+    let gain = RHO / (Vec3::ONE - RHO);
+    let sphere_b_o = RHO * INTENSITY_W_SR / (RADIUS_M * RADIUS_M);
+
+    // (1) The sphere's law for the discrete first order: B = B_o + ρ/(1−ρ)·mean(B_o), texel by
+    // texel, relative to the indirect term (the part the transport computes).
+    // (2) Against the true sphere: B = ρ·I/r² / (1−ρ), relative to the total.
+    let (mut worst_law, mut worst_sphere) = (Vec3::ZERO, Vec3::ZERO);
+    for (bi, boi) in b.iter().zip(&b_o) {
+        let indirect = gain * mean_b_o;
+        worst_law = worst_law.max((*bi - *boi - indirect).abs() / indirect);
+        let exact = sphere_b_o / (Vec3::ONE - RHO);
+        worst_sphere = worst_sphere.max((*bi - exact).abs() / exact);
+    }
+    let area_ratio = total_area / (4.0 * PI * RADIUS_M * RADIUS_M);
+    println!(
+        "sphere 24×48 facets, {} texels ({area_ratio:.4} of the true sphere's area): worst \
+         relative error of the indirect term vs the sphere's law {worst_law:.4}, of the total vs \
+         ρI/r²/(1−ρ) {worst_sphere:.4}",
+        grid.texels.len()
+    );
+    // Measured at 96×48: law 0.0049 / 0.0058 / 0.0103 (R/G/B), sphere 0.0063 / 0.0051 / 0.0043.
+    // Most of it is light lost at the chart's borders: the covered texels hold 0.9958 of the
+    // sphere's area, and a receiver that sees a fraction s < 1 of the surface gets
+    // ρ·mean/(1−ρ·s) instead of ρ·mean/(1−ρ), −1.6 % at ρ = 0.8 (at 64×32 the texels hold 0.984
+    // of the area and blue is 7 % off). Bounds: measured + 25 %.
+    assert!(
+        worst_law.max_element() < 0.013,
+        "indirect term vs B_o + ρ/(1−ρ)·mean(B_o): worst relative error {worst_law}"
+    );
+    assert!(
+        worst_sphere.max_element() < 0.008,
+        "total vs ρI/r²/(1−ρ): worst relative error {worst_sphere}"
+    );
+}
