@@ -69,8 +69,13 @@ fn evaluator_error_at_the_default_cluster_size_cornell_64() {
 
 #[test]
 fn evaluator_error_of_the_bench_row_head_64() {
-    // README's "Figures" row, as `ortm bench transport` computes it: the head (the built-in
-    // scene) at 64², 4×4 clusters, the first random light set-up of seed 11, all pairs.
+    // README's "Figures" row, computed as `ortm bench transport` computes it: the built-in head
+    // at 64² (3,782 texels), 4×4 clusters, the first random light set-up of seed 11, all pairs.
+    // Measured: radiosity 0.0623, both 0.0627: bounds + 25 %. Subsurface alone has no
+    // higher-order term (no form factors), so the evaluator is exact and the error is f32
+    // rounding (f32 sums over ~3,800 senders, then B − B_o), measured 9.9e-7 (0.0 % in README):
+    // bounded at 1e-5, ten times the measured value because rounding depends on the summation
+    // order and SIMD width, and still fifty times below the 0.05 % that README's "0.0 %" admits.
     let mut scene = ortm::scene::head::head_scene().expect("head scene (../shared/faces/head.obj)");
     scene.lightmap_size = (64, 64);
     let grid = TexelGrid::build(&scene).unwrap();
@@ -83,21 +88,24 @@ fn evaluator_error_of_the_bench_row_head_64() {
         radiosity: false,
         subsurface: true,
     };
-    let mut errors = Vec::new();
-    for effects in [radiosity, subsurface, Effects::default()] {
-        let t = std::time::Instant::now();
-        let (firsts, exact) = exact_solutions(&scene, &grid, effects, &lights);
-        let t_exact = t.elapsed();
-        let tr = Transport::new(&scene, &grid, effects, 4);
-        errors.push(common::evaluator_error(&tr, &firsts[0], &exact[0]));
-        eprintln!(
-            "{effects:?}: {:.3e} (exact {t_exact:?}, all {:?})",
-            errors[errors.len() - 1],
-            t.elapsed()
-        );
-    }
+    let cases = [
+        ("radiosity", radiosity, 0.078),
+        ("subsurface", subsurface, 1e-5),
+        ("both", Effects::default(), 0.078),
+    ];
+    let errors: Vec<f64> = cases
+        .iter()
+        .map(|&(_, effects, _)| {
+            let (firsts, exact) = exact_solutions(&scene, &grid, effects, &lights);
+            let tr = Transport::new(&scene, &grid, effects, 4);
+            common::evaluator_error(&tr, &firsts[0], &exact[0])
+        })
+        .collect();
     eprintln!(
         "head 64², 4×4 clusters, relative RMSE of the indirect term vs the exact solve \
-         (radiosity / subsurface / both): {errors:.4?}"
+         (radiosity / subsurface / both): {errors:?}"
     );
+    for ((what, _, bound), e) in cases.iter().zip(&errors) {
+        assert!(e < bound, "{what}: evaluator error {e}, bound {bound}");
+    }
 }
