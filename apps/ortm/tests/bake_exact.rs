@@ -1,12 +1,14 @@
-//! The bake against the exact dense solve: energy balance of the exact solve on the Cornell box,
-//! Eq. 9 being exact when every integer offset is selected, and the convergence of the
-//! importance-sampled offsets on the head (and the jittered grid's error beside it).
+//! The bake against the exact dense solve: energy balance of the exact solve on the Cornell box
+//! (and its loss through the open side against the geometry's form factors), Eq. 9 being exact
+//! when every integer offset is selected, and the convergence of the importance-sampled offsets
+//! on the head (and the jittered grid's error beside it) and on the Cornell box, with README's
+//! figures ("Offset maps (bake, part 2)") bounded at their measured values + 25 %.
 
 mod common;
 
 use std::sync::Arc;
 
-use glam::{IVec2, Vec3};
+use glam::IVec2;
 use ortm::bake::eval::{Reference, random_light_setups};
 use ortm::bake::lighting;
 use ortm::bake::raycast::Visibility;
@@ -17,29 +19,62 @@ use ortm::bake::{self, BakeSettings, Selector};
 use ortm::maps;
 use ortm::scene::Scene;
 
+/// The built-in head (radiosity + skin subsurface) with a `size`² lightmap.
 fn head(size: u32) -> Scene {
-    let (mesh, _, _) = ortm::scene::obj::load_obj(
-        &common::head_obj(),
-        f64::from(faces::head::HEAD_METRES_PER_UNIT),
-    )
-    .unwrap();
-    Scene {
-        name: "head".into(),
-        mesh,
-        materials: vec![ortm::scene::Material {
-            name: "skin".into(),
-            albedo: ortm::scene::Albedo::Constant(Vec3::new(0.8, 0.6, 0.5)),
-            subsurface: ortm::scene::subsurface_preset("skin1"),
-        }],
-        lights: vec![],
-        lightmap_size: (size, size),
-        allow_uv_overlap: false,
-    }
+    let mut scene = ortm::scene::head::head_scene().expect("head scene (../shared/faces/head.obj)");
+    scene.lightmap_size = (size, size);
+    scene
+}
+
+/// Each covered texel's form factor to the Cornell box's open side (the square z = L,
+/// 0 ≤ x, y ≤ L), with occlusion: the fraction of `n × n` stratified cosine-weighted rays from the
+/// texel that cross that square without hitting the mesh (jittered with a fixed seed). Independent
+/// of the texel-to-texel form factors: only the box's geometry and the ray caster.
+fn open_side_form_factors(grid: &TexelGrid, vis: &Visibility, n: u32) -> Vec<f64> {
+    use rand::{RngExt, SeedableRng};
+    let l = ortm::scene::cornell::BOX_SIZE_M;
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+    grid.texels
+        .iter()
+        .map(|t| {
+            let nrm = t.face_normal;
+            let (t1, t2) = ortm::bake::transport::form_factor::tangent_frame(nrm);
+            let p = t.position_m + nrm * 1e-4;
+            let mut hits = 0u32;
+            for a in 0..n {
+                for b in 0..n {
+                    let u1 = (a as f32 + rng.random::<f32>()) / n as f32;
+                    let u2 = (b as f32 + rng.random::<f32>()) / n as f32;
+                    let (r, phi) = (u1.sqrt(), std::f32::consts::TAU * u2);
+                    let d = t1 * (r * phi.cos()) + t2 * (r * phi.sin()) + nrm * (1.0 - u1).sqrt();
+                    if d.z <= 0.0 {
+                        continue;
+                    }
+                    let q = p + d * ((l - p.z) / d.z);
+                    if (0.0..=l).contains(&q.x)
+                        && (0.0..=l).contains(&q.y)
+                        && vis.visible(p, q, 1e-5)
+                    {
+                        hits += 1;
+                    }
+                }
+            }
+            hits as f64 / (n * n) as f64
+        })
+        .collect()
 }
 
 #[test]
 fn cornell_exact_solve_conserves_energy() {
-    for size in [32, 64] {
+    // Energy balance of the exact solve (emitted = absorbed + escaped through the open side, to
+    // 1e-4), and the escaped power against what the geometry alone predicts: each texel's
+    // radiosity × area × form factor to the open side (`open_side_form_factors`, 1,024 rays per
+    // texel). The texel-to-texel form factors' rows fall short of 1 − F_open by their
+    // discretisation error, so a little more escapes than the geometry says: measured 4.14 %
+    // more at 32² and 1.82 % at 64² (worst channel; 20.1 % / 20.6 % of the red channel's emitted
+    // power escapes). The bounds are those + 25 %. The ray-cast estimate's own noise, over
+    // seeds 5–10: 3.33–4.14 % at 32², 1.18–1.94 % at 64², inside the bounds for every seed.
+    for (size, bound) in [(32, 0.052), (64, 0.023)] {
         let scene = ortm::scene::cornell::cornell_box(size);
         let grid = TexelGrid::build(&scene).unwrap();
         let vis = Arc::new(Visibility::new(&scene.mesh));
@@ -50,6 +85,7 @@ fn cornell_exact_solve_conserves_energy() {
         let b_o = common::exitance(&grid, &e_d);
         let b = dense.solve(&b_o);
         let row_sums = dense.form_factor_row_sums();
+        let open = open_side_form_factors(&grid, &vis, 32);
         for ch in 0..3 {
             let (mut emitted, mut absorbed, mut escaped) = (0.0f64, 0.0f64, 0.0f64);
             for i in 0..dense.n {
@@ -67,8 +103,23 @@ fn cornell_exact_solve_conserves_energy() {
                 balance < 1e-4,
                 "{size}²: channel {ch}: emitted {emitted} W, absorbed {absorbed} W, escaped {escaped} W"
             );
-            // The open box loses a plausible share through its front.
-            assert!(escaped > 0.02 * emitted && escaped < 0.6 * emitted);
+            // What leaves through the open side, from the geometry alone: each texel's radiosity
+            // times its area times its form factor to the opening, estimated by ray casting.
+            let expected: f64 = (0..dense.n)
+                .map(|i| b[i][ch] as f64 * patches[i].area_m2 as f64 * open[i])
+                .sum();
+            eprintln!(
+                "{size}²: channel {ch}: escaped {:.4} of the emitted power (from the opening's form \
+                 factors {:.4}); ratio {:.4}",
+                escaped / emitted,
+                expected / emitted,
+                escaped / expected
+            );
+            assert!(
+                (escaped / expected - 1.0).abs() < bound,
+                "{size}²: channel {ch}: escaped {escaped} W, the open side's form factors give \
+                 {expected} W"
+            );
         }
     }
 }
@@ -220,15 +271,57 @@ fn importance_sampled_offsets_converge_on_the_head_and_beat_the_jittered_grid() 
     for w in errs.windows(2) {
         assert!(w[1] < w[0], "error must fall as K grows: {errs:?}");
     }
-    // The paper's claim: at K = 100 importance sampling beats the jittered grid.
+    // README's table and the cluster floor, each bounded at its measured value + 25 %
+    // (measured: importance K = 25/50/100/200 0.3156 / 0.2311 / 0.1567 / 0.1402, jittered grid
+    // 0.7578, Eq. 10 importance / jittered grid 2.5643 / 1.5765; 2×2 clusters importance
+    // K = 100/200 0.2902 / 0.2929, jittered grid 0.7791).
+    let bounded = [
+        ("importance, K = 25", errs[0], 0.395),
+        ("importance, K = 50", errs[1], 0.289),
+        ("importance, K = 100", errs[2], 0.196),
+        ("importance, K = 200", errs[3], 0.175),
+        ("jittered grid, K = 100", jittered, 0.947),
+        ("importance, Eq. 10, K = 100", sampled, 3.21),
+        ("jittered grid, Eq. 10, K = 100", sampled_jittered, 1.97),
+        ("2×2 clusters, importance, K = 100", c_imp, 0.363),
+        ("2×2 clusters, importance, K = 200", c_imp200, 0.366),
+        ("2×2 clusters, jittered grid, K = 100", c_jit, 0.974),
+    ];
+    for (what, e, bound) in bounded {
+        assert!(e < bound, "{what}: error {e}, bound {bound}");
+    }
+    // The paper's claim: at K = 100 importance sampling beats the jittered grid, by 4.84× over
+    // the exact transport and 2.68× with 2×2 clusters (means over the seeds), and for every
+    // seed (per-seed ratios 4.92 / 4.69 / 4.89 and 2.82 / 2.51 / 2.72). Each ratio must reach
+    // its measured value / 1.25: the means, and the smallest per-seed ratio for every seed.
+    let ratios = [
+        ("exact transport", jittered / errs[2], 3.87),
+        ("2×2 clusters", c_jit / c_imp, 2.15),
+    ];
+    for (what, ratio, least) in ratios {
+        assert!(
+            ratio > least,
+            "{what}: jittered grid / importance at K = 100 is {ratio}, must exceed {least}"
+        );
+    }
+    for (what, imp, jit, least) in [
+        ("exact transport", draws[2], &jittered_draws, 3.75),
+        ("2×2 clusters", &c_imp_draws, &c_jit_draws, 2.01),
+    ] {
+        for ((seed, i), j) in seeds.iter().zip(imp).zip(jit) {
+            assert!(
+                j / i > least,
+                "{what}, seed {seed}: jittered grid {j} / importance {i} must exceed {least}"
+            );
+        }
+    }
+    // The integrated cell rule against the paper's Eq. 10 at K = 100, seed 3 (importance):
+    // 0.1607 vs 2.5643 (16.0×); the ratio must reach 16.0 / 1.25.
+    let eq10_ratio = sampled / draws[2][0];
     assert!(
-        errs[2] < jittered,
-        "importance {} vs jittered grid {jittered} at K = 100",
-        errs[2]
-    );
-    assert!(
-        c_imp < c_jit,
-        "2×2 clusters: importance {c_imp} vs jittered grid {c_jit} at K = 100"
+        eq10_ratio > 12.8,
+        "Eq. 10 {sampled} / integrated {} = {eq10_ratio}, must exceed 12.8",
+        draws[2][0]
     );
 }
 
@@ -272,5 +365,12 @@ fn cornell_offsets_converge() {
     );
     for w in errs.windows(2) {
         assert!(w[1] < w[0], "error must fall as K grows: {errs:?}");
+    }
+    // README's figures (measured 1.2396 / 0.9717 / 0.7186), each bounded at + 25 %.
+    for (e, bound) in errs.iter().zip([1.55, 1.21, 0.90]) {
+        assert!(
+            e < &bound,
+            "K = 50/100/200: {errs:?}, bounds 1.55 / 1.21 / 0.90"
+        );
     }
 }

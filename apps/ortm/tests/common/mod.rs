@@ -288,3 +288,17 @@ pub fn random_log_valued_maps(rng: &mut ChaCha8Rng, w: u32, h: u32, n: usize) ->
         })
         .collect()
 }
+
+/// Relative RMSE of the indirect term `B − B_o` from ortm's pair evaluator ([`final_all`])
+/// against the exact final radiosity `exact` (e.g. [`ortm::bake::transport::dense::DenseTransport::solve`])
+/// for the first-order radiosity `b_o`: the figure `ortm bench transport` prints for the
+/// evaluator.
+pub fn evaluator_error(tr: &Transport, b_o: &[Vec3], exact: &[Vec3]) -> f64 {
+    let indirect: Vec<Vec3> = final_all(tr, b_o)
+        .iter()
+        .zip(b_o)
+        .map(|(b, o)| *b - *o)
+        .collect();
+    let exact_indirect: Vec<Vec3> = exact.iter().zip(b_o).map(|(b, o)| *b - *o).collect();
+    ortm::bake::eval::relative_rmse(&indirect, &exact_indirect)
+}
