@@ -112,7 +112,10 @@ const REASONS: &[(&str, &str, &[&str])] = &[
     (
         "scene_file",
         "device_mesh.toml",
-        &["scene.toml:1", "/dev/zero, which is not a regular file"],
+        &[
+            "scene.toml:1",
+            "/dev/zero, which is not a regular file (a directory, device or pipe)",
+        ],
     ),
     (
         "scene_file",

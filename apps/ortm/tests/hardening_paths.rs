@@ -95,6 +95,7 @@ fn bake_index_naming_a_directory_or_device_is_refused() {
         matches!(e, MapsError::File(FileError::PathEscape { .. })),
         "{e}"
     );
+    assert!(e.to_string().contains("is not a regular file"), "{e}");
 }
 
 #[test]
@@ -141,13 +142,24 @@ fn atlas_index_symlink_escape_is_refused() {
 
 #[test]
 fn atlas_index_that_does_not_match_the_bake_is_refused() {
-    // A piece whose offset differs from its map's offset in index.json.
+    // A map whose pieces all have an offset other than the map's in index.json (changing one
+    // piece only would be refused earlier, as pieces of one map that disagree).
     let dir = fixture_bake();
     edit_json(&dir.path().join("atlases.json"), |v| {
-        v["pieces"][0]["offset"] = serde_json::json!([5, 5]);
+        let map = v["pieces"][0]["map_index"].clone();
+        for p in v["pieces"].as_array_mut().unwrap() {
+            if p["map_index"] == map {
+                p["offset"] = serde_json::json!([5, 5]);
+            }
+        }
     });
     let e = read_atlas_set(dir.path()).unwrap_err();
     assert!(matches!(e, AtlasError::BadIndex { .. }), "{e}");
+    assert!(
+        e.to_string()
+            .contains("with offset [5, 5], but the bake index"),
+        "{e}"
+    );
     // A piece naming a map the bake does not have (with a consistent offset in its own index).
     let dir = fixture_bake();
     edit_json(&dir.path().join("index.json"), |v| {
@@ -183,7 +195,11 @@ fn scene_naming_a_device_as_mesh_is_refused() {
     let scene = dir.path().join("s.toml");
     fs::write(&scene, "mesh = \"/dev/zero\"\nmetres_per_unit = 1.0\n[[material]]\nname = \"a\"\nalbedo = [0.5, 0.5, 0.5]\n").unwrap();
     let e = ortm::scene::load_scene_with_warnings(&scene).unwrap_err();
-    assert!(e.to_string().contains("/dev/zero"), "{e}");
+    assert!(
+        e.to_string()
+            .contains("/dev/zero, which is not a regular file"),
+        "{e}"
+    );
     // The OBJ loader itself refuses it before reading (it would never reach end of file).
     let e = ortm::scene::load_obj(Path::new("/dev/zero"), 1.0).unwrap_err();
     assert!(e.to_string().contains("not a regular file"), "{e}");

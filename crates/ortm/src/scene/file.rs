@@ -338,11 +338,11 @@ fn assign_materials(
 }
 
 /// Why a path that must name a regular file does not: it is missing, or it is something else
-/// (a folder, a device such as `/dev/zero`, a FIFO), which is refused before reading.
+/// (a directory, a device such as `/dev/zero`, a pipe), which is refused before reading.
 fn not_a_file(path: &Path) -> String {
     if path.exists() {
         format!(
-            "names {}, which is not a regular file (a folder, device or FIFO)",
+            "names {}, which is not a regular file (a directory, device or pipe)",
             path.display()
         )
     } else {
