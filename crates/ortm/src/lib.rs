@@ -10,6 +10,7 @@
 //! Units are SI throughout: metres, W/sr (point and spot lights), W/m² (directional lights,
 //! lightmaps). See `docs/ARCHITECTURE.md` for the file layout.
 
+pub mod accuracy;
 pub mod atlas;
 pub mod bake;
 pub mod bake_dir;
