@@ -13,8 +13,7 @@ use ortm::bake::texels::TexelGrid;
 use ortm::bake::transport::dense::DenseTransport;
 use ortm::bake::transport::{Effects, Kernels, texel_patches};
 
-/// Largest number of covered texels the dense solve accepts.
-pub const MAX_DENSE_TEXELS: usize = 6000;
+use ortm::bake::transport::dense::MAX_TEXELS as MAX_DENSE_TEXELS;
 
 /// Arguments of `ortm solve`.
 #[derive(clap::Args, Debug)]

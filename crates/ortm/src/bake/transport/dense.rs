@@ -14,6 +14,11 @@ use rayon::prelude::*;
 
 use super::{Kernels, Patch};
 
+/// Largest number of patches the exact dense solve is run on by the tools (`ortm solve`, the
+/// viewer's and the accuracy bench's reference): memory grows as n² (three 6,000² matrices of
+/// doubles are 864 MB) and time as n³.
+pub const MAX_TEXELS: usize = 6000;
+
 /// The assembled transport system over `n` patches.
 pub struct DenseTransport {
     /// Number of patches.
