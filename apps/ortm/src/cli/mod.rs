@@ -6,6 +6,7 @@
 
 mod bake;
 mod bench;
+mod bench_accuracy;
 mod bench_render;
 mod bin;
 mod demo;
@@ -39,7 +40,7 @@ enum Command {
     Bake(bake::Args),
     /// Pack a bake's transfer maps into texture atlases (OpenEXR + atlases.json + PNGs).
     Bin(bin::Args),
-    /// Benchmarks printed as tables: `transport`, `bake`, `render`.
+    /// Benchmarks printed as tables: `transport`, `bake`, `render`, `accuracy`.
     Bench(BenchArgs),
     /// Exact dense solve (small lightmaps): first-order, final and indirect lightmaps as PNG.
     Solve(solve::Args),
@@ -64,6 +65,8 @@ struct BenchArgs {
 enum BenchCommand {
     /// Per-pass GPU frame times for the paper's Table 1 configurations (head).
     Render(bench_render::Args),
+    /// Accuracy of bakes against the exact solve or the path-traced reference, one table.
+    Accuracy(bench_accuracy::Args),
 }
 
 /// Runs a parsed command line.
@@ -77,9 +80,13 @@ pub fn run(cli: Cli) -> Result<()> {
             sub: Some(BenchCommand::Render(a)),
             ..
         }) => bench_render::run(a),
+        Command::Bench(BenchArgs {
+            sub: Some(BenchCommand::Accuracy(a)),
+            ..
+        }) => bench_accuracy::run(a),
         Command::Bench(BenchArgs { other: Some(a), .. }) => bench::run(a),
         Command::Bench(_) => {
-            anyhow::bail!("ortm bench: name a benchmark: transport, bake or render")
+            anyhow::bail!("ortm bench: name a benchmark: transport, bake, render or accuracy")
         }
         Command::Bin(a) => bin::run(a),
         Command::Render(a) => render::run(a),

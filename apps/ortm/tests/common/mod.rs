@@ -31,12 +31,10 @@ use std::sync::OnceLock;
 use glam::{IVec2, Vec3};
 use ortm::Lightmap;
 use ortm::bake::texels::TexelGrid;
-use ortm::bake::transport::Transport;
 use ortm::bake_dir::{BakeIndex, BakeKey, LightmapSize, write_map_file};
 use ortm::maps::TransferMap;
 use rand::RngExt;
 use rand_chacha::ChaCha8Rng;
-use rayon::prelude::*;
 
 /// `tests/data/<rel>` of this package.
 pub fn data(rel: &str) -> PathBuf {
@@ -194,31 +192,10 @@ pub fn exitance(grid: &TexelGrid, e: &[Vec3]) -> Vec<Vec3> {
         .collect()
 }
 
-/// The texels that send light: those whose `b_o` is not zero, in increasing order.
-pub fn senders(b_o: &[Vec3]) -> Vec<u32> {
-    (0..b_o.len() as u32)
-        .filter(|&j| b_o[j as usize] != Vec3::ZERO)
-        .collect()
-}
-
-/// `B = B_o + Σ_j R(i, j) B_o(j)` at receiver `i` from ortm's pair evaluator (the bake's
-/// `R(t, t')`), summed over `senders` in their order.
-pub fn final_at(tr: &Transport, b_o: &[Vec3], senders: &[u32], i: u32) -> Vec3 {
-    let mut b = b_o[i as usize];
-    for &j in senders {
-        b += Vec3::from_array(tr.r(i, j)) * b_o[j as usize];
-    }
-    b
-}
-
-/// [`final_at`] for every texel (in parallel).
-pub fn final_all(tr: &Transport, b_o: &[Vec3]) -> Vec<Vec3> {
-    let senders = senders(b_o);
-    (0..b_o.len() as u32)
-        .into_par_iter()
-        .map(|i| final_at(tr, b_o, &senders, i))
-        .collect()
-}
+#[allow(unused_imports, reason = "not every test binary uses them")]
+pub use ortm::bake::eval::{
+    evaluator_error, evaluator_final as final_all, evaluator_final_at as final_at, senders,
+};
 
 /// `n` random sparse maps of a `w×h` lightmap, for atlas packing: up to 3 blobs (≤ 20×12) of
 /// random values and up to 2 scattered texels each (some maps empty), offsets within ±7.
@@ -287,18 +264,4 @@ pub fn random_log_valued_maps(rng: &mut ChaCha8Rng, w: u32, h: u32, n: usize) ->
             TransferMap::from_full(offset, 0.01 * (i + 1) as f64, rng.random(), &full).unwrap()
         })
         .collect()
-}
-
-/// Relative RMSE of the indirect term `B − B_o` from ortm's pair evaluator ([`final_all`])
-/// against the exact final radiosity `exact` (e.g. [`ortm::bake::transport::dense::DenseTransport::solve`])
-/// for the first-order radiosity `b_o`: the figure `ortm bench transport` prints for the
-/// evaluator.
-pub fn evaluator_error(tr: &Transport, b_o: &[Vec3], exact: &[Vec3]) -> f64 {
-    let indirect: Vec<Vec3> = final_all(tr, b_o)
-        .iter()
-        .zip(b_o)
-        .map(|(b, o)| *b - *o)
-        .collect();
-    let exact_indirect: Vec<Vec3> = exact.iter().zip(b_o).map(|(b, o)| *b - *o).collect();
-    ortm::bake::eval::relative_rmse(&indirect, &exact_indirect)
 }

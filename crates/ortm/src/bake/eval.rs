@@ -8,10 +8,12 @@
 use glam::Vec3;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
+use rayon::prelude::*;
 
 use crate::bake::lighting;
 use crate::bake::raycast::Visibility;
 use crate::bake::texels::TexelGrid;
+use crate::bake::transport::Transport;
 use crate::maps::{self, TransferMap};
 use crate::scene::{Light, Scene};
 
@@ -53,15 +55,49 @@ pub fn random_light_setups(scene: &Scene, count: usize, seed: u64) -> Vec<Vec<Li
 }
 
 /// Relative RMSE `‖I − I_exact‖ / ‖I_exact‖` of the indirect term over all covered texels and
-/// channels.
+/// channels ([`crate::accuracy::compare::relative_rmse`] without a mask).
 pub fn relative_rmse(indirect: &[Vec3], exact_indirect: &[Vec3]) -> f64 {
-    let (mut num, mut den) = (0.0f64, 0.0f64);
-    for (a, b) in indirect.iter().zip(exact_indirect) {
-        let d = (*a - *b).as_dvec3();
-        num += d.length_squared();
-        den += b.as_dvec3().length_squared();
+    crate::accuracy::compare::relative_rmse(indirect, exact_indirect, None)
+}
+
+/// The texels that send light: those whose `b_o` is not zero, in increasing order.
+pub fn senders(b_o: &[Vec3]) -> Vec<u32> {
+    (0..b_o.len() as u32)
+        .filter(|&j| b_o[j as usize] != Vec3::ZERO)
+        .collect()
+}
+
+/// `B = B_o + Σ_j R(i, j) B_o(j)` at receiver `i` from the bake's pair evaluator
+/// ([`Transport::r`]), summed over `senders` ([`senders`]) in their order: what offset maps
+/// with every offset and exact cells would store, the limit the bake's maps converge to.
+pub fn evaluator_final_at(tr: &Transport, b_o: &[Vec3], senders: &[u32], i: u32) -> Vec3 {
+    let mut b = b_o[i as usize];
+    for &j in senders {
+        b += Vec3::from_array(tr.r(i, j)) * b_o[j as usize];
     }
-    (num / den.max(1e-300)).sqrt()
+    b
+}
+
+/// [`evaluator_final_at`] for every texel (in parallel; `n × senders` pair evaluations).
+pub fn evaluator_final(tr: &Transport, b_o: &[Vec3]) -> Vec<Vec3> {
+    let senders = senders(b_o);
+    (0..b_o.len() as u32)
+        .into_par_iter()
+        .map(|i| evaluator_final_at(tr, b_o, &senders, i))
+        .collect()
+}
+
+/// Relative RMSE of the indirect term `B − B_o` of [`evaluator_final`] against the exact final
+/// radiosity `exact` (e.g. [`crate::bake::transport::dense::DenseTransport::solve`]) for the
+/// first-order radiosity `b_o`: the figure `ortm bench transport` prints for the evaluator.
+pub fn evaluator_error(tr: &Transport, b_o: &[Vec3], exact: &[Vec3]) -> f64 {
+    let indirect: Vec<Vec3> = evaluator_final(tr, b_o)
+        .iter()
+        .zip(b_o)
+        .map(|(b, o)| *b - *o)
+        .collect();
+    let exact_indirect: Vec<Vec3> = exact.iter().zip(b_o).map(|(b, o)| *b - *o).collect();
+    relative_rmse(&indirect, &exact_indirect)
 }
 
 /// First-order lightings and exact final solutions for a list of light set-ups.

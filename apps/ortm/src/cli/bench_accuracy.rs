@@ -1,0 +1,331 @@
+//! `ortm bench accuracy`: how far each bake is from the truth, as one table.
+//!
+//! # What is measured
+//! For each case (scene × lightmap size; default Cornell 64² and 128², maze 128², head 64² and
+//! 256², radiosity + subsurface) under the scene's own lights:
+//! - **the reference**: the exact dense solve ([`DenseTransport`]) where the covered texels fit
+//!   ([`dense::MAX_TEXELS`]), else the path-traced reference
+//!   ([`ortm::accuracy::reference::trace`]) with paths per texel raised (×4 per step, from
+//!   `--spp` up to `--max-spp`) until its standard error is under a quarter of the smallest
+//!   error it measures (the line above each case's rows says which reference, how many paths and
+//!   whether that held);
+//! - **the rows**: the bake's pair evaluator summed over every pair (`evaluator, every pair`:
+//!   the limit today's maps converge to, no offsets), then for each offset budget a bake with
+//!   importance-sampled offsets and each cell rule — today's integrated cells and the paper's
+//!   Eq. 10 (`sampled`) — applied on the CPU (Eq. 9, [`ortm::maps::apply`], the mirror of the
+//!   GPU's transfer pass).
+//!
+//! Columns: relative RMSE of the total `B` and of the indirect term `B − B_o` over interior
+//! covered texels ([`ortm::accuracy::compare`]), energy ratio (power of the row over the
+//! reference's, mean of R, G, B), bake time (wall clock, this machine) and frame cost in
+//! map-texel contributions (stored texels of all maps: what the GPU's transfer pass reads per
+//! frame; for the evaluator row, receivers × senders).
+
+use std::path::PathBuf;
+use std::sync::atomic::AtomicBool;
+use std::time::Instant;
+
+use anyhow::{Context, Result, bail};
+use glam::Vec3;
+use indicatif::{ProgressBar, ProgressStyle};
+use ortm::accuracy::compare::{self, Comparison};
+use ortm::accuracy::reference::{self, ReferenceMaps};
+use ortm::bake::pipeline::CellRule;
+use ortm::bake::raycast::Visibility;
+use ortm::bake::texels::TexelGrid;
+use ortm::bake::transport::dense::{self, DenseTransport};
+use ortm::bake::transport::{Effects, Kernels, Transport, texel_patches};
+use ortm::bake::{self, BakeSettings, lighting};
+use ortm::scene::Scene;
+
+/// The cases of the table when `--cases` is not given.
+pub const DEFAULT_CASES: [&str; 5] = [
+    "cornell-64",
+    "cornell-128",
+    "maze-128",
+    "head-64",
+    "head-256",
+];
+
+/// Arguments of `ortm bench accuracy`.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// Cases as SCENE-SIZE (a built-in scene or a scene file, then the square lightmap size).
+    #[arg(long, value_delimiter = ',', default_values_t = DEFAULT_CASES.map(String::from))]
+    cases: Vec<String>,
+    /// Offset budgets: one bake per budget and cell rule.
+    #[arg(long, value_delimiter = ',', default_values_t = [100usize, 400])]
+    offsets: Vec<usize>,
+    /// Paths per texel the path-traced reference starts with.
+    #[arg(long, default_value_t = 64)]
+    spp: u32,
+    /// Most paths per texel of the path-traced reference.
+    #[arg(long, default_value_t = 4096)]
+    max_spp: u32,
+    /// Largest covered-texel count for the `evaluator, every pair` row (its cost is n²).
+    #[arg(long, default_value_t = 12_000)]
+    max_evaluator_texels: usize,
+    /// Seed of the bakes' offset selection and of the reference's paths.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+}
+
+/// One way of producing the final lightmap, measured against the reference.
+struct Row {
+    method: String,
+    offsets: Option<usize>,
+    final_b: Vec<Vec3>,
+    bake_s: f64,
+    frame_cost: u64,
+}
+
+/// A case's scene, texels and first order.
+struct Case {
+    label: String,
+    scene: Scene,
+    grid: TexelGrid,
+    b_o: Vec<Vec3>,
+}
+
+/// Runs `ortm bench accuracy`.
+pub fn run(a: Args) -> Result<()> {
+    if a.offsets.contains(&0) {
+        bail!("--offsets: every budget must be at least 1 map");
+    }
+    if a.spp == 0 || a.max_spp < a.spp {
+        bail!("--spp must be at least 1 and --max-spp at least --spp");
+    }
+    println!("threads: {}", rayon::current_num_threads());
+    println!(
+        "| case | texels (interior) | method | offsets | total RMSE | indirect RMSE | energy | bake (s) | frame cost (map texels) |"
+    );
+    println!("|---|---|---|---|---|---|---|---|---|");
+    for spec in &a.cases {
+        let case = load_case(spec)?;
+        let rows = measure_rows(&case, &a)?;
+        let (reference, label) = reference_for(&case, &rows, &a)?;
+        println!("| {} | | reference: {label} | | | | | | |", case.label);
+        for row in &rows {
+            let c = compare::compare(
+                &case.grid,
+                &reference,
+                &row.final_b,
+                Some((&case.b_o, &case.b_o)),
+                0,
+            );
+            print_row(&case, row, &c);
+        }
+    }
+    Ok(())
+}
+
+/// Parses `SCENE-SIZE` and loads the scene, its texels and its first order.
+fn load_case(spec: &str) -> Result<Case> {
+    let (name, size) = spec
+        .rsplit_once('-')
+        .and_then(|(n, s)| s.parse::<u32>().ok().map(|s| (n, s)))
+        .with_context(|| {
+            format!("--cases: '{spec}' is not SCENE-SIZE (e.g. cornell-64, maze-128, head-256)")
+        })?;
+    let scene = super::load_scene(name, Some(size))?;
+    let grid = TexelGrid::build(&scene)
+        .with_context(|| format!("rasterizing the lightmap UVs of '{name}' at {size}²"))?;
+    let vis = Visibility::new(&scene.mesh);
+    let b_o = lighting::first_order(&grid, &scene.lights, &vis);
+    Ok(Case {
+        label: format!("{name} {size}²"),
+        scene,
+        grid,
+        b_o,
+    })
+}
+
+/// The evaluator row (where it fits) and one bake per budget and cell rule.
+fn measure_rows(case: &Case, a: &Args) -> Result<Vec<Row>> {
+    let n = case.grid.texels.len();
+    let mut rows = Vec::new();
+    if n <= a.max_evaluator_texels {
+        eprintln!("{}: evaluator over {n}² pairs", case.label);
+        let t = Instant::now();
+        let block = BakeSettings::default().coarse_block;
+        let tr = Transport::new(&case.scene, &case.grid, Effects::default(), block);
+        let final_b = ortm::bake::eval::evaluator_final(&tr, &case.b_o);
+        let senders = ortm::bake::eval::senders(&case.b_o).len() as u64;
+        rows.push(Row {
+            method: format!("evaluator, every pair ({block}×{block} clusters)"),
+            offsets: None,
+            final_b,
+            bake_s: t.elapsed().as_secs_f64(),
+            frame_cost: n as u64 * senders,
+        });
+    }
+    for &k in &a.offsets {
+        for (rule, name) in [
+            (CellRule::Integrated, "integrated cells"),
+            (CellRule::Sampled, "Eq. 10 (sampled)"),
+        ] {
+            eprintln!("{}: bake, {k} offsets, {name}", case.label);
+            rows.push(bake_row(case, k, rule, name, a.seed)?);
+        }
+    }
+    Ok(rows)
+}
+
+/// Bakes `case` with `k` offsets and `rule` into a temporary folder and applies the maps to the
+/// first order on the CPU.
+fn bake_row(case: &Case, k: usize, rule: CellRule, name: &str, seed: u64) -> Result<Row> {
+    let dir = scratch_dir(&case.label, k)?;
+    let settings = BakeSettings {
+        size: case.scene.lightmap_size,
+        offsets: k,
+        cell_rule: rule,
+        seed,
+        ..BakeSettings::default()
+    };
+    let cancel = AtomicBool::new(false);
+    let t = Instant::now();
+    let result = bake::bake(&case.scene, &settings, &dir, &|_| {}, &cancel)
+        .with_context(|| format!("baking {} with {k} offsets", case.label))
+        .and_then(|summary| {
+            let maps = ortm::bake_dir::BakeIndex::read(&dir)?.load_maps(&dir)?;
+            Ok((summary, maps))
+        });
+    let bake_s = t.elapsed().as_secs_f64();
+    let _ = std::fs::remove_dir_all(&dir);
+    let (summary, maps) = result?;
+    let first = lighting::to_lightmap(&case.grid, &case.b_o);
+    let final_map = ortm::maps::apply(&maps, &first)?;
+    Ok(Row {
+        method: format!("importance offsets, {name}"),
+        offsets: Some(k),
+        final_b: lighting::from_lightmap(&case.grid, &final_map),
+        bake_s,
+        frame_cost: summary.stored_texels,
+    })
+}
+
+/// The exact solve where it fits, else the path-traced reference with enough paths; returns
+/// the final radiosity and a label saying which.
+fn reference_for(case: &Case, rows: &[Row], a: &Args) -> Result<(Vec<Vec3>, String)> {
+    let n = case.grid.texels.len();
+    if n <= dense::MAX_TEXELS {
+        eprintln!("{}: exact dense solve of {n} texels", case.label);
+        let vis = std::sync::Arc::new(Visibility::new(&case.scene.mesh));
+        let kernels = Kernels::new(&case.scene, Effects::default(), vis);
+        let dense = DenseTransport::new(&texel_patches(&case.grid), &kernels);
+        return Ok((dense.solve(&case.b_o), "exact dense solve".into()));
+    }
+    let mask = compare::interior_mask(&case.grid);
+    let mut spp = a.spp;
+    loop {
+        let r = traced_reference(case, spp, a.seed)?;
+        // The reference's own noise against the smallest error it has to resolve: both are
+        // absolute (the rows share the reference's first order), so compare RMS over interior
+        // texels.
+        let noise = rms(&r.std_error, &mask);
+        let smallest = rows
+            .iter()
+            .map(|row| {
+                let d: Vec<Vec3> = row
+                    .final_b
+                    .iter()
+                    .zip(&r.final_b)
+                    .map(|(x, y)| *x - *y)
+                    .collect();
+                rms(&d, &mask)
+            })
+            .fold(f64::INFINITY, f64::min);
+        let resolved = noise < 0.25 * smallest;
+        if resolved || spp.saturating_mul(4) > a.max_spp {
+            let label = format!(
+                "path traced, {spp} paths/texel, standard error {:.2}% of the reference's RMS ({} a quarter of the smallest error)",
+                100.0 * noise / rms(&r.final_b, &mask).max(1e-300),
+                if resolved { "under" } else { "NOT under" }
+            );
+            return Ok((r.final_b, label));
+        }
+        spp *= 4;
+    }
+}
+
+/// Runs the path tracer with a progress bar.
+fn traced_reference(case: &Case, spp: u32, seed: u64) -> Result<ReferenceMaps> {
+    let n = case.grid.texels.len() as u64;
+    let bar = ProgressBar::new(n).with_style(
+        ProgressStyle::with_template("{msg:24} [{bar:40}] {pos}/{len} {elapsed_precise} eta {eta}")
+            .expect("valid template")
+            .progress_chars("=> "),
+    );
+    bar.set_message(format!("reference {spp} paths/texel"));
+    let progress = |done: usize, _total: usize| bar.set_position(done as u64);
+    let settings = reference::Settings {
+        samples_per_texel: spp,
+        seed,
+        effects: Effects::default(),
+    };
+    let cancel = AtomicBool::new(false);
+    let r = reference::trace(
+        &case.scene,
+        &case.grid,
+        &case.scene.lights,
+        &settings,
+        &progress,
+        &cancel,
+    );
+    bar.finish_and_clear();
+    Ok(r?)
+}
+
+/// Root mean square of `|v|` over the texels where `mask` is true.
+fn rms(v: &[Vec3], mask: &[bool]) -> f64 {
+    let (mut s, mut n) = (0.0f64, 0usize);
+    for (x, m) in v.iter().zip(mask) {
+        if *m {
+            s += x.as_dvec3().length_squared();
+            n += 1;
+        }
+    }
+    (s / n.max(1) as f64).sqrt()
+}
+
+fn print_row(case: &Case, row: &Row, c: &Comparison) {
+    let pct = |x: f64| format!("{:.1}%", 100.0 * x);
+    println!(
+        "| {} | {} ({}) | {} | {} | {} | {} | {:.3} | {:.1} | {} |",
+        case.label,
+        c.covered,
+        c.interior,
+        row.method,
+        row.offsets.map_or("all pairs".into(), |k| k.to_string()),
+        pct(c.total),
+        c.indirect.map_or("—".into(), pct),
+        c.energy_ratio.element_sum() / 3.0,
+        row.bake_s,
+        thousands(row.frame_cost)
+    );
+}
+
+/// `1234567` → `1.23 M`, `12345` → `12.3 k`.
+fn thousands(x: u64) -> String {
+    match x {
+        0..1_000 => x.to_string(),
+        1_000..1_000_000 => format!("{:.1} k", x as f64 / 1e3),
+        _ => format!("{:.2} M", x as f64 / 1e6),
+    }
+}
+
+/// A fresh scratch folder for one bake of the table.
+fn scratch_dir(label: &str, k: usize) -> Result<PathBuf> {
+    let tag: String = label
+        .chars()
+        .map(|c| if c.is_ascii_alphanumeric() { c } else { '_' })
+        .collect();
+    let d = std::env::temp_dir().join(format!(
+        "ortm-bench-accuracy-{}-{tag}-{k}",
+        std::process::id()
+    ));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d)
+        .with_context(|| format!("cannot create scratch folder '{}'", d.display()))?;
+    Ok(d)
+}
