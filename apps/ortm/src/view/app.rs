@@ -520,8 +520,19 @@ impl AppState {
         if matches!(self.source, Source::Reference | Source::Error)
             && !self.stats.reference_note.is_empty()
         {
+            let mut text = self.stats.reference_note.clone();
+            if let Some(e) = &self.stats.error {
+                text += &format!(
+                    "\nGPU lightmap vs reference, {} interior texels: relative RMSE total \
+                     {:.1} %, indirect {:.1} %, energy ratio {:.3}",
+                    e.interior,
+                    100.0 * e.total,
+                    100.0 * e.indirect,
+                    e.energy_ratio
+                );
+            }
             let galley = painter.layout(
-                self.stats.reference_note.clone(),
+                text,
                 font.clone(),
                 Color32::WHITE,
                 rect.width() - 16.0,
