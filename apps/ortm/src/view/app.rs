@@ -531,12 +531,7 @@ impl AppState {
                     e.energy_ratio
                 );
             }
-            let galley = painter.layout(
-                text,
-                font.clone(),
-                Color32::WHITE,
-                rect.width() - 16.0,
-            );
+            let galley = painter.layout(text, font.clone(), Color32::WHITE, rect.width() - 16.0);
             let at = rect.min + Vec2::new(8.0, 8.0);
             painter.rect_filled(
                 Rect::from_min_size(at, galley.size()).expand(4.0),

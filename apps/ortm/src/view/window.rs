@@ -605,6 +605,9 @@ impl Running {
                     Status::Computing(p) => {
                         *note = p.line();
                         self.app.stats.error = None;
+                        // The bake's lightmap is shown meanwhile: the next ready reference
+                        // redraws its view and its figures, even for lights seen before.
+                        self.cpu_key.clear();
                         return Ok(false);
                     }
                     Status::Failed(e) => e.to_string(),
@@ -613,6 +616,7 @@ impl Running {
         };
         *note = format!("reference unavailable: {failed}; showing the bake's lightmap");
         self.app.stats.error = None;
+        self.cpu_key.clear();
         if self.block_on_reference {
             anyhow::bail!("{failed}");
         }
