@@ -705,4 +705,31 @@ mod tests {
         assert!(e.contains("path-traced"), "{e}");
         assert_eq!(Solver::choose(Method::Auto, 10), Ok(Solver::Exact));
     }
+
+    #[test]
+    fn progress_gives_the_fraction_and_a_linear_eta() {
+        let job = Job {
+            key: String::new(),
+            cancel: Arc::new(AtomicBool::new(false)),
+            progress: Arc::new(JobProgress::new()),
+            started: Instant::now(),
+        };
+        let p = progress_of(&job);
+        assert_eq!(p.stage, Stage::Queued);
+        assert!(p.fraction.is_none() && p.eta.is_none());
+        job.progress.set_stage(Stage::Tracing);
+        job.progress.total.store(200, Ordering::Relaxed);
+        job.progress.done.store(86, Ordering::Relaxed);
+        // 43 % done after 10 s in the stage: 10 · 57 / 43 = 13.26 s left.
+        *job.progress.stage_started.lock().unwrap() = Instant::now() - Duration::from_secs(10);
+        let p = progress_of(&job);
+        assert_eq!(p.fraction, Some(0.43));
+        let eta = p.eta.unwrap().as_secs_f64();
+        assert!((eta - 10.0 * 57.0 / 43.0).abs() < 0.1, "{eta}");
+        let line = p.line();
+        assert!(
+            line.contains("computing 43 %") && line.contains("ETA 14 s"),
+            "{line}"
+        );
+    }
 }
