@@ -689,7 +689,8 @@ impl AppState {
         self.stats_grid(ui);
     }
 
-    /// View, number of maps, exposure, reference mode, debug view.
+    /// View, number of maps, exposure, shown source (bake, reference, error, CPU mirror),
+    /// debug view.
     fn view_controls(&mut self, ui: &mut egui::Ui) {
         ui.heading("View");
         ui.horizontal_wrapped(|ui| {
