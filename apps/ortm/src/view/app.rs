@@ -99,6 +99,37 @@ pub const SHORTCUTS: &[(&str, &str)] = &[
     ("wheel", "zoom"),
 ];
 
+/// The keys [`AppState::shortcuts`] reacts to.
+const SHORTCUT_KEYS: [Key; 27] = [
+    Key::H,
+    Key::F1,
+    Key::Num1,
+    Key::Num2,
+    Key::Num3,
+    Key::Num4,
+    Key::R,
+    Key::E,
+    Key::M,
+    Key::D,
+    Key::OpenBracket,
+    Key::CloseBracket,
+    Key::Plus,
+    Key::Equals,
+    Key::Minus,
+    Key::A,
+    Key::F,
+    Key::P,
+    Key::L,
+    Key::I,
+    Key::Delete,
+    Key::Tab,
+    Key::S,
+    Key::F12,
+    Key::O,
+    Key::Q,
+    Key::Escape,
+];
+
 /// Everything the user can change, and what the frame loop reports back.
 pub struct AppState {
     /// The lights (scene-file types: metres, W/sr, W/m²).
@@ -340,37 +371,9 @@ impl AppState {
             return;
         }
         let (pressed, ctrl) = ctx.input(|i| {
-            let keys = [
-                Key::H,
-                Key::F1,
-                Key::Num1,
-                Key::Num2,
-                Key::Num3,
-                Key::Num4,
-                Key::R,
-                Key::E,
-                Key::M,
-                Key::D,
-                Key::OpenBracket,
-                Key::CloseBracket,
-                Key::Plus,
-                Key::Equals,
-                Key::Minus,
-                Key::A,
-                Key::F,
-                Key::P,
-                Key::L,
-                Key::I,
-                Key::Delete,
-                Key::Tab,
-                Key::S,
-                Key::F12,
-                Key::O,
-                Key::Q,
-                Key::Escape,
-            ];
             (
-                keys.into_iter()
+                SHORTCUT_KEYS
+                    .into_iter()
                     .filter(|k| i.key_pressed(*k))
                     .collect::<Vec<_>>(),
                 i.modifiers.command || i.modifiers.ctrl,
