@@ -7,11 +7,13 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result, bail};
 use ortm::bake::texels::TexelGrid;
+use ortm::bake::transport::Effects;
 use ortm::render::{self, BakeAndScene, DEFAULT_ATLAS_SIDE};
 use ortm::scene::Light;
 
 use super::render::BakeArgs;
-use crate::view::app::{DebugView, ViewMode};
+use crate::view::app::{DebugView, Source, ViewMode};
+use crate::view::reference::{DEFAULT_SPP, Method};
 use crate::view::{RunOptions, SHADOW_LAYERS, ViewerInput, importance_order};
 
 /// Initial view (`--view`).
@@ -38,6 +40,17 @@ pub enum DebugArg {
     Density,
     /// One offset map's contribution (`--debug-map`).
     Map,
+}
+
+/// Which reference (`--reference-method`).
+#[derive(clap::ValueEnum, Clone, Copy, Debug)]
+pub enum MethodArg {
+    /// The exact dense solve where the covered texels fit, else path tracing.
+    Auto,
+    /// The exact dense solve (refused above its texel limit).
+    Exact,
+    /// The path-traced reference.
+    PathTraced,
 }
 
 /// Arguments of `ortm view`.
@@ -71,9 +84,26 @@ pub struct Args {
     /// Map shown by `--debug map`: its rank in importance order (0 = most important).
     #[arg(long, default_value_t = 0)]
     debug_map: usize,
-    /// Start in reference mode (CPU ray-traced first order + CPU transfer).
-    #[arg(long)]
+    /// Start showing the true reference for the lights (exact solve, or path-traced where
+    /// the exact solve does not fit), computed in the background.
+    #[arg(long, conflicts_with_all = ["error", "cpu_mirror"])]
     reference: bool,
+    /// Start in the error view: |GPU lightmap − reference| / RMS(reference), false colour.
+    #[arg(long, conflicts_with = "cpu_mirror")]
+    error: bool,
+    /// Start showing the CPU mirror of the bake (ray-cast first order + CPU transfer of the
+    /// same maps; a check of the GPU passes, not the truth).
+    #[arg(long)]
+    cpu_mirror: bool,
+    /// Which reference to compute.
+    #[arg(long, value_enum, default_value_t = MethodArg::Auto)]
+    reference_method: MethodArg,
+    /// Paths per texel of the path-traced reference.
+    #[arg(long, value_name = "SPP", default_value_t = DEFAULT_SPP)]
+    reference_spp: u32,
+    /// Relative error shown red in the error view (× the reference's RMS).
+    #[arg(long, value_name = "X", default_value_t = crate::view::app::DEFAULT_ERROR_SCALE)]
+    error_scale: f64,
     /// Number of transfer maps used at start (first K by importance; default all).
     #[arg(long, value_name = "K")]
     maps: Option<usize>,
@@ -100,6 +130,16 @@ pub fn run(a: Args) -> Result<()> {
     }
     let window_size = render::parse_size(&a.size)?;
     let exposure = render::parse_exposure(&a.exposure)?;
+    if a.reference_spp == 0 {
+        bail!("--reference-spp 0: give at least one path per texel");
+    }
+    if !(a.error_scale.is_finite() && a.error_scale > 0.0) {
+        bail!(
+            "--error-scale {}: give a positive number (e.g. 0.5: errors of half the reference's \
+             RMS show red)",
+            a.error_scale
+        );
+    }
     let input = load_input(&a)?;
     crate::view::run(
         input,
@@ -123,7 +163,22 @@ pub fn run(a: Args) -> Result<()> {
                 DebugArg::Map => DebugView::MapContribution,
             },
             debug_map: a.debug_map,
-            reference: a.reference,
+            source: if a.reference {
+                Source::Reference
+            } else if a.error {
+                Source::Error
+            } else if a.cpu_mirror {
+                Source::CpuMirror
+            } else {
+                Source::Bake
+            },
+            reference_spp: a.reference_spp,
+            reference_method: match a.reference_method {
+                MethodArg::Auto => Method::Auto,
+                MethodArg::Exact => Method::Exact,
+                MethodArg::PathTraced => Method::PathTraced,
+            },
+            error_scale: a.error_scale,
             maps: a.maps,
             window_screenshot: a.window_screenshot,
         },
@@ -153,6 +208,18 @@ fn load_input(a: &Args) -> Result<ViewerInput> {
     };
     let (atlases, _pieces) = render::transfer_inputs(&set, (w, h))?;
     let map_order = importance_order(&set, index.as_ref());
+    // The bake's effects, which the reference includes (all of them for a bake without index).
+    let recorded = index.as_ref().and_then(|ix| ix.settings.get("effects"));
+    let flag = |name: &str| {
+        recorded
+            .and_then(|e| e.get(name))
+            .and_then(|v| v.as_bool())
+            .unwrap_or(true)
+    };
+    let effects = Effects {
+        radiosity: flag("radiosity"),
+        subsurface: flag("subsurface"),
+    };
     Ok(ViewerInput {
         title: format!("{} — {}", scene.name, a.bake.dir.display()),
         scene,
@@ -163,6 +230,7 @@ fn load_input(a: &Args) -> Result<ViewerInput> {
         lights,
         shadow_size: a.shadow_size,
         note,
+        effects,
     })
 }
 

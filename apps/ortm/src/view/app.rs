@@ -25,6 +25,20 @@ pub enum ViewMode {
     SideBySide,
 }
 
+/// Where the shown lightmap comes from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Source {
+    /// The bake, relit on the GPU (the normal view).
+    Bake,
+    /// The CPU mirror of the bake: ray-cast first order + CPU Eq. 9 of the same maps (a check
+    /// of the GPU passes, not the truth).
+    CpuMirror,
+    /// The true reference for the current lights ([`super::reference`]).
+    Reference,
+    /// `|GPU lightmap − reference|` relative to the reference's RMS, false colour.
+    Error,
+}
+
 /// Debug view replacing the lightmap.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum DebugView {
@@ -38,6 +52,9 @@ pub enum DebugView {
     MapContribution,
 }
 
+/// Default relative error shown red in the error view.
+pub const DEFAULT_ERROR_SCALE: f64 = 0.5;
+
 /// Keyboard shortcuts, as listed in the help overlay.
 pub const SHORTCUTS: &[(&str, &str)] = &[
     ("H / F1", "show or hide this help"),
@@ -47,7 +64,15 @@ pub const SHORTCUTS: &[(&str, &str)] = &[
     ),
     (
         "R",
-        "reference mode: CPU ray-traced first order + CPU transfer apply",
+        "reference on/off: the truth for these lights (exact solve or path-traced)",
+    ),
+    (
+        "E",
+        "error view on/off: |lightmap − reference| / RMS(reference), false colour",
+    ),
+    (
+        "M",
+        "CPU mirror on/off: ray-traced first order + CPU transfer of the same maps",
     ),
     (
         "D",
@@ -74,6 +99,37 @@ pub const SHORTCUTS: &[(&str, &str)] = &[
     ("wheel", "zoom"),
 ];
 
+/// The keys [`AppState::shortcuts`] reacts to.
+const SHORTCUT_KEYS: [Key; 27] = [
+    Key::H,
+    Key::F1,
+    Key::Num1,
+    Key::Num2,
+    Key::Num3,
+    Key::Num4,
+    Key::R,
+    Key::E,
+    Key::M,
+    Key::D,
+    Key::OpenBracket,
+    Key::CloseBracket,
+    Key::Plus,
+    Key::Equals,
+    Key::Minus,
+    Key::A,
+    Key::F,
+    Key::P,
+    Key::L,
+    Key::I,
+    Key::Delete,
+    Key::Tab,
+    Key::S,
+    Key::F12,
+    Key::O,
+    Key::Q,
+    Key::Escape,
+];
+
 /// Everything the user can change, and what the frame loop reports back.
 pub struct AppState {
     /// The lights (scene-file types: metres, W/sr, W/m²).
@@ -88,8 +144,12 @@ pub struct AppState {
     pub mode: ViewMode,
     /// Debug view.
     pub debug: DebugView,
-    /// Reference mode (CPU result for the same lights and maps).
-    pub reference: bool,
+    /// Where the shown lightmap comes from (bake, CPU mirror, reference, error view).
+    pub source: Source,
+    /// Paths per texel of the path-traced reference.
+    pub reference_spp: u32,
+    /// Relative error shown red in the error view (blue is 0).
+    pub error_scale: f64,
     /// Map index shown by [`DebugView::MapContribution`] (position in importance order).
     pub debug_map: usize,
     /// Exposure (multiplies radiance `B/π` before tonemapping).
@@ -150,6 +210,29 @@ pub struct Stats {
     pub covered: usize,
     /// Extra line from the debug view (e.g. density range).
     pub debug_note: String,
+    /// The reference's state (computing, ready, failed); empty when not in use.
+    pub reference_note: String,
+    /// The viewer's lightmap against the reference, when the reference is ready.
+    pub error: Option<ErrorStats>,
+}
+
+/// The GPU's lightmap against the reference ([`ortm::accuracy::compare`]).
+#[derive(Clone, Debug)]
+pub struct ErrorStats {
+    /// Relative RMSE of the total over interior texels.
+    pub total: f64,
+    /// Relative RMSE of the indirect term over interior texels.
+    pub indirect: f64,
+    /// Power of the lightmap over the reference's (mean of RGB).
+    pub energy_ratio: f64,
+    /// Interior texels.
+    pub interior: usize,
+    /// Reference's RMS over interior texels of the map the error view shows, W/m².
+    pub rms_w_m2: f64,
+    /// What the error view shows (total, indirect, first order).
+    pub shown: &'static str,
+    /// The path-traced reference's own error (RMS standard error over RMS value, interior).
+    pub reference_noise: Option<f64>,
 }
 
 /// What a left drag in the 3D view is doing.
@@ -175,7 +258,9 @@ impl AppState {
             bounds,
             mode: ViewMode::Final,
             debug: DebugView::Off,
-            reference: false,
+            source: Source::Bake,
+            reference_spp: super::reference::DEFAULT_SPP,
+            error_scale: DEFAULT_ERROR_SCALE,
             debug_map: 0,
             exposure: 1.0,
             k: map_count,
@@ -286,35 +371,9 @@ impl AppState {
             return;
         }
         let (pressed, ctrl) = ctx.input(|i| {
-            let keys = [
-                Key::H,
-                Key::F1,
-                Key::Num1,
-                Key::Num2,
-                Key::Num3,
-                Key::Num4,
-                Key::R,
-                Key::D,
-                Key::OpenBracket,
-                Key::CloseBracket,
-                Key::Plus,
-                Key::Equals,
-                Key::Minus,
-                Key::A,
-                Key::F,
-                Key::P,
-                Key::L,
-                Key::I,
-                Key::Delete,
-                Key::Tab,
-                Key::S,
-                Key::F12,
-                Key::O,
-                Key::Q,
-                Key::Escape,
-            ];
             (
-                keys.into_iter()
+                SHORTCUT_KEYS
+                    .into_iter()
                     .filter(|k| i.key_pressed(*k))
                     .collect::<Vec<_>>(),
                 i.modifiers.command || i.modifiers.ctrl,
@@ -332,7 +391,9 @@ impl AppState {
                 (Key::Num2, _) => self.mode = ViewMode::Final,
                 (Key::Num3, _) => self.mode = ViewMode::Indirect,
                 (Key::Num4, _) => self.mode = ViewMode::SideBySide,
-                (Key::R, _) => self.reference = !self.reference,
+                (Key::R, _) => self.toggle(Source::Reference),
+                (Key::E, _) => self.toggle(Source::Error),
+                (Key::M, _) => self.toggle(Source::CpuMirror),
                 (Key::D, _) => {
                     self.debug = match self.debug {
                         DebugView::Off => DebugView::Coverage,
@@ -359,6 +420,11 @@ impl AppState {
             }
         }
         self.exposure = self.exposure.clamp(1e-6, 1e6);
+    }
+
+    /// Shows `s`, or the bake when `s` is already shown.
+    pub fn toggle(&mut self, s: Source) {
+        self.source = if self.source == s { Source::Bake } else { s };
     }
 
     /// Draws the whole UI for one frame; `image` is the 3D view's texture (last frame).
@@ -446,7 +512,77 @@ impl AppState {
             })
             .collect();
         self.draw_handles(&ui.painter_at(rect), &handles, sub);
+        self.overlay(&ui.painter_at(rect), rect);
         self.mouse(ui, &resp, &handles, sub);
+    }
+
+    /// The reference's state (top left) and, in the error view, the colour scale (bottom
+    /// left) over the 3D view.
+    fn overlay(&self, painter: &egui::Painter, rect: Rect) {
+        let font = egui::FontId::proportional(14.0);
+        if matches!(self.source, Source::Reference | Source::Error)
+            && !self.stats.reference_note.is_empty()
+        {
+            let mut text = self.stats.reference_note.clone();
+            if let Some(e) = &self.stats.error {
+                text += &format!(
+                    "\nGPU lightmap vs reference, {} interior texels: relative RMSE total \
+                     {:.1} %, indirect {:.1} %, energy ratio {:.3}",
+                    e.interior,
+                    100.0 * e.total,
+                    100.0 * e.indirect,
+                    e.energy_ratio
+                );
+            }
+            let galley = painter.layout(text, font.clone(), Color32::WHITE, rect.width() - 16.0);
+            let at = rect.min + Vec2::new(8.0, 8.0);
+            painter.rect_filled(
+                Rect::from_min_size(at, galley.size()).expand(4.0),
+                4.0,
+                Color32::from_black_alpha(160),
+            );
+            painter.galley(at, galley, Color32::WHITE);
+        }
+        if self.source == Source::Error
+            && let Some(e) = &self.stats.error
+        {
+            let (w, h) = (200.0, 14.0);
+            let at = Pos2::new(rect.min.x + 12.0, rect.max.y - 40.0);
+            painter.rect_filled(
+                Rect::from_min_size(at, Vec2::new(w, h + 20.0)).expand(4.0),
+                4.0,
+                Color32::from_black_alpha(160),
+            );
+            let steps = 50;
+            for i in 0..steps {
+                let c = super::debug::ramp((i as f32 + 0.5) / steps as f32);
+                let srgb = c.map(|v| (passes::cpu::display::srgb_encode(v) * 255.0) as u8);
+                let x0 = at.x + w * i as f32 / steps as f32;
+                painter.rect_filled(
+                    Rect::from_min_max(
+                        Pos2::new(x0, at.y),
+                        Pos2::new(x0 + w / steps as f32 + 0.5, at.y + h),
+                    ),
+                    0.0,
+                    Color32::from_rgb(srgb[0], srgb[1], srgb[2]),
+                );
+            }
+            let label = |x: f32, align, text: String| {
+                painter.text(
+                    Pos2::new(x, at.y + h + 2.0),
+                    align,
+                    text,
+                    egui::FontId::proportional(12.0),
+                    Color32::WHITE,
+                );
+            };
+            label(at.x, egui::Align2::LEFT_TOP, "0".into());
+            label(
+                at.x + w,
+                egui::Align2::RIGHT_TOP,
+                format!("{}: ≥ {:.3} × RMS", e.shown, self.error_scale),
+            );
+        }
     }
 
     /// Draws each light's handle (at its screen position in `handles`, `None` when off
@@ -556,7 +692,8 @@ impl AppState {
         self.stats_grid(ui);
     }
 
-    /// View, number of maps, exposure, reference mode, debug view.
+    /// View, number of maps, exposure, shown source (bake, reference, error, CPU mirror),
+    /// debug view.
     fn view_controls(&mut self, ui: &mut egui::Ui) {
         ui.heading("View");
         ui.horizontal_wrapped(|ui| {
@@ -581,10 +718,7 @@ impl AppState {
                 self.req.auto_exposure = true;
             }
         });
-        ui.checkbox(
-            &mut self.reference,
-            "reference (CPU: ray-traced first order + CPU transfer)",
-        );
+        self.source_controls(ui);
         egui::ComboBox::from_label("debug view")
             .selected_text(format!("{:?}", self.debug))
             .show_ui(ui, |ui| {
@@ -607,6 +741,29 @@ impl AppState {
             ui.add(
                 egui::Slider::new(&mut self.debug_map, 0..=self.map_count - 1)
                     .text("map (by importance)"),
+            );
+        }
+    }
+
+    /// Bake / reference / error view / CPU mirror, the reference's samples, the error scale.
+    fn source_controls(&mut self, ui: &mut egui::Ui) {
+        ui.horizontal_wrapped(|ui| {
+            ui.label("show");
+            ui.radio_value(&mut self.source, Source::Bake, "bake (GPU)");
+            ui.radio_value(&mut self.source, Source::Reference, "reference");
+            ui.radio_value(&mut self.source, Source::Error, "error");
+            ui.radio_value(&mut self.source, Source::CpuMirror, "CPU mirror");
+        });
+        ui.add(
+            egui::Slider::new(&mut self.reference_spp, 1..=4096)
+                .logarithmic(true)
+                .text("reference paths/texel (path tracer)"),
+        );
+        if self.source == Source::Error {
+            ui.add(
+                egui::Slider::new(&mut self.error_scale, 0.01..=4.0)
+                    .logarithmic(true)
+                    .text("error shown red (× RMS)"),
             );
         }
     }
@@ -692,6 +849,34 @@ impl AppState {
             row("adapter", s.adapter.clone());
             if !s.debug_note.is_empty() {
                 row("debug", s.debug_note.clone());
+            }
+            if !s.reference_note.is_empty() {
+                row("reference", s.reference_note.clone());
+            }
+            if let Some(e) = &s.error {
+                row(
+                    "rel. RMSE total",
+                    format!("{:.2} % ({} interior texels)", 100.0 * e.total, e.interior),
+                );
+                row("rel. RMSE indirect", format!("{:.2} %", 100.0 * e.indirect));
+                row("energy ratio", format!("{:.4}", e.energy_ratio));
+                if let Some(n) = e.reference_noise {
+                    row(
+                        "reference noise",
+                        format!("{:.2} % (std. error)", 100.0 * n),
+                    );
+                }
+                if self.source == Source::Error {
+                    row(
+                        "error scale",
+                        format!(
+                            "{}: blue 0 … red ≥ {:.3} × RMS = {:.4e} W/m²",
+                            e.shown,
+                            self.error_scale,
+                            self.error_scale * e.rms_w_m2
+                        ),
+                    );
+                }
             }
         });
     }

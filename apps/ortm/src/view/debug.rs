@@ -1,6 +1,7 @@
-//! CPU-made lightmaps for the viewer's debug and reference views: the covered-texel mask
-//! with chart borders, texel density, the contribution of one offset map, and the CPU
-//! reference of the first-order / final / indirect lightmaps for the viewer's lights.
+//! CPU-made lightmaps for the viewer's debug, CPU-mirror and error views: the covered-texel
+//! mask with chart borders, texel density, the contribution of one offset map, the CPU mirror
+//! of the first-order / final / indirect lightmaps for the viewer's lights, and the error of a
+//! lightmap against the reference ([`super::reference`]) in false colour.
 //!
 //! # How they are shown
 //! Each is a [`TexelImage`] (RGB W/m², alpha = coverage) that goes through the same dilation
@@ -9,12 +10,18 @@
 //! `B/π` × exposure, Reinhard, sRGB) turns into the wanted colour, so they look the same at
 //! any exposure.
 //!
-//! # The reference
-//! [`reference()`] computes the first order on the CPU with ray-cast shadows
+//! # The CPU mirror
+//! [`cpu_mirror()`] computes the first order on the CPU with ray-cast shadows
 //! ([`ortm::bake::lighting::first_order`], exact point-to-light visibility instead of shadow maps)
 //! and applies the *same* atlas pieces on the CPU ([`ortm::atlas::apply_atlas_pieces`], Eq. 9
 //! in f64): it shows what the GPU should display, up to shadow-map aliasing and float
-//! rounding.
+//! rounding — the bake's approximation, not the truth (a check of the GPU passes).
+//!
+//! # The error view
+//! [`error_values`]: per covered texel `|test − reference|` (RGB length) over the reference's
+//! RMS over interior texels, the definition of [`ortm::accuracy::compare`] (whose figures the
+//! stats print); [`error_view`] shows it on a blue → green → red ramp from 0 to a chosen
+//! scale (red: at or above the scale).
 
 use glam::Vec3;
 use ortm::atlas::{AtlasPiece, AtlasSet, apply_atlas_pieces};
@@ -148,30 +155,76 @@ pub fn difference(a: &Lightmap, b: &Lightmap) -> Lightmap {
     }
 }
 
-/// CPU reference lightmaps for `lights` with the maps for which `keep_map` is true.
+/// CPU mirror lightmaps for `lights` with the maps for which `keep_map` is true.
 #[derive(Clone, Debug)]
-pub struct Reference {
+pub struct CpuMirror {
     /// First order `B_o = ρ·E` with ray-cast shadows, W/m².
     pub first_order: Lightmap,
     /// `B_o + Σ transfer terms`, W/m².
     pub final_map: Lightmap,
 }
 
-/// Computes the [`Reference`] (see the module docs).
-pub fn reference(
+/// Computes the [`CpuMirror`] (see the module docs).
+pub fn cpu_mirror(
     grid: &TexelGrid,
     vis: &Visibility,
     set: &AtlasSet,
     lights: &[Light],
     keep_map: impl Fn(u32) -> bool,
-) -> Result<Reference, ortm::atlas::AtlasError> {
+) -> Result<CpuMirror, ortm::atlas::AtlasError> {
     let values: Vec<Vec3> = ortm::bake::lighting::first_order(grid, lights, vis);
     let first_order = ortm::bake::lighting::to_lightmap(grid, &values);
     let final_map = apply_atlas_pieces(set, |p| keep_map(p.map_index), &first_order)?;
-    Ok(Reference {
+    Ok(CpuMirror {
         first_order,
         final_map,
     })
+}
+
+/// Per covered texel (grid order) `|test − reference|` (RGB length) divided by the RMS of the
+/// reference's RGB length over interior texels ([`ortm::accuracy::compare::interior_mask`]),
+/// and that RMS (W/m²): the relative error of [`ortm::accuracy::compare`]'s worst texels, for
+/// every texel. Over interior texels, the RMS of these values is `compare`'s relative RMSE.
+pub fn error_values(grid: &TexelGrid, reference: &[Vec3], test: &[Vec3]) -> (Vec<f64>, f64) {
+    let mask = ortm::accuracy::compare::interior_mask(grid);
+    let (sum, n) = reference
+        .iter()
+        .zip(&mask)
+        .filter(|(_, m)| **m)
+        .fold((0.0f64, 0usize), |(s, n), (b, _)| {
+            (s + b.as_dvec3().length_squared(), n + 1)
+        });
+    let rms = (sum / n.max(1) as f64).sqrt();
+    let values = test
+        .iter()
+        .zip(reference)
+        .map(|(a, b)| (*a - *b).as_dvec3().length() / rms.max(1e-300))
+        .collect();
+    (values, rms)
+}
+
+/// The error values of [`error_values`] in false colour: [`ramp`] from 0 (blue) to `scale`
+/// (red; larger errors red too); uncovered texels transparent.
+pub fn error_view(grid: &TexelGrid, values: &[f64], scale: f64, exposure: f32) -> TexelImage {
+    let mut img = TexelImage::new(grid.width, grid.height);
+    for (t, v) in grid.texels.iter().zip(values) {
+        let c = ramp((v / scale.max(1e-12)) as f32);
+        let b = radiosity_for_colour(c, exposure);
+        img.rgba[(t.y * grid.width + t.x) as usize] = [b[0], b[1], b[2], 1.0];
+    }
+    img
+}
+
+/// Per covered texel (grid order) the RGB of a texel image (e.g. a lightmap read back from
+/// the GPU).
+pub fn texel_values(grid: &TexelGrid, img: &TexelImage) -> Vec<Vec3> {
+    grid.texels
+        .iter()
+        .map(|t| {
+            let p = img.rgba[(t.y * img.width + t.x) as usize];
+            Vec3::new(p[0], p[1], p[2])
+        })
+        .collect()
 }
 
 #[cfg(test)]
@@ -236,5 +289,68 @@ mod tests {
         let amax = areas.iter().copied().fold(0.0, f64::max);
         let amin = areas.iter().copied().fold(f64::INFINITY, f64::min);
         assert!((lo * amax - 1.0).abs() < 1e-9 && (hi * amin - 1.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn error_values_give_the_figures_of_compare() {
+        use ortm::accuracy::compare::{compare, interior_mask};
+        let scene = ortm::scene::cornell::cornell_box(24);
+        let grid = TexelGrid::build(&scene).unwrap();
+        // A reference varying over the map and a test off by a texel-dependent factor and a
+        // constant: every texel has its own error.
+        let reference: Vec<Vec3> = grid
+            .texels
+            .iter()
+            .map(|t| Vec3::new(1.0 + t.x as f32 * 0.1, 2.0 + t.y as f32 * 0.05, 0.5) * t.albedo)
+            .collect();
+        let test: Vec<Vec3> = reference
+            .iter()
+            .enumerate()
+            .map(|(i, b)| *b * (1.0 + 0.3 * ((i * 7919) % 13) as f32 / 13.0) + Vec3::splat(0.01))
+            .collect();
+        let c = compare(&grid, &reference, &test, None, 5);
+        let (values, rms) = error_values(&grid, &reference, &test);
+        let mask = interior_mask(&grid);
+        let n = mask.iter().filter(|m| **m).count();
+        let rms_err = (values
+            .iter()
+            .zip(&mask)
+            .filter(|(_, m)| **m)
+            .map(|(v, _)| v * v)
+            .sum::<f64>()
+            / n as f64)
+            .sqrt();
+        eprintln!(
+            "relative RMSE: compare {:.6}, error view {rms_err:.6}",
+            c.total
+        );
+        assert!(c.total > 0.05, "{}", c.total);
+        assert!(
+            (rms_err - c.total).abs() < 1e-9 * c.total,
+            "{rms_err} vs {}",
+            c.total
+        );
+        // The worst texels carry the same relative error as the view's texels.
+        for w in &c.worst {
+            let i = grid.at(w.x as i32, w.y as i32).unwrap() as usize;
+            assert!(
+                (values[i] - w.relative_error).abs() < 1e-9,
+                "{w:?} vs {}",
+                values[i]
+            );
+        }
+        assert!(rms > 0.0);
+        // The colours: a texel without error is blue, one at twice the scale red.
+        let mut v = vec![0.0; grid.texels.len()];
+        v[1] = 2.0;
+        let img = error_view(&grid, &v, 1.0, 1.0);
+        let px = |i: usize| {
+            let t = &grid.texels[i];
+            let p = img.rgba[(t.y * grid.width + t.x) as usize];
+            passes::cpu::display::shade([p[0], p[1], p[2]], 1.0)
+        };
+        let (blue, red) = (px(0), px(1));
+        assert!(blue[2] > 200 && blue[0] == 0 && blue[1] == 0, "{blue:?}");
+        assert!(red[0] > 200 && red[1] == 0 && red[2] == 0, "{red:?}");
     }
 }

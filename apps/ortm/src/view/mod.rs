@@ -1,13 +1,16 @@
 //! `ortm view`: the interactive viewer. A winit window with egui; the bake is relit every
 //! frame by the `passes` crate on the window's device while the user moves lights, changes
 //! the view (first order | final | indirect | side by side), the number of transfer maps,
-//! exposure, debug views and a CPU reference mode. See `docs/viewer.md` for the controls.
+//! exposure, debug views, the true reference for the lights on screen (exact solve or path
+//! traced, in the background), an error view against it, and a CPU mirror of the bake. See
+//! `docs/viewer.md` for the controls.
 //!
 //! # Files
 //! - [`camera`]: orbit camera, projection for light handles and dragging.
 //! - [`app`]: UI state, egui panels, shortcuts, mouse handling (no GPU calls).
 //! - [`frame`]: the GPU frame (passes + indirect subtraction + display into an image).
-//! - [`debug`]: CPU lightmaps for the debug views and the reference mode.
+//! - [`debug`]: CPU lightmaps for the debug views, the CPU mirror and the error view.
+//! - [`reference`]: the true reference, computed on a worker thread and cached per lighting.
 //! - [`window`]: winit/wgpu/egui plumbing, the frame loop, `--frames/--screenshot`.
 //!
 //! # Data flow
@@ -20,6 +23,7 @@ pub mod app;
 pub mod camera;
 pub mod debug;
 pub mod frame;
+pub mod reference;
 pub mod window;
 
 use std::path::PathBuf;
@@ -27,6 +31,7 @@ use std::path::PathBuf;
 use glam::Vec3;
 use ortm::atlas::AtlasSet;
 use ortm::bake::texels::TexelGrid;
+use ortm::bake::transport::Effects;
 use ortm::scene::{Light, Scene};
 use passes::{AtlasData, TransferPiece};
 
@@ -58,6 +63,8 @@ pub struct ViewerInput {
     pub shadow_size: u32,
     /// First status line (e.g. a warning).
     pub note: String,
+    /// The bake's effects (from its settings), which the reference includes.
+    pub effects: Effects,
 }
 
 /// Options of a viewer run.
@@ -81,8 +88,14 @@ pub struct RunOptions {
     pub debug: app::DebugView,
     /// Initial map of the one-map debug view (rank in importance order).
     pub debug_map: usize,
-    /// Start in reference mode.
-    pub reference: bool,
+    /// Initial source of the shown lightmap (bake, reference, error view, CPU mirror).
+    pub source: app::Source,
+    /// Paths per texel of the path-traced reference.
+    pub reference_spp: u32,
+    /// Which reference (exact solve, path tracer, or the exact one where it fits).
+    pub reference_method: reference::Method,
+    /// Relative error shown red in the error view.
+    pub error_scale: f64,
     /// Initial number of transfer maps (`None`: all).
     pub maps: Option<usize>,
     /// With `screenshot`: also write the whole window (UI included) here, when the surface

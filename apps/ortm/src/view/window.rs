@@ -1,7 +1,8 @@
 //! The window and frame loop of `ortm view`: winit window, wgpu surface on the same device
 //! as the passes, egui (egui-winit input, egui-wgpu painting), and per frame: UI → GPU frame
-//! (or CPU debug / reference lightmap) → egui → present. Also the `--frames N
-//! --screenshot out.png` batch mode.
+//! (or a CPU lightmap: debug views, CPU mirror, reference, error view) → egui → present. Also
+//! the `--frames N --screenshot out.png` batch mode, which waits for the reference before
+//! drawing when it shows the reference or the error view (so its pictures are reproducible).
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -15,9 +16,10 @@ use winit::event::WindowEvent;
 use winit::event_loop::{ActiveEventLoop, ControlFlow, EventLoop, OwnedDisplayHandle};
 use winit::window::{Window, WindowId};
 
-use super::app::{AppState, DebugView, ViewMode};
+use super::app::{AppState, DebugView, ErrorStats, Source, ViewMode};
 use super::debug;
 use super::frame::{Shown, ViewRenderer};
+use super::reference::{Method, RefMaps, ReferenceState, Status};
 use super::{RunOptions, ViewerInput};
 use ortm::bake::raycast::Visibility;
 
@@ -69,6 +71,13 @@ struct Running {
     app: AppState,
     data: ViewerInput,
     vis: Option<Visibility>,
+    /// The true reference (started the first time it is shown).
+    reference: Option<ReferenceState>,
+    /// Why the reference cannot be computed here (e.g. exact solve asked for, too large).
+    reference_refused: Option<String>,
+    reference_method: Method,
+    /// Batch mode: wait for the reference instead of showing the lightmap meanwhile.
+    block_on_reference: bool,
     cpu_key: String,
     last_pieces_k: usize,
     last_frame: Instant,
@@ -157,6 +166,7 @@ impl ApplicationHandler for Handler {
                     {
                         self.error = Some(e);
                     }
+                    st.print_reference_figures();
                     event_loop.exit();
                     return;
                 }
@@ -250,6 +260,10 @@ impl Running {
             app,
             data,
             vis: None,
+            reference: None,
+            reference_refused: None,
+            reference_method: opts.reference_method,
+            block_on_reference: opts.frames.is_some(),
             cpu_key: String::new(),
             last_frame: Instant::now(),
             minimised: false,
@@ -462,7 +476,8 @@ impl Running {
     }
 
     /// The frame's lightmap choice; computes and uploads CPU lightmaps when their inputs
-    /// changed.
+    /// changed. While the reference is not ready, the reference and error views show the
+    /// bake's lightmap (the stats and the 3D view say so).
     fn update_cpu_view(&mut self) -> Result<Shown> {
         let app = &self.app;
         let gpu_shown = match app.mode {
@@ -471,27 +486,55 @@ impl Running {
             ViewMode::Indirect => Shown::Indirect,
             ViewMode::SideBySide => Shown::SideBySide,
         };
-        if app.debug == DebugView::Off && !app.reference {
+        let wants_reference =
+            app.debug == DebugView::Off && matches!(app.source, Source::Reference | Source::Error);
+        let reference_ready = if wants_reference {
+            self.poll_reference()?
+        } else {
+            self.app.stats.reference_note.clear();
+            self.app.stats.error = None;
+            false
+        };
+        let app = &self.app;
+        if app.debug == DebugView::Off
+            && (app.source == Source::Bake || (wants_reference && !reference_ready))
+        {
             self.app.stats.debug_note.clear();
             return Ok(gpu_shown);
         }
-        // False colours depend on the exposure; the reference does not.
-        let exposure_key = if app.debug == DebugView::Off {
+        // False colours depend on the exposure; lightmaps do not.
+        let exposure_key = if app.debug == DebugView::Off && app.source != Source::Error {
             String::new()
         } else {
             app.exposure.to_string()
         };
         let key = format!(
-            "{:?} {} {:?} {} {} {:?} {exposure_key}",
-            app.debug, app.reference, app.mode, app.k, app.debug_map, app.lights
+            "{:?} {:?} {:?} {} {} {:?} {} {} {exposure_key}",
+            app.debug,
+            app.source,
+            app.mode,
+            app.k,
+            app.debug_map,
+            app.lights,
+            app.reference_spp,
+            app.error_scale
         );
         let dilate = app.debug != DebugView::Coverage;
         if key == self.cpu_key {
             return Ok(Shown::Cpu { dilate });
         }
-        let exposure = app.exposure;
         let t0 = Instant::now();
-        let (img, note): (TexelImage, String) = match app.debug {
+        let (img, note) = self.cpu_image()?;
+        self.view.set_cpu_lightmap(&img)?;
+        self.app.stats.debug_note = format!("{note} ({:.0} ms)", t0.elapsed().as_secs_f64() * 1e3);
+        self.cpu_key = key;
+        Ok(Shown::Cpu { dilate })
+    }
+
+    /// The CPU lightmap of the current debug view or source, and its stats note.
+    fn cpu_image(&mut self) -> Result<(TexelImage, String)> {
+        let exposure = self.app.exposure;
+        Ok(match self.app.debug {
             DebugView::Coverage => (
                 debug::coverage_view(&self.data.grid, exposure),
                 format!(
@@ -509,33 +552,166 @@ impl Running {
             ),
             DebugView::MapContribution => {
                 let last = self.data.map_order.len() - 1;
-                self.map_contribution_view(self.data.map_order[app.debug_map.min(last)])?
+                self.map_contribution_view(self.data.map_order[self.app.debug_map.min(last)])?
             }
-            DebugView::Off => {
-                let r = self.reference()?;
-                let map = match self.app.mode {
-                    ViewMode::FirstOrder => r.first_order,
-                    ViewMode::Indirect => debug::difference(&r.final_map, &r.first_order),
-                    ViewMode::Final | ViewMode::SideBySide => r.final_map,
-                };
-                (
-                    debug::with_coverage(&self.data.grid, &map),
-                    "reference: CPU ray-traced first order + CPU Eq. 9".into(),
-                )
-            }
-        };
-        self.view.set_cpu_lightmap(&img)?;
-        self.app.stats.debug_note = format!("{note} ({:.0} ms)", t0.elapsed().as_secs_f64() * 1e3);
-        self.cpu_key = key;
-        Ok(Shown::Cpu { dilate })
+            DebugView::Off => match self.app.source {
+                Source::CpuMirror | Source::Bake => {
+                    let r = self.cpu_mirror()?;
+                    let map = match self.app.mode {
+                        ViewMode::FirstOrder => r.first_order,
+                        ViewMode::Indirect => debug::difference(&r.final_map, &r.first_order),
+                        ViewMode::Final | ViewMode::SideBySide => r.final_map,
+                    };
+                    (
+                        debug::with_coverage(&self.data.grid, &map),
+                        "CPU mirror: ray-traced first order + CPU Eq. 9 of the bake's maps".into(),
+                    )
+                }
+                Source::Reference | Source::Error => self.reference_views()?,
+            },
+        })
     }
 
-    /// The one-map debug view of map `m` (its transfer term from the GPU's, or in
-    /// reference mode the CPU's, first order), scaled so its 95th percentile shows as the
+    /// Starts or polls the reference for the current lights (waits for it in batch mode);
+    /// updates the stats' note; true when it is ready.
+    fn poll_reference(&mut self) -> Result<bool> {
+        if self.reference.is_none() && self.reference_refused.is_none() {
+            match ReferenceState::new(
+                self.data.scene.clone(),
+                self.data.grid.clone(),
+                self.data.effects,
+                self.reference_method,
+            ) {
+                Ok(s) => self.reference = Some(s),
+                Err(e) => self.reference_refused = Some(e),
+            }
+        }
+        let note = &mut self.app.stats.reference_note;
+        let failed = match (&mut self.reference, &self.reference_refused) {
+            (_, Some(e)) => e.clone(),
+            (None, None) => "internal: no reference".into(),
+            (Some(st), None) => {
+                let (lights, spp) = (&self.app.lights, self.app.reference_spp);
+                let status = if self.block_on_reference {
+                    st.wait(lights, spp)
+                } else {
+                    st.request(lights, spp)
+                };
+                match status {
+                    Status::Ready(m) => {
+                        *note = m.line();
+                        return Ok(true);
+                    }
+                    Status::Computing(p) => {
+                        *note = p.line();
+                        self.app.stats.error = None;
+                        // The bake's lightmap is shown meanwhile: the next ready reference
+                        // redraws its view and its figures, even for lights seen before.
+                        self.cpu_key.clear();
+                        return Ok(false);
+                    }
+                    Status::Failed(e) => e.to_string(),
+                }
+            }
+        };
+        *note = format!("reference unavailable: {failed}; showing the bake's lightmap");
+        self.app.stats.error = None;
+        self.cpu_key.clear();
+        if self.block_on_reference {
+            anyhow::bail!("{failed}");
+        }
+        Ok(false)
+    }
+
+    /// The reference for the current lights, when it is cached.
+    fn cached_reference(&self) -> Option<&RefMaps> {
+        self.reference
+            .as_ref()?
+            .cached(&self.app.lights, self.app.reference_spp)
+    }
+
+    /// The reference or error view (the reference must be ready), and the error figures of
+    /// the GPU's lightmap (read back) against the reference in the stats.
+    fn reference_views(&mut self) -> Result<(TexelImage, String)> {
+        let grid = &self.data.grid;
+        let r = self
+            .cached_reference()
+            .context("internal: the reference is not ready")?;
+        let (fo, fin) = self.view.lightmaps(&self.light_descs())?;
+        let (test_fo, test_fin) = (
+            debug::texel_values(grid, &fo),
+            debug::texel_values(grid, &fin),
+        );
+        let c = ortm::accuracy::compare::compare(
+            grid,
+            &r.final_b,
+            &test_fin,
+            Some((&r.first_order, &test_fo)),
+            0,
+        );
+        let sub = |a: &[glam::Vec3], b: &[glam::Vec3]| -> Vec<glam::Vec3> {
+            a.iter().zip(b).map(|(x, y)| *x - *y).collect()
+        };
+        // The maps the view shows: the reference's, and the GPU's for the error.
+        let (shown, reference, test) = match self.app.mode {
+            ViewMode::FirstOrder => ("first order", r.first_order.clone(), test_fo),
+            ViewMode::Indirect => ("indirect", r.indirect(), sub(&test_fin, &test_fo)),
+            ViewMode::Final | ViewMode::SideBySide => ("total", r.final_b.clone(), test_fin),
+        };
+        let (values, rms) = debug::error_values(grid, &reference, &test);
+        let mask = ortm::accuracy::compare::interior_mask(grid);
+        let reference_noise = r.std_error.as_ref().map(|se| {
+            let zero = vec![glam::Vec3::ZERO; se.len()];
+            ortm::accuracy::compare::relative_rmse(se, &zero, Some(&mask))
+                / ortm::accuracy::compare::relative_rmse(&zero, &r.final_b, Some(&mask))
+        });
+        let e = c.energy_ratio;
+        let stats = ErrorStats {
+            total: c.total,
+            indirect: c.indirect.unwrap_or(f64::NAN),
+            energy_ratio: (e.x + e.y + e.z) / 3.0,
+            interior: c.interior,
+            rms_w_m2: rms,
+            shown,
+            reference_noise,
+        };
+        let out = if self.app.source == Source::Error {
+            (
+                debug::error_view(grid, &values, self.app.error_scale, self.app.exposure),
+                format!(
+                    "error of the GPU lightmap ({shown}), blue 0 … red ≥ {:.3} × RMS",
+                    self.app.error_scale
+                ),
+            )
+        } else {
+            let map = ortm::bake::lighting::to_lightmap(grid, &reference);
+            (
+                debug::with_coverage(grid, &map),
+                format!("reference ({shown}): {}", r.solver.name()),
+            )
+        };
+        self.app.stats.error = Some(stats);
+        Ok(out)
+    }
+
+    /// In batch mode: the reference and the error figures on stdout.
+    fn print_reference_figures(&self) {
+        if let Some(e) = &self.app.stats.error {
+            println!("{}", self.app.stats.reference_note);
+            println!(
+                "GPU lightmap vs reference, {} interior texels: relative RMSE total {:.4}, \
+                 indirect {:.4}, energy ratio {:.4}",
+                e.interior, e.total, e.indirect, e.energy_ratio
+            );
+        }
+    }
+
+    /// The one-map debug view of map `m` (its transfer term from the GPU's, or with the
+    /// CPU mirror the CPU's, first order), scaled so its 95th percentile shows as the
     /// automatic exposure would show it; and its status note.
     fn map_contribution_view(&mut self, m: u32) -> Result<(TexelImage, String)> {
-        let fo = if self.app.reference {
-            self.reference()?.first_order
+        let fo = if self.app.source == Source::CpuMirror {
+            self.cpu_mirror()?.first_order
         } else {
             let (fo, _) = self.view.lightmaps(&self.light_descs())?;
             debug::to_lightmap(&fo)
@@ -560,12 +736,12 @@ impl Running {
         ))
     }
 
-    fn reference(&mut self) -> Result<debug::Reference> {
+    fn cpu_mirror(&mut self) -> Result<debug::CpuMirror> {
         let vis = self
             .vis
             .get_or_insert_with(|| Visibility::new(&self.data.scene.mesh));
         let keep = self.data.first_maps(self.app.k);
-        Ok(debug::reference(
+        Ok(debug::cpu_mirror(
             &self.data.grid,
             vis,
             &self.data.set,
@@ -718,7 +894,9 @@ fn initial_state(data: &ViewerInput, view: &ViewRenderer, opts: &RunOptions) -> 
     }
     app.mode = opts.mode;
     app.debug = opts.debug;
-    app.reference = opts.reference;
+    app.source = opts.source;
+    app.reference_spp = opts.reference_spp.max(1);
+    app.error_scale = opts.error_scale;
     app.debug_map = opts.debug_map.min(app.map_count.saturating_sub(1));
     if let Some(k) = opts.maps {
         app.k = k.min(app.map_count);
