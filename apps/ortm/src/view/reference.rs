@@ -4,8 +4,9 @@
 //! # Which reference
 //! - **Exact dense solve** where the covered texels fit
 //!   ([`ortm::bake::transport::dense::MAX_TEXELS`]): the transport system over every covered
-//!   texel is assembled once ([`DenseTransport::new`], seconds: `n(n−1)/2` visibility rays),
-//!   then each lighting is one [`DenseTransport::solve`] of the ray-cast first order
+//!   texel is assembled and factorised once ([`DenseTransport::new`], `n(n−1)/2` visibility
+//!   rays, and [`DenseTransport::factor`], `O(n³)`: seconds), then each lighting is one
+//!   [`FactoredTransport::solve`] (`O(n²)`) of the ray-cast first order
 //!   ([`ortm::bake::lighting::first_order`]).
 //! - **Path-traced reference** otherwise ([`ortm::accuracy::reference::trace`], `spp` paths per
 //!   texel, seed [`REFERENCE_SEED`]): progress (fraction, ETA) is shown, and a lighting change
@@ -32,7 +33,7 @@ use ortm::accuracy::reference::{ReferenceError, Settings, trace};
 use ortm::bake::lighting;
 use ortm::bake::raycast::Visibility;
 use ortm::bake::texels::TexelGrid;
-use ortm::bake::transport::dense::{DenseTransport, MAX_TEXELS};
+use ortm::bake::transport::dense::{DenseTransport, FactoredTransport, MAX_TEXELS};
 use ortm::bake::transport::{Effects, Kernels, texel_patches};
 use ortm::scene::{Light, Scene};
 
@@ -464,7 +465,7 @@ struct Worker {
     effects: Effects,
     solver: Solver,
     vis: Option<Arc<Visibility>>,
-    dense: Option<DenseTransport>,
+    dense: Option<FactoredTransport>,
 }
 
 impl Worker {
@@ -530,7 +531,7 @@ impl Worker {
         if self.dense.is_none() {
             req.progress.set_stage(Stage::Assembling);
             let kernels = Kernels::new(&self.scene, self.effects, Arc::clone(&vis));
-            self.dense = Some(DenseTransport::new(&texel_patches(&self.grid), &kernels));
+            self.dense = Some(DenseTransport::new(&texel_patches(&self.grid), &kernels).factor());
         }
         req.progress.set_stage(Stage::Solving);
         let first_order = lighting::first_order(&self.grid, &req.lights, &vis);

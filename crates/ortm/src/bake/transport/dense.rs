@@ -8,7 +8,7 @@
 //! doubles per matrix (n = 4,000 → 128 MB each); time `O(n³)`.
 
 use faer::Mat;
-use faer::linalg::solvers::Solve;
+use faer::linalg::solvers::{PartialPivLu, Solve};
 use glam::Vec3;
 use rayon::prelude::*;
 
@@ -133,20 +133,27 @@ impl DenseTransport {
     }
 
     /// Exact final radiosity `B` (W/m²) for the first-order radiosity `b_o` (W/m², one per patch).
+    /// Factorises the system on every call; for many lightings one after another (the viewer)
+    /// keep a [`DenseTransport::factor`].
     pub fn solve(&self, b_o: &[Vec3]) -> Vec<Vec3> {
-        assert_eq!(b_o.len(), self.n, "one first-order value per patch");
-        let mut out = vec![Vec3::ZERO; self.n];
-        for ch in 0..3 {
+        self.factor().solve(b_o)
+    }
+
+    /// The LU factorisation of the system per channel, `O(n³)` once; each
+    /// [`FactoredTransport::solve`] after it is `O(n²)`.
+    pub fn factor(&self) -> FactoredTransport {
+        let channels = std::array::from_fn(|ch| {
             let x = self.exitance(ch);
-            let m = self.system(&x);
-            let e = Mat::from_fn(self.n, 1, |j, _| b_o[j][ch] as f64 * self.inv_rho(j, ch));
-            let rhs = &x * &e;
-            let b = m.partial_piv_lu().solve(&rhs);
-            for i in 0..self.n {
-                out[i][ch] = b[(i, 0)] as f32;
-            }
+            let lu = self.system(&x).partial_piv_lu();
+            (x, lu)
+        });
+        FactoredTransport {
+            n: self.n,
+            inv_rho: (0..self.n)
+                .map(|j| std::array::from_fn(|ch| self.inv_rho(j, ch)))
+                .collect(),
+            channels,
         }
-        out
     }
 
     /// Exact final radiosity for several first-order lightings at once (one LU per channel).
@@ -196,5 +203,91 @@ impl DenseTransport {
         (0..self.n)
             .map(|i| (0..self.n).map(|j| self.form_factors[(i, j)]).sum())
             .collect()
+    }
+}
+
+/// The transport system of a [`DenseTransport`] factorised once ([`DenseTransport::factor`]):
+/// solves for any first-order lighting in `O(n²)`.
+pub struct FactoredTransport {
+    n: usize,
+    inv_rho: Vec<[f64; 3]>,
+    channels: [(Mat<f64>, PartialPivLu<f64>); 3],
+}
+
+impl FactoredTransport {
+    /// Exact final radiosity `B` (W/m²) for the first-order radiosity `b_o` (W/m², one per
+    /// patch), as [`DenseTransport::solve`].
+    pub fn solve(&self, b_o: &[Vec3]) -> Vec<Vec3> {
+        assert_eq!(b_o.len(), self.n, "one first-order value per patch");
+        let mut out = vec![Vec3::ZERO; self.n];
+        for (ch, (x, lu)) in self.channels.iter().enumerate() {
+            let e = Mat::from_fn(self.n, 1, |j, _| b_o[j][ch] as f64 * self.inv_rho[j][ch]);
+            let rhs = x * &e;
+            let b = lu.solve(&rhs);
+            for (i, o) in out.iter_mut().enumerate() {
+                o[ch] = b[(i, 0)] as f32;
+            }
+        }
+        out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::sync::Arc;
+
+    use super::*;
+    use crate::bake::raycast::Visibility;
+    use crate::bake::transport::Effects;
+
+    /// Two facing squares: the factorised solve equals the 2×2 closed form
+    /// `B = (I − ρF)⁻¹ B_o` and the multi-lighting solve, for several lightings.
+    #[test]
+    fn factored_solve_matches_the_closed_form_of_two_facing_patches() {
+        let patch = |z: f32, n: Vec3, rho: Vec3| Patch {
+            position_m: Vec3::new(0.0, 0.0, z),
+            normal: n,
+            lift_normal: n,
+            area_m2: 0.04,
+            rho,
+            material: 0,
+            subsurface_scale: Vec3::ONE,
+        };
+        let patches = [
+            patch(0.0, Vec3::Z, Vec3::new(0.8, 0.5, 0.2)),
+            patch(0.3, -Vec3::Z, Vec3::new(0.6, 0.7, 0.9)),
+        ];
+        let kernels = Kernels::from_parts(
+            Effects::default(),
+            vec![None],
+            Arc::new(Visibility::from_triangles(Vec::new())),
+        );
+        let dense = DenseTransport::new(&patches, &kernels);
+        let (f01, f10) = (dense.form_factors[(0, 1)], dense.form_factors[(1, 0)]);
+        assert!(
+            f01 > 0.05 && f10 > 0.05,
+            "the squares see each other: {f01} {f10}"
+        );
+        let factored = dense.factor();
+        let lightings = vec![
+            vec![Vec3::new(1.0, 2.0, 3.0), Vec3::ZERO],
+            vec![Vec3::ZERO, Vec3::new(0.5, 0.25, 4.0)],
+            vec![Vec3::ONE, Vec3::ONE],
+        ];
+        let many = dense.solve_many(&lightings);
+        for (b_o, b_many) in lightings.iter().zip(&many) {
+            let b = factored.solve(b_o);
+            for ch in 0..3 {
+                let (r0, r1) = (patches[0].rho[ch] as f64, patches[1].rho[ch] as f64);
+                let (a, c) = (r0 * f01, r1 * f10);
+                let det = 1.0 - a * c;
+                let (o0, o1) = (b_o[0][ch] as f64, b_o[1][ch] as f64);
+                let want = [(o0 + a * o1) / det, (o1 + c * o0) / det];
+                for i in 0..2 {
+                    assert!((b[i][ch] as f64 - want[i]).abs() <= 1e-6 * want[i].max(1.0));
+                    assert!((b[i][ch] - b_many[i][ch]).abs() <= 1e-6 * b_many[i][ch].max(1.0));
+                }
+            }
+        }
     }
 }
