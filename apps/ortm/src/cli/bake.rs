@@ -14,7 +14,7 @@ use ortm::bake::{BakeEvent, BakeSettings, CellRule, Selector, bake};
 /// Arguments of `ortm bake`.
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// Scene file (TOML) or built-in scene name (`cornell`).
+    /// Scene file (TOML) or built-in scene name (`cornell`, `maze`, `head`).
     #[arg(default_value = "cornell")]
     pub scene: String,
     /// Output bake directory.

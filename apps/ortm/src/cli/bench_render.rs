@@ -81,7 +81,7 @@ pub struct Args {
     /// Bench this bake directory instead of synthetic maps (repeatable).
     #[arg(long = "bake")]
     bakes: Vec<PathBuf>,
-    /// Scene: `head` (built in), `cornell` or a scene file; for --bake, the scene recorded
+    /// Scene: `head` (built in), `cornell`, `maze` or a scene file; for --bake, the scene recorded
     /// in the bake's settings takes precedence.
     #[arg(long, default_value = "head")]
     scene: String,

@@ -8,7 +8,7 @@ use ortm::bake::texels::TexelGrid;
 /// Arguments of `ortm inspect`.
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// Scene file (TOML) or built-in scene name (`cornell`).
+    /// Scene file (TOML) or built-in scene name (`cornell`, `maze`, `head`).
     scene: String,
     /// Lightmap size (square), overriding the scene's.
     #[arg(long)]

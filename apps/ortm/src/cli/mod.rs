@@ -94,7 +94,7 @@ pub fn run(cli: Cli) -> Result<()> {
     }
 }
 
-/// Loads a scene argument: the name of a built-in scene (`cornell`, `head`,
+/// Loads a scene argument: the name of a built-in scene (`cornell`, `maze`, `head`,
 /// `head-exponential`) or a scene-file path.
 /// `size` overrides the lightmap size (square).
 pub fn load_scene(arg: &str, size: Option<u32>) -> Result<Scene> {
@@ -107,6 +107,15 @@ pub fn load_scene(arg: &str, size: Option<u32>) -> Result<Scene> {
                 );
             }
             ortm::scene::cornell::cornell_box(size.unwrap_or(64))
+        }
+        "maze" => {
+            let min = ortm::scene::maze::MIN_LIGHTMAP_SIZE;
+            if size.is_some_and(|s| s < min) {
+                anyhow::bail!(
+                    "the built-in maze scene needs --size {min} or more (its charts have 2-texel gutters)"
+                );
+            }
+            ortm::scene::maze::maze(size.unwrap_or(ortm::scene::maze::DEFAULT_LIGHTMAP_SIZE))
         }
         "head" => head_scene()?,
         "head-exponential" => ortm::scene::head::head_scene_with(faces::Falloff::Exponential)

@@ -48,7 +48,7 @@ pub struct BakeArgs {
     /// Bake directory (with index.json from `ortm bake`, and atlases.json from `ortm bin` if
     /// binned; otherwise the maps are packed in memory).
     pub dir: PathBuf,
-    /// Scene the bake was made from: `cornell` or a scene file. Default: the `scene` recorded
+    /// Scene the bake was made from: `cornell`, `maze` or a scene file. Default: the `scene` recorded
     /// in the bake's settings, if any.
     #[arg(long)]
     pub scene: Option<String>,

@@ -4,17 +4,19 @@
 //! has already been applied), radiant intensity in W/sr, irradiance in W/m².
 //!
 //! Scenes come from a TOML scene file ([`file`](mod@file), format in `docs/scene-format.md`) or are
-//! built in code ([`cornell`]). Meshes are read from OBJ by [`obj`], which validates them.
+//! built in code ([`cornell`], [`maze`]; their charts by [`charts`]). Meshes are read from OBJ by [`obj`], which validates them.
 //! Lights and their one text form (`--light`) live in [`light`].
 //! Named subsurface coefficient sets live in [`presets`], the profile they define in
 //! [`subsurface`]; all loading errors are
 //! [`SceneError`]s (file, problem, fix).
 
+pub mod charts;
 pub mod cornell;
 mod error;
 pub mod file;
 pub mod head;
 pub mod light;
+pub mod maze;
 pub mod obj;
 pub mod presets;
 pub mod subsurface;
@@ -30,6 +32,7 @@ pub use cornell::cornell_box;
 pub use error::{AtLine, SceneError};
 pub use file::{load_scene, load_scene_with_warnings};
 pub use light::Light;
+pub use maze::maze;
 pub use obj::load_obj;
 pub use presets::subsurface_preset;
 
