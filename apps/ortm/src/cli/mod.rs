@@ -9,6 +9,7 @@ mod bench;
 mod bench_accuracy;
 mod bench_render;
 mod bin;
+mod compare;
 mod demo;
 mod inspect;
 mod render;
@@ -42,8 +43,12 @@ enum Command {
     Bin(bin::Args),
     /// Benchmarks printed as tables: `transport`, `bake`, `render`, `accuracy`.
     Bench(BenchArgs),
-    /// Exact dense solve (small lightmaps): first-order, final and indirect lightmaps as PNG.
+    /// Exact dense solve (small lightmaps): first-order, final and indirect lightmaps as
+    /// OpenEXR and PNG.
     Solve(solve::Args),
+    /// How far a lightmap is from a reference (OpenEXRs): relative RMSE of total and indirect,
+    /// energy ratio, worst texels, false-colour error PNG.
+    Compare(compare::Args),
     /// Relight a bake on the GPU: frame PNG, final and first-order lightmaps (OpenEXR).
     Render(render::Args),
     /// Interactive viewer: move lights and watch the relit bake (egui window).
@@ -75,6 +80,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Demo(a) => demo::run(a),
         Command::Inspect(a) => inspect::run(a),
         Command::Solve(a) => solve::run(a),
+        Command::Compare(a) => compare::run(a),
         Command::Bake(a) => bake::run(a),
         Command::Bench(BenchArgs {
             sub: Some(BenchCommand::Render(a)),

@@ -1,5 +1,7 @@
 //! `ortm solve SCENE -o DIR`: the exact dense solve `B = B_o + R·B_o` of a small lightmap with
-//! the scene's lights; writes first-order, final and indirect PNGs and prints energy figures.
+//! the scene's lights (or `--light` ones, as `ortm render` takes them); writes the first-order,
+//! final and indirect lightmaps as linear OpenEXR (W/m², the inputs of `ortm compare`) and as
+//! tone-mapped PNGs, and prints energy figures.
 
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -12,13 +14,15 @@ use ortm::bake::report::{lightmap_image, percentile_99, save_png};
 use ortm::bake::texels::TexelGrid;
 use ortm::bake::transport::dense::DenseTransport;
 use ortm::bake::transport::{Effects, Kernels, texel_patches};
+use ortm::render::lightmap_exr::write_lightmap_exr;
+use ortm::scene::light::{LIGHT_SYNTAX, parse_light};
 
 use ortm::bake::transport::dense::MAX_TEXELS as MAX_DENSE_TEXELS;
 
 /// Arguments of `ortm solve`.
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// Scene file (TOML) or built-in scene name (`cornell`).
+    /// Scene file (TOML) or built-in scene name (`cornell`, `maze`, `head`).
     #[arg(default_value = "cornell")]
     scene: String,
     /// Lightmap size (square), overriding the scene's.
@@ -27,11 +31,21 @@ pub struct Args {
     /// Output folder.
     #[arg(short, long, default_value = "out")]
     output: PathBuf,
+    /// A light replacing the scene's lights (repeatable).
+    #[arg(long = "light", value_name = "SPEC", help = format!("A light replacing the scene's lights (repeatable): {LIGHT_SYNTAX}"))]
+    lights: Vec<String>,
 }
 
 /// Runs `ortm solve`.
 pub fn run(a: Args) -> Result<()> {
-    let scene = super::load_scene(&a.scene, a.size)?;
+    let mut scene = super::load_scene(&a.scene, a.size)?;
+    if !a.lights.is_empty() {
+        scene.lights = a
+            .lights
+            .iter()
+            .map(|l| parse_light(l))
+            .collect::<Result<_, _>>()?;
+    }
     let grid = TexelGrid::build(&scene)
         .with_context(|| format!("rasterizing the lightmap UVs of '{}'", a.scene))?;
     if grid.texels.len() > MAX_DENSE_TEXELS {
@@ -55,6 +69,13 @@ pub fn run(a: Args) -> Result<()> {
     let fin = lighting::to_lightmap(&grid, &b);
     let indirect: Vec<_> = b.iter().zip(&b_o).map(|(x, y)| *x - *y).collect();
     let ind = lighting::to_lightmap(&grid, &indirect);
+    for (map, name) in [
+        (&first, "first_order.exr"),
+        (&fin, "final.exr"),
+        (&ind, "indirect.exr"),
+    ] {
+        write_lightmap_exr(&a.output.join(name), map)?;
+    }
     let white = percentile_99(&fin);
     save_png(
         &lightmap_image(&first, white),
@@ -85,7 +106,7 @@ pub fn run(a: Args) -> Result<()> {
         power(&b).to_array()
     );
     println!(
-        "wrote {}/first_order.png, final.png, indirect.png",
+        "wrote {0}/first_order.exr, final.exr, indirect.exr (linear W/m²) and {0}/first_order.png, final.png, indirect.png",
         a.output.display()
     );
     Ok(())

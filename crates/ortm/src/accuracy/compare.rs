@@ -7,10 +7,15 @@
 //! Values are per covered texel of a [`TexelGrid`] (grid order), radiosity in W/m², RGB.
 //! Relative RMSE is `sqrt(Σ|a − b|²) / sqrt(Σ|b|²)` over the interior texels and the three
 //! channels (`b` the reference).
+//!
+//! [`error_image`] draws the per-texel error `|test − reference|` (RGB length) over a stated
+//! scale as a false-colour picture (viridis ramp, uncovered texels grey, a colour bar under the
+//! map); `ortm compare` writes it with the reference's RMS over interior texels as the scale.
 
 use glam::{DVec3, Vec3};
+use image::{Rgb, RgbImage};
 
-use crate::bake::texels::TexelGrid;
+use crate::bake::texels::{NO_TEXEL, TexelGrid};
 
 /// Per covered texel of `grid`: true when its four neighbours (±x, ±y) are covered.
 pub fn interior_mask(grid: &TexelGrid) -> Vec<bool> {
@@ -84,13 +89,37 @@ pub struct Comparison {
     pub indirect: Option<f64>,
     /// Power of the test over the reference's, per channel, over every covered texel.
     pub energy_ratio: DVec3,
+    /// Root mean square of the reference's RGB length over interior texels, W/m²: the unit of
+    /// [`WorstTexel::relative_error`] (see [`reference_rms`]).
+    pub reference_rms: f64,
     /// Interior texels with the largest errors, largest first.
     pub worst: Vec<WorstTexel>,
+}
+
+/// Root mean square of `|b|` (RGB length, W/m²) over the texels where `mask` is true; 0 when
+/// there are none.
+pub fn reference_rms(reference: &[Vec3], mask: &[bool]) -> f64 {
+    let (sum, count) = reference
+        .iter()
+        .zip(mask)
+        .filter(|(_, m)| **m)
+        .fold((0.0f64, 0usize), |(s, c), (b, _)| {
+            (s + b.as_dvec3().length_squared(), c + 1)
+        });
+    if count == 0 {
+        0.0
+    } else {
+        (sum / count as f64).sqrt()
+    }
 }
 
 /// Compares `test` with `reference` (final lightmaps, per covered texel of `grid`); with
 /// `first = Some((reference_first, test_first))` also the indirect terms. `worst` is how many of
 /// the worst texels to list.
+///
+/// # Panics
+/// When a slice's length is not the grid's texel count (a caller's bug: gather the values with
+/// [`crate::bake::lighting::from_lightmap`] on the same grid).
 pub fn compare(
     grid: &TexelGrid,
     reference: &[Vec3],
@@ -104,6 +133,8 @@ pub fn compare(
     let interior = mask.iter().filter(|&&m| m).count();
     let total = relative_rmse(test, reference, Some(&mask));
     let indirect = first.map(|(rf, tf)| {
+        assert_eq!(rf.len(), grid.texels.len(), "reference first-order length");
+        assert_eq!(tf.len(), grid.texels.len(), "test first-order length");
         let sub =
             |a: &[Vec3], b: &[Vec3]| a.iter().zip(b).map(|(x, y)| *x - *y).collect::<Vec<_>>();
         relative_rmse(&sub(test, tf), &sub(reference, rf), Some(&mask))
@@ -121,15 +152,7 @@ pub fn compare(
         ratio(p_test.y, p_ref.y),
         ratio(p_test.z, p_ref.z),
     );
-    let rms = {
-        let s: f64 = reference
-            .iter()
-            .zip(&mask)
-            .filter(|(_, m)| **m)
-            .map(|(b, _)| b.as_dvec3().length_squared())
-            .sum();
-        (s / interior.max(1) as f64).sqrt()
-    };
+    let rms = reference_rms(reference, &mask);
     let mut ranked: Vec<WorstTexel> = grid
         .texels
         .iter()
@@ -151,6 +174,75 @@ pub fn compare(
         total,
         indirect,
         energy_ratio,
+        reference_rms: rms,
         worst: ranked,
     }
+}
+
+/// Viridis (perceptually uniform, readable in grey and by colour-blind viewers) at t = 0, 1/8,
+/// …, 1, sRGB 8-bit.
+const VIRIDIS: [[u8; 3]; 9] = [
+    [68, 1, 84],
+    [71, 45, 123],
+    [59, 82, 139],
+    [44, 114, 142],
+    [33, 145, 140],
+    [40, 174, 128],
+    [94, 201, 98],
+    [170, 220, 50],
+    [253, 231, 37],
+];
+
+/// Colour of uncovered texels in [`error_image`].
+pub const UNCOVERED_GREY: Rgb<u8> = Rgb([128, 128, 128]);
+
+/// The viridis ramp at `t`, clamped to `[0, 1]` (NaN → 1, the alarming end).
+pub fn viridis(t: f64) -> Rgb<u8> {
+    let t = if t.is_nan() { 1.0 } else { t.clamp(0.0, 1.0) };
+    let x = t * (VIRIDIS.len() - 1) as f64;
+    let i = (x.floor() as usize).min(VIRIDIS.len() - 2);
+    let f = x - i as f64;
+    let (a, b) = (VIRIDIS[i], VIRIDIS[i + 1]);
+    Rgb(std::array::from_fn(|c| {
+        (a[c] as f64 + f * (b[c] as f64 - a[c] as f64)).round() as u8
+    }))
+}
+
+/// Side the error picture's map is enlarged towards (whole pixels per texel), pixels.
+const ERROR_IMAGE_PX: u32 = 512;
+
+/// The false-colour error picture of `test` against `reference` (per covered texel of `grid`):
+/// texel `(x, y)` shows `|test − reference|` (RGB length, W/m²) over `scale_w_m2` on the
+/// [`viridis`] ramp — dark purple 0, yellow `scale_w_m2` and above; uncovered texels are
+/// [`UNCOVERED_GREY`]. Each texel is a square of `max(1, 512 / side)` pixels, and a colour bar
+/// (0 on the left to `scale_w_m2` on the right) runs under the map, one grey row apart.
+///
+/// # Panics
+/// When a slice's length is not the grid's texel count.
+pub fn error_image(
+    grid: &TexelGrid,
+    reference: &[Vec3],
+    test: &[Vec3],
+    scale_w_m2: f64,
+) -> RgbImage {
+    assert_eq!(reference.len(), grid.texels.len(), "reference length");
+    assert_eq!(test.len(), grid.texels.len(), "test length");
+    let k = (ERROR_IMAGE_PX / grid.width.max(grid.height).max(1)).max(1);
+    let (w, h) = (grid.width * k, grid.height * k);
+    let bar = (h / 16).max(4);
+    let scale = if scale_w_m2 > 0.0 { scale_w_m2 } else { 1.0 };
+    RgbImage::from_fn(w, h + k + bar, |px, py| {
+        if py >= h + k {
+            return viridis(px as f64 / (w - 1).max(1) as f64);
+        }
+        if py >= h {
+            return UNCOVERED_GREY;
+        }
+        let s = grid.slot[((py / k) * grid.width + px / k) as usize];
+        if s == NO_TEXEL {
+            return UNCOVERED_GREY;
+        }
+        let i = s as usize;
+        viridis((test[i] - reference[i]).as_dvec3().length() / scale)
+    })
 }

@@ -1,0 +1,445 @@
+//! `ortm compare` and the library's accuracy figures (`ortm::accuracy::compare`) on known
+//! images with known figures: a 10 % scale on interior texels is a relative RMSE of exactly
+//! 0.1, errors on border texels only count for nothing, the indirect figure with both first
+//! orders, per-channel energy ratios, the interior mask of the Cornell charts, the worst texels
+//! and the false-colour picture; then the tool end to end on OpenEXRs written here (its printed
+//! figures are the library's), `ortm solve`'s OpenEXRs, and bad inputs (sizes, missing files,
+//! non-EXR files, non-finite values) refused with the file named.
+
+mod common;
+
+use std::collections::HashMap;
+use std::path::Path;
+
+use common::{fails, ok, ortm};
+use glam::{DVec3, Vec3};
+use ortm::Lightmap;
+use ortm::accuracy::compare::{
+    UNCOVERED_GREY, compare, error_image, interior_mask, power_w, reference_rms, viridis,
+};
+use ortm::bake::lighting::{from_lightmap, to_lightmap};
+use ortm::bake::texels::TexelGrid;
+use ortm::render::lightmap_exr::{read_lightmap_exr, write_lightmap_exr};
+use ortm::scene::cornell_box;
+
+/// The Cornell box's texels at `size`².
+fn cornell_grid(size: u32) -> TexelGrid {
+    TexelGrid::build(&cornell_box(size)).unwrap()
+}
+
+/// A smooth, positive, colourful reference value per texel (W/m²).
+fn reference_values(grid: &TexelGrid) -> Vec<Vec3> {
+    grid.texels
+        .iter()
+        .map(|t| {
+            let p = t.position_m;
+            Vec3::new(1.0 + 3.0 * p.x, 2.0 + p.y * p.y, 0.5 + 2.0 * p.z)
+        })
+        .collect()
+}
+
+/// Relative closeness.
+fn close(a: f64, b: f64, tol: f64) -> bool {
+    (a - b).abs() <= tol * b.abs().max(1e-12)
+}
+
+#[test]
+fn interior_mask_of_each_cornell_chart_is_its_rectangle_less_one_texel_all_round() {
+    for size in [32u32, 64] {
+        let grid = cornell_grid(size);
+        let mask = interior_mask(&grid);
+        // Per chart: bounding box, covered and interior counts.
+        let mut charts: HashMap<u32, (u32, u32, u32, u32, usize, usize)> = HashMap::new();
+        for (t, m) in grid.texels.iter().zip(&mask) {
+            let e = charts
+                .entry(t.chart)
+                .or_insert((u32::MAX, u32::MAX, 0, 0, 0, 0));
+            e.0 = e.0.min(t.x);
+            e.1 = e.1.min(t.y);
+            e.2 = e.2.max(t.x);
+            e.3 = e.3.max(t.y);
+            e.4 += 1;
+            e.5 += *m as usize;
+        }
+        assert_eq!(charts.len(), 15);
+        for (chart, (x0, y0, x1, y1, covered, interior)) in charts {
+            let (w, h) = ((x1 - x0 + 1) as usize, (y1 - y0 + 1) as usize);
+            assert_eq!(
+                covered,
+                w * h,
+                "size {size} chart {chart}: a full rectangle"
+            );
+            assert_eq!(
+                interior,
+                (w - 2) * (h - 2),
+                "size {size} chart {chart}: {w}x{h}"
+            );
+        }
+    }
+}
+
+#[test]
+fn ten_percent_more_on_interior_texels_is_a_relative_rmse_of_one_tenth() {
+    let grid = cornell_grid(64);
+    let mask = interior_mask(&grid);
+    let reference = reference_values(&grid);
+    // Interior texels 1.1 × the reference; border texels wildly off (they must not count).
+    let test: Vec<Vec3> = reference
+        .iter()
+        .zip(&mask)
+        .map(|(b, m)| if *m { *b * 1.1 } else { *b * 7.0 + 3.0 })
+        .collect();
+    let c = compare(&grid, &reference, &test, None, 5);
+    assert!(close(c.total, 0.1, 1e-5), "total {}", c.total);
+    assert_eq!(c.indirect, None);
+    assert_eq!(c.covered, grid.texels.len());
+    assert_eq!(c.interior, mask.iter().filter(|&&m| m).count());
+    // The worst texels are interior ones, their error |0.1 b| / RMS(b) (largest |b| first).
+    let rms = reference_rms(&reference, &mask);
+    let largest = reference
+        .iter()
+        .zip(&mask)
+        .filter(|(_, m)| **m)
+        .map(|(b, _)| b.length() as f64)
+        .fold(0.0, f64::max);
+    assert!(close(c.worst[0].relative_error, 0.1 * largest / rms, 1e-4));
+    for w in &c.worst {
+        let i = grid.at(w.x as i32, w.y as i32).unwrap() as usize;
+        assert!(mask[i], "worst texel ({}, {}) is on a border", w.x, w.y);
+    }
+}
+
+#[test]
+fn errors_on_border_texels_only_give_zero_but_change_the_energy() {
+    let grid = cornell_grid(64);
+    let mask = interior_mask(&grid);
+    let reference = reference_values(&grid);
+    let offset = Vec3::new(0.5, 1.0, 2.0);
+    let test: Vec<Vec3> = reference
+        .iter()
+        .zip(&mask)
+        .map(|(b, m)| if *m { *b } else { *b + offset })
+        .collect();
+    let c = compare(&grid, &reference, &test, None, 3);
+    assert_eq!(c.total, 0.0);
+    assert!(c.worst.iter().all(|w| w.relative_error == 0.0));
+    // Energy counts every covered texel: ratio = 1 + offset · A_border / P_ref.
+    let border_area: f64 = grid
+        .texels
+        .iter()
+        .zip(&mask)
+        .filter(|(_, m)| !**m)
+        .map(|(t, _)| t.area_m2 as f64)
+        .sum();
+    let p_ref = power_w(&grid, &reference);
+    for ch in 0..3 {
+        let want = 1.0 + offset[ch] as f64 * border_area / p_ref[ch];
+        assert!(
+            close(c.energy_ratio[ch], want, 1e-6),
+            "channel {ch}: {} vs {want}",
+            c.energy_ratio[ch]
+        );
+        assert!(want > 1.01, "the offset changes the energy noticeably");
+    }
+}
+
+#[test]
+fn indirect_figure_and_per_channel_energy_ratio() {
+    let grid = cornell_grid(64);
+    let reference = reference_values(&grid);
+    // Same first order (half the reference) for both; the test's indirect is 1.2 × the
+    // reference's: indirect error 0.2 exactly, total error 0.2 × 0.5 = 0.1.
+    let first: Vec<Vec3> = reference.iter().map(|b| *b * 0.5).collect();
+    let test: Vec<Vec3> = reference
+        .iter()
+        .zip(&first)
+        .map(|(b, f)| *f + (*b - *f) * 1.2)
+        .collect();
+    let c = compare(&grid, &reference, &test, Some((&first, &first)), 0);
+    assert!(close(c.indirect.unwrap(), 0.2, 1e-5), "{:?}", c.indirect);
+    assert!(close(c.total, 0.1, 1e-5), "{}", c.total);
+    assert!(c.worst.is_empty());
+    // Channels scaled by (1, 2, 0.5): energy ratio exactly that.
+    let scaled: Vec<Vec3> = reference
+        .iter()
+        .map(|b| *b * Vec3::new(1.0, 2.0, 0.5))
+        .collect();
+    let c = compare(&grid, &reference, &scaled, None, 0);
+    assert!(
+        (c.energy_ratio - DVec3::new(1.0, 2.0, 0.5))
+            .abs()
+            .max_element()
+            < 1e-6
+    );
+    // A perfect test: zeros and ones.
+    let c = compare(&grid, &reference, &reference, Some((&first, &first)), 1);
+    assert_eq!((c.total, c.indirect), (0.0, Some(0.0)));
+    assert_eq!(c.energy_ratio, DVec3::ONE);
+}
+
+#[test]
+fn error_image_colours_by_error_over_the_scale_and_greys_uncovered_texels() {
+    let grid = cornell_grid(32);
+    let reference = reference_values(&grid);
+    let mut test = reference.clone();
+    // Texel 0 off by exactly the scale (2 W/m²), texel 1 by half of it, the rest exact.
+    test[0] += Vec3::new(2.0, 0.0, 0.0);
+    test[1] += Vec3::new(0.0, 0.0, 1.0);
+    let img = error_image(&grid, &reference, &test, 2.0);
+    let k = 512 / 32; // pixels per texel
+    assert_eq!(img.width(), 32 * k);
+    assert!(img.height() > 32 * k, "colour bar under the map");
+    let at = |x: u32, y: u32| *img.get_pixel(x * k + k / 2, y * k + k / 2);
+    let (t0, t1, t2) = (&grid.texels[0], &grid.texels[1], &grid.texels[2]);
+    assert_eq!(at(t0.x, t0.y), viridis(1.0));
+    assert_eq!(at(t1.x, t1.y), viridis(0.5));
+    assert_eq!(at(t2.x, t2.y), viridis(0.0));
+    assert_eq!(
+        at(0, 0),
+        UNCOVERED_GREY,
+        "texel (0, 0) is in the border gutter"
+    );
+    // The ramp's ends are viridis': dark purple to yellow, and its middle is teal.
+    assert_eq!(viridis(0.0).0, [68, 1, 84]);
+    assert_eq!(viridis(1.0).0, [253, 231, 37]);
+    assert_eq!(viridis(0.5).0, [33, 145, 140]);
+    assert_eq!(viridis(7.0), viridis(1.0), "clamped above the scale");
+    // The bar: left end 0, right end the scale.
+    let last = img.height() - 1;
+    assert_eq!(*img.get_pixel(0, last), viridis(0.0));
+    assert_eq!(*img.get_pixel(img.width() - 1, last), viridis(1.0));
+}
+
+/// Writes per-texel values as a lightmap OpenEXR.
+fn write_exr(dir: &Path, name: &str, grid: &TexelGrid, values: &[Vec3]) {
+    write_lightmap_exr(&dir.join(name), &to_lightmap(grid, values)).unwrap();
+}
+
+/// The number after `key` on the line starting with `label` of `text`.
+fn figure(text: &str, label: &str, key: &str) -> f64 {
+    let line = text
+        .lines()
+        .find(|l| l.starts_with(label))
+        .unwrap_or_else(|| panic!("no '{label}' line in:\n{text}"));
+    let rest = &line[line.find(key).unwrap() + key.len()..];
+    rest.split_whitespace().next().unwrap().parse().unwrap()
+}
+
+#[test]
+fn cli_prints_the_library_figures_and_writes_the_error_picture() {
+    let dir = tempfile::tempdir().unwrap();
+    let grid = cornell_grid(32);
+    let reference = reference_values(&grid);
+    let first: Vec<Vec3> = reference.iter().map(|b| *b * 0.4).collect();
+    let test: Vec<Vec3> = reference
+        .iter()
+        .enumerate()
+        .map(|(i, b)| *b * (1.0 + 0.05 * ((i % 7) as f32 - 3.0)))
+        .collect();
+    let test_first: Vec<Vec3> = first.iter().map(|b| *b * 1.02).collect();
+    for (name, v) in [
+        ("ref.exr", &reference),
+        ("test.exr", &test),
+        ("ref_first.exr", &first),
+        ("test_first.exr", &test_first),
+    ] {
+        write_exr(dir.path(), name, &grid, v);
+    }
+    let text = ok(ortm(
+        &[
+            "compare",
+            "ref.exr",
+            "test.exr",
+            "--first",
+            "ref_first.exr",
+            "test_first.exr",
+            "--scene",
+            "cornell",
+            "--size",
+            "32",
+            "-o",
+            "err.png",
+            "--worst",
+            "3",
+        ],
+        dir.path(),
+    ));
+    let c = compare(&grid, &reference, &test, Some((&first, &test_first)), 3);
+    assert!(c.total > 0.05 && c.indirect.unwrap() > 0.05);
+    assert!(
+        close(figure(&text, "total", "RMSE"), c.total, 1e-5),
+        "{text}"
+    );
+    assert!(close(
+        figure(&text, "indirect", "RMSE"),
+        c.indirect.unwrap(),
+        1e-5
+    ));
+    assert!(close(
+        figure(&text, "energy ratio", "R G B:"),
+        c.energy_ratio.x,
+        1e-5
+    ));
+    assert!(text.contains(&format!("{} covered, {} interior", c.covered, c.interior)));
+    // The worst texel is listed first with its coordinates.
+    let w = &c.worst[0];
+    assert!(
+        text.lines().any(|l| l
+            .split_whitespace()
+            .take(2)
+            .eq([w.x.to_string(), w.y.to_string()])),
+        "{text}"
+    );
+    let png = image::open(dir.path().join("err.png")).unwrap();
+    assert_eq!(png.width(), 512);
+}
+
+#[test]
+fn solve_writes_exrs_that_compare_and_add_up() {
+    // `ortm solve maze`: final = first order + indirect in its OpenEXRs, and comparing the first
+    // order against the final gives the energy ratio of their powers (< 1: light is added).
+    let dir = tempfile::tempdir().unwrap();
+    let text = ok(ortm(
+        &["solve", "maze", "--size", "32", "-o", "s"],
+        dir.path(),
+    ));
+    assert!(text.contains("final.exr"), "{text}");
+    let read = |n: &str| read_lightmap_exr(&dir.path().join("s").join(n)).unwrap();
+    let (fo, fin, ind) = (
+        read("first_order.exr"),
+        read("final.exr"),
+        read("indirect.exr"),
+    );
+    assert_eq!((fin.width, fin.height), (32, 32));
+    for ((a, b), c) in fo.data.iter().zip(&fin.data).zip(&ind.data) {
+        for ch in 0..3 {
+            assert!((a[ch] + c[ch] - b[ch]).abs() <= 1e-5 * b[ch].abs().max(1.0));
+        }
+    }
+    let text = ok(ortm(
+        &[
+            "compare",
+            "s/final.exr",
+            "s/first_order.exr",
+            "--scene",
+            "maze",
+            "--size",
+            "32",
+        ],
+        dir.path(),
+    ));
+    let grid = TexelGrid::build(&ortm::scene::maze(32)).unwrap();
+    let ratio = power_w(&grid, &from_lightmap(&grid, &fo)).x
+        / power_w(&grid, &from_lightmap(&grid, &fin)).x;
+    assert!(ratio < 0.9, "{ratio}");
+    assert!(
+        close(figure(&text, "energy ratio", "R G B:"), ratio, 1e-5),
+        "{text}"
+    );
+    assert!(dir.path().join("error.png").is_file());
+
+    // `--light` replaces the scene's lamp: one in the far bay lights the right wall (x = 2)
+    // directly, which the default lamp never does.
+    let right_wall_first = |out: &str| {
+        let fo = read_lightmap_exr(&dir.path().join(out).join("first_order.exr")).unwrap();
+        let values = from_lightmap(&grid, &fo);
+        grid.texels
+            .iter()
+            .zip(values)
+            .filter(|(t, _)| t.normal.x < -0.5 && t.position_m.x > 1.99)
+            .map(|(_, v)| v.element_sum())
+            .fold(0.0f32, f32::max)
+    };
+    assert_eq!(right_wall_first("s"), 0.0);
+    let light = "point:1.75,0.5,1.0:10";
+    ok(ortm(
+        &[
+            "solve", "maze", "--size", "32", "-o", "far", "--light", light,
+        ],
+        dir.path(),
+    ));
+    // Unshadowed at the wall point nearest the lamp: 0.7 · 10 W/sr / (0.25 m)² = 112 W/m² per
+    // channel; texel centres are a little farther.
+    let lit = right_wall_first("far");
+    assert!(
+        lit > 0.5 * 3.0 * 112.0 && lit <= 3.0 * 112.0 * 1.001,
+        "{lit}"
+    );
+    let e = fails(ortm(
+        &[
+            "solve",
+            "maze",
+            "--size",
+            "32",
+            "-o",
+            "bad",
+            "--light",
+            "point:1,2",
+        ],
+        dir.path(),
+    ));
+    assert!(e.contains("--light") && e.contains("point:1,2"), "{e}");
+}
+
+#[test]
+fn bad_inputs_are_refused_naming_the_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let grid = cornell_grid(32);
+    let reference = reference_values(&grid);
+    write_exr(dir.path(), "ref.exr", &grid, &reference);
+    std::fs::write(dir.path().join("text.exr"), "not an image").unwrap();
+    let mut nan = to_lightmap(&grid, &reference);
+    let t = &grid.texels[5];
+    nan.set(t.x, t.y, [f32::NAN, 0.0, 0.0]);
+    write_lightmap_exr(&dir.path().join("nan.exr"), &nan).unwrap();
+    write_lightmap_exr(&dir.path().join("small.exr"), &Lightmap::new(16, 16)).unwrap();
+    let run = |args: &[&str]| fails(ortm(args, dir.path()));
+    let base = |test: &'static str| {
+        [
+            "compare", "ref.exr", test, "--scene", "cornell", "--size", "32",
+        ]
+    };
+
+    let e = run(&base("small.exr"));
+    assert!(
+        e.contains("small.exr") && e.contains("16x16") && e.contains("32x32"),
+        "{e}"
+    );
+    // Without --size the scene's own size (64²) is the one the EXRs must have.
+    let e = run(&["compare", "ref.exr", "ref.exr", "--scene", "cornell"]);
+    assert!(
+        e.contains("ref.exr") && e.contains("32x32") && e.contains("64x64"),
+        "{e}"
+    );
+    assert!(e.contains("--size 32"), "the fix: {e}");
+    let e = run(&base("missing.exr"));
+    assert!(e.contains("missing.exr"), "{e}");
+    let e = run(&base("text.exr"));
+    assert!(e.contains("text.exr"), "{e}");
+    let e = run(&base("nan.exr"));
+    assert!(
+        e.contains("nan.exr") && e.contains(&format!("({}, {})", t.x, t.y)),
+        "{e}"
+    );
+    let e = run(&[
+        "compare",
+        "ref.exr",
+        "ref.exr",
+        "--first",
+        "ref.exr",
+        "small.exr",
+        "--scene",
+        "cornell",
+        "--size",
+        "32",
+    ]);
+    assert!(e.contains("small.exr"), "{e}");
+    let e = run(&[
+        "compare",
+        "ref.exr",
+        "ref.exr",
+        "--scene",
+        "no-such-scene.toml",
+    ]);
+    assert!(e.contains("no-such-scene.toml"), "{e}");
+}
