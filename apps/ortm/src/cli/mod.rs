@@ -10,6 +10,7 @@ mod bench_render;
 mod bin;
 mod demo;
 mod inspect;
+mod reference;
 mod render;
 mod solve;
 mod view;
@@ -43,6 +44,9 @@ enum Command {
     Bench(BenchArgs),
     /// Exact dense solve (small lightmaps): first-order, final and indirect lightmaps as PNG.
     Solve(solve::Args),
+    /// Path-traced texture-space reference (Monte Carlo): final, first-order, indirect and
+    /// standard-error lightmaps as OpenEXR (+ PNGs).
+    Reference(reference::Args),
     /// Relight a bake on the GPU: frame PNG, final and first-order lightmaps (OpenEXR).
     Render(render::Args),
     /// Interactive viewer: move lights and watch the relit bake (egui window).
@@ -72,6 +76,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Demo(a) => demo::run(a),
         Command::Inspect(a) => inspect::run(a),
         Command::Solve(a) => solve::run(a),
+        Command::Reference(a) => reference::run(a),
         Command::Bake(a) => bake::run(a),
         Command::Bench(BenchArgs {
             sub: Some(BenchCommand::Render(a)),
