@@ -12,6 +12,7 @@ mod bin;
 mod compare;
 mod demo;
 mod inspect;
+mod reference;
 mod render;
 mod solve;
 mod view;
@@ -46,6 +47,9 @@ enum Command {
     /// Exact dense solve (small lightmaps): first-order, final and indirect lightmaps as
     /// OpenEXR and PNG.
     Solve(solve::Args),
+    /// Path-traced texture-space reference (Monte Carlo): final, first-order, indirect and
+    /// standard-error lightmaps as OpenEXR (+ PNGs).
+    Reference(reference::Args),
     /// How far a lightmap is from a reference (OpenEXRs): relative RMSE of total and indirect,
     /// energy ratio, worst texels, false-colour error PNG.
     Compare(compare::Args),
@@ -80,6 +84,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Demo(a) => demo::run(a),
         Command::Inspect(a) => inspect::run(a),
         Command::Solve(a) => solve::run(a),
+        Command::Reference(a) => reference::run(a),
         Command::Compare(a) => compare::run(a),
         Command::Bake(a) => bake::run(a),
         Command::Bench(BenchArgs {

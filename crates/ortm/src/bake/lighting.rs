@@ -33,32 +33,38 @@ fn smoothstep(e0: f32, e1: f32, x: f32) -> f32 {
 
 /// Irradiance (W/m², RGB) at texel `t` from `light`, unshadowed.
 pub fn irradiance_unshadowed(t: &Texel, light: &Light) -> Vec3 {
+    irradiance_unshadowed_at(t.position_m, t.normal, light)
+}
+
+/// Irradiance (W/m², RGB) from `light`, unshadowed, at a surface point `position_m` (metres)
+/// with unit shading normal `normal` (the light models of the module docs).
+pub fn irradiance_unshadowed_at(position_m: Vec3, normal: Vec3, light: &Light) -> Vec3 {
     match *light {
         Light::Point {
-            position_m,
+            position_m: light_m,
             color,
             intensity_w_sr,
         } => {
-            let d = position_m - t.position_m;
+            let d = light_m - position_m;
             let r2 = d.length_squared();
-            let cos = t.normal.dot(d) / r2.sqrt();
+            let cos = normal.dot(d) / r2.sqrt();
             if cos <= 0.0 || r2 <= 0.0 {
                 return Vec3::ZERO;
             }
             color * intensity_w_sr * cos / r2
         }
         Light::Spot {
-            position_m,
+            position_m: light_m,
             direction,
             color,
             intensity_w_sr,
             inner_deg,
             outer_deg,
         } => {
-            let d = position_m - t.position_m;
+            let d = light_m - position_m;
             let r2 = d.length_squared();
             let r = r2.sqrt();
-            let cos = t.normal.dot(d) / r;
+            let cos = normal.dot(d) / r;
             if cos <= 0.0 || r2 <= 0.0 {
                 return Vec3::ZERO;
             }
@@ -75,7 +81,7 @@ pub fn irradiance_unshadowed(t: &Texel, light: &Light) -> Vec3 {
             color,
             irradiance_w_m2,
         } => {
-            let cos = t.normal.dot(-direction.normalize());
+            let cos = normal.dot(-direction.normalize());
             if cos <= 0.0 {
                 return Vec3::ZERO;
             }
@@ -87,13 +93,19 @@ pub fn irradiance_unshadowed(t: &Texel, light: &Light) -> Vec3 {
 /// True when `light` reaches texel `t` unobstructed.
 pub fn light_visible(t: &Texel, light: &Light, vis: &Visibility) -> bool {
     let eps = 1e-3 * t.area_m2.sqrt().max(1e-6);
-    let p = t.position_m + t.face_normal * eps;
+    light_visible_from(t.position_m + t.face_normal * eps, eps, light, vis)
+}
+
+/// True when `light` reaches the point `lifted_m` (a surface point already lifted off its
+/// surface by `eps_m` metres) unobstructed; `eps_m` also shortens the shadow ray at both ends.
+pub fn light_visible_from(lifted_m: Vec3, eps_m: f32, light: &Light, vis: &Visibility) -> bool {
+    let p = lifted_m;
     match *light {
         Light::Point { position_m, .. } | Light::Spot { position_m, .. } => {
-            vis.visible(p, position_m, eps)
+            vis.visible(p, position_m, eps_m)
         }
         Light::Directional { direction, .. } => {
-            vis.visible(p, p - direction.normalize() * FAR_M, eps)
+            vis.visible(p, p - direction.normalize() * FAR_M, eps_m)
         }
     }
 }

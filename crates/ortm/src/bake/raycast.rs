@@ -1,5 +1,6 @@
 //! Visibility by ray casting: a compressed wide BVH (`obvhs` CWBVH, built in parallel) over the
-//! scene's triangles, answering "is the segment p → q unobstructed?".
+//! scene's triangles, answering "is the segment p → q unobstructed?" and, for the path-traced reference
+//! ([`crate::accuracy::reference`]), "which triangle does this ray hit first, and where?".
 //!
 //! `obvhs` builds a SAH-quality PLOC BVH and traverses an 8-wide compressed BVH with SIMD node
 //! tests; `ortm bench transport` reports the shadow-ray throughput.
@@ -16,6 +17,24 @@ use obvhs::{
 };
 
 use crate::scene::Mesh;
+
+/// `v` with every `-0.0` component made `+0.0`: the traversal picks a node order and inverts
+/// the direction by sign, and a ray along `-Vec3::Z` (components `-0.0`) misses everything.
+#[inline]
+fn positive_zeros(v: Vec3) -> Vec3 {
+    v + Vec3::ZERO
+}
+
+/// A ray's hit on a triangle.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RayHit {
+    /// Triangle index (the mesh's order).
+    pub triangle: u32,
+    /// Distance along the ray, metres.
+    pub t: f32,
+    /// Barycentric weights of the triangle's vertices 0, 1, 2 at the hit point.
+    pub barycentrics: [f32; 3],
+}
 
 /// A ray-casting acceleration structure over a mesh's triangles.
 pub struct Visibility {
@@ -73,6 +92,87 @@ impl Visibility {
         })
     }
 
+    /// The closest triangle hit by the ray from `origin` in unit direction `dir` within
+    /// `[t_min, t_max]` metres, ignoring triangle `skip` (pass the triangle the ray leaves, or
+    /// `u32::MAX`); `None` when nothing is hit. Triangle indices are the mesh's (or the order
+    /// given to [`Visibility::from_triangles`]).
+    pub fn closest_triangle_hit(
+        &self,
+        origin: Vec3,
+        dir: Vec3,
+        (t_min, t_max): (f32, f32),
+        skip: u32,
+    ) -> Option<RayHit> {
+        if self.triangles.is_empty() || t_max <= t_min {
+            return None;
+        }
+        let dir = positive_zeros(dir);
+        let ray = Ray::new(Vec3A::from(origin), Vec3A::from(dir), t_min, t_max);
+        let mut hit = obvhs::ray::RayHit::none();
+        let found = self.bvh.ray_traverse(ray, &mut hit, |ray, id| {
+            let tri = self.bvh.primitive_indices[id];
+            if tri == skip {
+                return f32::INFINITY;
+            }
+            self.triangles[tri as usize].intersect(ray)
+        });
+        if !found {
+            return None;
+        }
+        let triangle = self.bvh.primitive_indices[hit.primitive_id as usize];
+        Some(self.hit_record(triangle, origin, dir, hit.t))
+    }
+
+    /// Calls `f` for every triangle the ray from `origin` in unit direction `dir` crosses within
+    /// `[t_min, t_max]` metres, in no particular order (the subsurface probe rays).
+    pub fn for_each_hit(
+        &self,
+        origin: Vec3,
+        dir: Vec3,
+        (t_min, t_max): (f32, f32),
+        mut f: impl FnMut(RayHit),
+    ) {
+        if self.triangles.is_empty() || t_max <= t_min {
+            return;
+        }
+        let dir = positive_zeros(dir);
+        let ray = Ray::new(Vec3A::from(origin), Vec3A::from(dir), t_min, t_max);
+        self.bvh.ray_traverse_anyhit(ray, |ray, id| {
+            let tri = self.bvh.primitive_indices[id];
+            let t = self.triangles[tri as usize].intersect(ray);
+            if t >= t_min && t <= t_max {
+                f(self.hit_record(tri, origin, dir, t));
+            }
+        });
+    }
+
+    /// The hit record of triangle `triangle` at distance `t` along a ray: barycentrics of the
+    /// hit point (weights of the triangle's vertices 0, 1, 2).
+    fn hit_record(&self, triangle: u32, origin: Vec3, dir: Vec3, t: f32) -> RayHit {
+        let tri = &self.triangles[triangle as usize];
+        let (v0, v1, v2) = (Vec3::from(tri.v0), Vec3::from(tri.v1), Vec3::from(tri.v2));
+        let (e1, e2) = (v1 - v0, v2 - v0);
+        let p = dir.cross(e2);
+        let det = e1.dot(p);
+        let (mut u, mut v) = (0.0, 0.0);
+        if det != 0.0 {
+            let s = origin - v0;
+            u = s.dot(p) / det;
+            v = dir.dot(s.cross(e1)) / det;
+        }
+        let (u, v) = (u.clamp(0.0, 1.0), v.clamp(0.0, 1.0));
+        let (u, v) = if u + v > 1.0 {
+            (u / (u + v), v / (u + v))
+        } else {
+            (u, v)
+        };
+        RayHit {
+            triangle,
+            t,
+            barycentrics: [1.0 - u - v, u, v],
+        }
+    }
+
     /// Distance to the closest hit along a ray from `origin` in unit direction `dir`, within
     /// `[t_min, t_max]` metres; `None` when nothing is hit (a test's reference).
     #[cfg(test)]
@@ -127,6 +227,25 @@ mod tests {
         assert!(vis.visible(p, Vec3::new(0.5, 0.5, -0.2), 1e-4));
         assert_eq!(vis.closest_hit(p, Vec3::Z, 0.0, 10.0), Some(1.0));
         assert_eq!(vis.closest_hit(p, -Vec3::Z, 0.0, 10.0), None);
+        // Straight down from above, along `-Vec3::Z` (signed zeros): the hit's triangle,
+        // distance and barycentrics; every crossing for the all-hits query.
+        let above = Vec3::new(0.5, 0.25, 0.5);
+        let hit = vis
+            .closest_triangle_hit(above, -Vec3::Z, (0.0, 1.0), u32::MAX)
+            .expect("hits the quad");
+        assert_eq!((hit.triangle, hit.t), (0, 0.5));
+        // Triangle 0 is a = (−1,−1), b = (1,−1), c = (1,1): (0.5, 0.25) = 0.25a + 0.125b + 0.625c.
+        for (got, want) in hit.barycentrics.iter().zip([0.25, 0.125, 0.625]) {
+            assert!((got - want).abs() < 1e-6, "{:?}", hit.barycentrics);
+        }
+        assert_eq!(
+            vis.closest_triangle_hit(above, -Vec3::Z, (0.0, 1.0), 0),
+            None,
+            "the skipped triangle"
+        );
+        let mut n = 0;
+        vis.for_each_hit(above, -Vec3::Z, (0.0, 1.0), |_| n += 1);
+        assert_eq!(n, 1);
     }
 
     #[test]

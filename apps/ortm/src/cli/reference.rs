@@ -1,0 +1,141 @@
+//! `ortm reference SCENE --size N --spp S --seed K [--effects radiosity,sss] -o DIR`: the
+//! path-traced texture-space reference ([`ortm::accuracy::reference`]) with the scene's lights.
+//! Writes `final.exr`, `first_order.exr`, `indirect.exr` and `std_error.exr` (W/m², linear RGB,
+//! uncovered texels 0) plus `first_order.png`, `final.png` and `indirect.png` as `ortm solve`
+//! does; prints texels, samples, time, rays/s, the mean relative standard error and the power
+//! figures. Every file is written atomically after the trace, so Ctrl-C (which stops the trace
+//! within a moment) leaves no half-written file.
+
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+
+use anyhow::{Context, Result, bail};
+use glam::Vec3;
+use indicatif::{ProgressBar, ProgressStyle};
+use ortm::accuracy::compare::power_w;
+use ortm::accuracy::reference::{self, ReferenceError, Settings};
+use ortm::bake::lighting;
+use ortm::bake::report::{lightmap_image, percentile_99, save_png};
+use ortm::bake::texels::TexelGrid;
+use ortm::render::lightmap_exr::write_lightmap_exr;
+
+/// Arguments of `ortm reference`.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// Scene file (TOML) or built-in scene name (`cornell`, `head`, `head-exponential`).
+    #[arg(default_value = "cornell")]
+    scene: String,
+    /// Lightmap size (square), overriding the scene's.
+    #[arg(long)]
+    size: Option<u32>,
+    /// Paths per covered texel (the standard error falls as 1/√spp).
+    #[arg(long, default_value_t = 256)]
+    spp: u32,
+    /// Seed of the random streams (same seed → same output, whatever the thread count).
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Effects: comma-separated `radiosity`, `sss` (as `ortm bake`).
+    #[arg(long, default_value = "radiosity,sss")]
+    effects: String,
+    /// Output folder.
+    #[arg(short, long, default_value = "out")]
+    output: PathBuf,
+}
+
+/// Runs `ortm reference`.
+pub fn run(a: Args) -> Result<()> {
+    if a.spp == 0 {
+        bail!("--spp 0: trace at least 1 path per texel (2 or more for a standard error)");
+    }
+    let effects = super::bake::parse_effects(&a.effects)?;
+    let scene = super::load_scene(&a.scene, a.size)?;
+    let grid = TexelGrid::build(&scene)
+        .with_context(|| format!("rasterizing the lightmap UVs of '{}'", a.scene))?;
+    super::ensure_dir(&a.output)?;
+    let cancel = Arc::new(AtomicBool::new(false));
+    {
+        let c = cancel.clone();
+        // A second Ctrl-C exits at once; the first stops the trace and writes nothing.
+        let _ = ctrlc::set_handler(move || {
+            if c.swap(true, Ordering::SeqCst) {
+                std::process::exit(130);
+            }
+            eprintln!("\ninterrupt: stopping the reference (nothing is written)");
+        });
+    }
+    let bar = ProgressBar::new(grid.texels.len() as u64).with_style(
+        ProgressStyle::with_template(
+            "{msg:10} [{bar:40}] {pos}/{len} texels {elapsed_precise} eta {eta}",
+        )
+        .expect("valid template")
+        .progress_chars("=> "),
+    );
+    bar.set_message("reference");
+    let settings = Settings {
+        samples_per_texel: a.spp,
+        seed: a.seed,
+        effects,
+    };
+    let result = reference::trace_with_stats(
+        &scene,
+        &grid,
+        &scene.lights,
+        &settings,
+        &|done, _| bar.set_position(done as u64),
+        &cancel,
+    );
+    bar.finish_and_clear();
+    let (maps, stats) = match result {
+        Ok(r) => r,
+        Err(ReferenceError::Cancelled) => bail!("interrupted: the reference was not written"),
+    };
+    let indirect = maps.indirect();
+    let write = |name: &str, values: &[Vec3]| -> Result<()> {
+        let path = a.output.join(name);
+        write_lightmap_exr(&path, &lighting::to_lightmap(&grid, values))
+            .with_context(|| format!("writing '{}'", path.display()))
+    };
+    write("final.exr", &maps.final_b)?;
+    write("first_order.exr", &maps.first_order)?;
+    write("indirect.exr", &indirect)?;
+    write("std_error.exr", &maps.std_error)?;
+    let first = lighting::to_lightmap(&grid, &maps.first_order);
+    let fin = lighting::to_lightmap(&grid, &maps.final_b);
+    let ind = lighting::to_lightmap(&grid, &indirect);
+    let white = percentile_99(&fin);
+    save_png(
+        &lightmap_image(&first, white),
+        &a.output.join("first_order.png"),
+    )?;
+    save_png(&lightmap_image(&fin, white), &a.output.join("final.png"))?;
+    save_png(
+        &lightmap_image(&ind, percentile_99(&ind)),
+        &a.output.join("indirect.png"),
+    )?;
+    println!(
+        "{} texels at {}x{}, {} paths per texel: {:.2} s, {:.2} Mrays/s ({} rays)",
+        grid.texels.len(),
+        grid.width,
+        grid.height,
+        maps.samples_per_texel,
+        stats.seconds,
+        stats.rays_per_second() / 1e6,
+        stats.rays
+    );
+    println!(
+        "mean relative standard error: final {:.4}, indirect {:.4}",
+        maps.mean_relative_std_error(&maps.final_b),
+        maps.mean_relative_std_error(&indirect)
+    );
+    println!(
+        "first-order power {:.4?} W, final {:.4?} W (RGB)",
+        power_w(&grid, &maps.first_order).to_array(),
+        power_w(&grid, &maps.final_b).to_array()
+    );
+    println!(
+        "wrote {}/final.exr, first_order.exr, indirect.exr, std_error.exr and PNGs",
+        a.output.display()
+    );
+    Ok(())
+}

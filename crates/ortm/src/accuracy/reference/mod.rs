@@ -1,0 +1,257 @@
+//! The independent reference: texture-space Monte Carlo path tracing of the transport's
+//! continuous model, sharing none of the bake's approximations (no clusters, offsets, cells,
+//! form factors or texel quadrature of the profile).
+//!
+//! # Data flow
+//! For every covered texel of a [`TexelGrid`] (its centre, shading normal for cosines, face
+//! normal to lift rays):
+//! - the first order `B_o = ρ̄·E_direct`, exactly as [`crate::bake::lighting::first_order`]
+//!   computes it (same lights, same lifted shadow rays; no noise);
+//! - `samples_per_texel` independent paths ([`path`]), each one sample of the final radiosity
+//!   `B`: for an opaque texel `B_o + ρ·∫ L_in cosθ dω` (cosine-sampled bounces through the BVH,
+//!   next-event estimation to every light at every vertex, Russian roulette); for a translucent
+//!   one (subsurface on) `∫ R_d(|x − y|) E(y) dA(y)` with `y` sampled by the profile and
+//!   probe rays ([`subsurface`]), by Euclidean distance, so light crosses seams and ears;
+//! - the mean and its standard error (sample standard deviation / √n) per channel.
+//!
+//! With subsurface off translucent materials are opaque with the profile's total diffuse
+//! reflectance ρ̄ (the texels' albedo), as in the transport. Units: W/m², linear RGB, metres.
+//!
+//! # Determinism
+//! Texel `i`'s samples come from its own ChaCha8 stream (seed `settings.seed`, stream `i`), and
+//! each texel is summed by one thread in sample order, so the result depends on the seed only,
+//! not on the thread count. Texels are traced in parallel (rayon); `progress` is called as they
+//! finish and `cancel` is checked between batches of samples.
+
+mod path;
+pub mod subsurface;
+
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::time::Instant;
+
+use glam::{DVec3, Vec3};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rayon::prelude::*;
+use thiserror::Error;
+
+use crate::bake::lighting;
+use crate::bake::raycast::Visibility;
+use crate::bake::texels::TexelGrid;
+use crate::bake::transport::Effects;
+use crate::scene::{Light, Scene};
+pub use path::{ROULETTE_AFTER, SceneView, Scratch, SurfacePoint};
+
+/// Samples traced between two checks of the cancel flag.
+const CANCEL_CHECK_SAMPLES: u32 = 64;
+
+/// Settings of a reference run.
+#[derive(Clone, Copy, Debug)]
+pub struct Settings {
+    /// Paths per covered texel.
+    pub samples_per_texel: u32,
+    /// Seed of the random streams (the result is deterministic for a seed, whatever the thread
+    /// count).
+    pub seed: u64,
+    /// Which effects to trace (radiosity: diffuse bounces; subsurface: the profile).
+    pub effects: Effects,
+}
+
+/// The reference lightmaps, per covered texel of the grid (grid order), W/m², RGB.
+#[derive(Clone, Debug)]
+pub struct ReferenceMaps {
+    /// First order `B_o = ρ̄·E_direct`, exactly as the transport defines it (no noise).
+    pub first_order: Vec<Vec3>,
+    /// Final radiosity `B` (Monte Carlo estimate).
+    pub final_b: Vec<Vec3>,
+    /// Standard error of `final_b` per texel and channel (of the mean over the samples).
+    pub std_error: Vec<Vec3>,
+    /// Paths traced per texel.
+    pub samples_per_texel: u32,
+}
+
+/// Figures of a reference run.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct TraceStats {
+    /// Rays cast by the paths (bounces, shadow rays, probe rays; not the first order's).
+    pub rays: u64,
+    /// Wall time of the run, seconds.
+    pub seconds: f64,
+}
+
+impl TraceStats {
+    /// Rays per second.
+    pub fn rays_per_second(&self) -> f64 {
+        self.rays as f64 / self.seconds.max(1e-9)
+    }
+}
+
+impl ReferenceMaps {
+    /// Mean over covered texels and channels of `std_error / |value|`, for the texels and
+    /// channels where `|value|` exceeds `1e-3` of the mean of `values` (e.g.
+    /// `maps.mean_relative_std_error(&maps.final_b)` or of [`ReferenceMaps::indirect`]).
+    pub fn mean_relative_std_error(&self, values: &[Vec3]) -> f64 {
+        let n = values.len().max(1) as f64;
+        let mean: f64 = values
+            .iter()
+            .map(|v| v.abs().element_sum() as f64 / 3.0)
+            .sum::<f64>()
+            / n;
+        let floor = 1e-3 * mean;
+        let (mut sum, mut count) = (0.0f64, 0usize);
+        for (v, e) in values.iter().zip(&self.std_error) {
+            for c in 0..3 {
+                let x = v[c].abs() as f64;
+                if x > floor {
+                    sum += e[c] as f64 / x;
+                    count += 1;
+                }
+            }
+        }
+        if count == 0 { 0.0 } else { sum / count as f64 }
+    }
+
+    /// `final − first order` per texel.
+    pub fn indirect(&self) -> Vec<Vec3> {
+        self.final_b
+            .iter()
+            .zip(&self.first_order)
+            .map(|(b, o)| *b - *o)
+            .collect()
+    }
+}
+
+/// Why a reference run stopped without a result.
+#[derive(Debug, Error)]
+pub enum ReferenceError {
+    /// The cancel flag was raised.
+    #[error("the reference was cancelled")]
+    Cancelled,
+}
+
+/// Traces the reference of `scene` under `lights` at the covered texels of `grid`.
+/// `progress(done, total)` is called from worker threads as texels finish; raising `cancel`
+/// stops the run within a moment.
+pub fn trace(
+    scene: &Scene,
+    grid: &TexelGrid,
+    lights: &[Light],
+    settings: &Settings,
+    progress: &(dyn Fn(usize, usize) + Sync),
+    cancel: &AtomicBool,
+) -> Result<ReferenceMaps, ReferenceError> {
+    trace_with_stats(scene, grid, lights, settings, progress, cancel).map(|(m, _)| m)
+}
+
+/// [`trace`], with the run's figures.
+pub fn trace_with_stats(
+    scene: &Scene,
+    grid: &TexelGrid,
+    lights: &[Light],
+    settings: &Settings,
+    progress: &(dyn Fn(usize, usize) + Sync),
+    cancel: &AtomicBool,
+) -> Result<(ReferenceMaps, TraceStats), ReferenceError> {
+    let start = Instant::now();
+    let vis = Visibility::new(&scene.mesh);
+    let first_order = lighting::first_order(grid, lights, &vis);
+    let view = SceneView::new(scene, &vis, lights, settings.effects);
+    let n = grid.texels.len();
+    let done = AtomicUsize::new(0);
+    let spp = settings.samples_per_texel.max(1);
+    let per_texel: Vec<Option<TexelEstimate>> = (0..n)
+        .into_par_iter()
+        .map_init(Scratch::default, |scratch, i| {
+            if cancel.load(Ordering::Relaxed) {
+                return None;
+            }
+            let est = if view.traces_anything() {
+                let x = SurfacePoint::of_texel(&grid.texels[i]);
+                estimate_texel(
+                    &view,
+                    &x,
+                    first_order[i],
+                    settings.seed,
+                    i,
+                    spp,
+                    cancel,
+                    scratch,
+                )?
+            } else {
+                TexelEstimate {
+                    mean: first_order[i],
+                    std_error: Vec3::ZERO,
+                    rays: 0,
+                }
+            };
+            progress(done.fetch_add(1, Ordering::Relaxed) + 1, n);
+            Some(est)
+        })
+        .collect();
+    if cancel.load(Ordering::Relaxed) || per_texel.iter().any(Option::is_none) {
+        return Err(ReferenceError::Cancelled);
+    }
+    let per_texel: Vec<TexelEstimate> = per_texel.into_iter().flatten().collect();
+    let stats = TraceStats {
+        rays: per_texel.iter().map(|e| e.rays).sum(),
+        seconds: start.elapsed().as_secs_f64(),
+    };
+    Ok((
+        ReferenceMaps {
+            first_order,
+            final_b: per_texel.iter().map(|e| e.mean).collect(),
+            std_error: per_texel.iter().map(|e| e.std_error).collect(),
+            samples_per_texel: spp,
+        },
+        stats,
+    ))
+}
+
+/// One texel's result.
+struct TexelEstimate {
+    mean: Vec3,
+    std_error: Vec3,
+    rays: u64,
+}
+
+/// `spp` samples of texel `index`'s final radiosity from its own random stream; `None` when
+/// cancelled.
+#[allow(
+    clippy::too_many_arguments,
+    reason = "the texel, its stream and the run's shared state"
+)]
+fn estimate_texel(
+    view: &SceneView<'_>,
+    x: &SurfacePoint,
+    b_o: Vec3,
+    seed: u64,
+    index: usize,
+    spp: u32,
+    cancel: &AtomicBool,
+    scratch: &mut Scratch,
+) -> Option<TexelEstimate> {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    rng.set_stream(index as u64);
+    let rays_before = scratch.rays;
+    let (mut sum, mut sum2) = (DVec3::ZERO, DVec3::ZERO);
+    for k in 0..spp {
+        if k % CANCEL_CHECK_SAMPLES == CANCEL_CHECK_SAMPLES - 1 && cancel.load(Ordering::Relaxed) {
+            return None;
+        }
+        let s = view.sample(x, b_o, &mut rng, scratch).as_dvec3();
+        sum += s;
+        sum2 += s * s;
+    }
+    let n = spp as f64;
+    let mean = sum / n;
+    let var = if spp > 1 {
+        ((sum2 - sum * mean) / (n - 1.0)).max(DVec3::ZERO)
+    } else {
+        DVec3::ZERO
+    };
+    Some(TexelEstimate {
+        mean: mean.as_vec3(),
+        std_error: (var / n).sqrt().as_vec3(),
+        rays: scratch.rays - rays_before,
+    })
+}

@@ -1,0 +1,324 @@
+//! The path estimator of the reference: one sample of a texel's final radiosity `B(x)`.
+//!
+//! Continuous model (the transport's, [`crate::bake::transport`], without its discretisation):
+//! - opaque diffuse point: `B(x) = ρ(x)·E(x)`;
+//! - translucent point (subsurface on): `B(x) = ∫ R_d(|x − y|) E(y) dA(y)` over the surface of
+//!   the same material ([`super::subsurface`] samples `y`);
+//! - `E(x) = E_direct(x) + ∫ L_in cosθ dω` with `L_in = B(z)/π` from the first surface `z` hit
+//!   along the direction, 0 when `z` faces away (its shading normal), as the form factor's
+//!   cosine clamp does.
+//!
+//! A path alternates exitance steps (multiply by ρ, or move to a sampled `y` and multiply by
+//! the profile weight) and irradiance steps (add the direct light `E_direct` by next-event
+//! estimation to every light, the models and lifted shadow rays of [`crate::bake::lighting`];
+//! then one cosine-sampled bounce, whose estimate of `∫ L cosθ dω` is `π·L = B(z)`). Russian
+//! roulette after [`ROULETTE_AFTER`] bounces, once the throughput is below [`ROULETTE_WEIGHT`],
+//! keeps it unbiased. Positions in metres, `B` and
+//! `E` in W/m², linear RGB.
+
+use glam::{Vec2, Vec3};
+use rand::RngExt;
+use rand_chacha::ChaCha8Rng;
+
+use super::subsurface::ProfileSampler;
+use crate::bake::lighting::{irradiance_unshadowed_at, light_visible_from};
+use crate::bake::raycast::{RayHit, Visibility};
+use crate::bake::texels::Texel;
+use crate::bake::transport::Effects;
+use crate::bake::transport::form_factor::tangent_frame;
+use crate::scene::subsurface::Profile;
+use crate::scene::{Light, Scene};
+
+/// Bounces before Russian roulette starts.
+pub const ROULETTE_AFTER: u32 = 3;
+
+/// Russian roulette plays only once the path's throughput (largest channel) falls below this
+/// weight, and a survivor's throughput is raised back to it: paths keep their bounces while
+/// they carry much light, which keeps the variance of bright, high-albedo scenes low (on the
+/// closed sphere of albedo 0.8, a roulette that plays at every bounce had 5× the standard
+/// error).
+pub const ROULETTE_WEIGHT: f32 = 0.25;
+
+/// A safety stop for scenes whose albedo is 1 (the light they trap never decays): the light
+/// beyond it is below `ρ^MAX_BOUNCES` of the total.
+pub const MAX_BOUNCES: u32 = 10_000;
+
+/// Longest bounce ray, metres.
+const FAR_M: f32 = 1.0e4;
+
+/// A point on the scene's surface where a path stops.
+#[derive(Clone, Copy, Debug)]
+pub struct SurfacePoint {
+    /// Position, metres.
+    pub position_m: Vec3,
+    /// Unit shading normal (cosines).
+    pub normal: Vec3,
+    /// Unit geometric normal (lifts rays off the surface).
+    pub face_normal: Vec3,
+    /// Lift of rays leaving the point, metres.
+    pub eps_m: f32,
+    /// Effective albedo ρ̄ (material albedo or texture at the UV; a profile's total diffuse
+    /// reflectance for translucent materials), as the texels carry it.
+    pub albedo: Vec3,
+    /// Material index.
+    pub material: u32,
+    /// Triangle index.
+    pub triangle: u32,
+}
+
+impl SurfacePoint {
+    /// A texel's surface point: its centre, normals and the first order's lift.
+    pub fn of_texel(t: &Texel) -> Self {
+        Self {
+            position_m: t.position_m,
+            normal: t.normal,
+            face_normal: t.face_normal,
+            eps_m: 1e-3 * t.area_m2.sqrt().max(1e-6),
+            albedo: t.albedo,
+            material: t.material,
+            triangle: t.triangle,
+        }
+    }
+}
+
+/// The scene as the path estimator sees it.
+pub struct SceneView<'a> {
+    scene: &'a Scene,
+    vis: &'a Visibility,
+    lights: &'a [Light],
+    effects: Effects,
+    /// Per material: the profile sampler when the material is translucent and subsurface is on.
+    samplers: Vec<Option<ProfileSampler>>,
+    /// Per material: the profile's total diffuse reflectance (translucent materials, whatever
+    /// the effects: the texels' albedo).
+    rho_bar: Vec<Option<Vec3>>,
+    /// Lift of rays leaving a hit point, metres (10⁻⁵ of the scene's bounding radius).
+    hit_eps_m: f32,
+}
+
+/// Counters and scratch space of one worker.
+#[derive(Default)]
+pub struct Scratch {
+    /// Rays cast.
+    pub rays: u64,
+    /// Probe hits.
+    hits: Vec<RayHit>,
+}
+
+impl<'a> SceneView<'a> {
+    /// The view of `scene` lit by `lights`, with `effects`.
+    pub fn new(
+        scene: &'a Scene,
+        vis: &'a Visibility,
+        lights: &'a [Light],
+        effects: Effects,
+    ) -> Self {
+        let profiles: Vec<Option<Profile>> = scene
+            .materials
+            .iter()
+            .map(|m| m.subsurface.as_ref().map(Profile::new))
+            .collect();
+        let radius = scene.mesh.bounding_sphere().map_or(1.0, |(_, r)| r);
+        Self {
+            scene,
+            vis,
+            lights,
+            effects,
+            samplers: profiles
+                .iter()
+                .map(|p| p.filter(|_| effects.subsurface).map(ProfileSampler::new))
+                .collect(),
+            rho_bar: profiles
+                .iter()
+                .map(|p| p.map(|p| p.total_reflectance()))
+                .collect(),
+            hit_eps_m: (1e-5 * radius).max(1e-7),
+        }
+    }
+
+    /// True when paths through material `m` scatter under the surface.
+    pub fn translucent(&self, m: u32) -> bool {
+        self.samplers.get(m as usize).is_some_and(Option::is_some)
+    }
+
+    /// Whether any path can go beyond the first order.
+    pub fn traces_anything(&self) -> bool {
+        self.effects.radiosity || self.samplers.iter().any(Option::is_some)
+    }
+
+    /// One sample of the final radiosity `B(x)` at texel point `x` whose exact first order is
+    /// `b_o`.
+    pub fn sample(
+        &self,
+        x: &SurfacePoint,
+        b_o: Vec3,
+        rng: &mut ChaCha8Rng,
+        s: &mut Scratch,
+    ) -> Vec3 {
+        if self.translucent(x.material) {
+            self.path(*x, Vec3::ONE, false, rng, s)
+        } else {
+            b_o + self.path(*x, x.albedo, true, rng, s)
+        }
+    }
+
+    /// Σ over the path of throughput × direct irradiance, starting at `p` with throughput `t`;
+    /// `at_irradiance` skips the first exitance step and its direct light (the exact first
+    /// order of an opaque texel).
+    fn path(
+        &self,
+        mut p: SurfacePoint,
+        mut t: Vec3,
+        mut at_irradiance: bool,
+        rng: &mut ChaCha8Rng,
+        s: &mut Scratch,
+    ) -> Vec3 {
+        let mut sum = Vec3::ZERO;
+        let mut bounce = 0u32;
+        loop {
+            let q = if at_irradiance {
+                p
+            } else {
+                let q = match &self.samplers[p.material as usize] {
+                    Some(sampler) => {
+                        let Some(y) = self.exit_point(sampler, &p, rng, s) else {
+                            break;
+                        };
+                        t *= y.1;
+                        y.0
+                    }
+                    None => {
+                        t *= p.albedo;
+                        p
+                    }
+                };
+                sum += t * self.direct(&q, s);
+                q
+            };
+            at_irradiance = false;
+            if !self.effects.radiosity || t.max_element() <= 0.0 {
+                break;
+            }
+            if bounce >= MAX_BOUNCES {
+                break;
+            }
+            if bounce >= ROULETTE_AFTER && t.max_element() < ROULETTE_WEIGHT {
+                let survive = (t.max_element() / ROULETTE_WEIGHT).max(1e-3);
+                if rng.random::<f32>() >= survive {
+                    break;
+                }
+                t /= survive;
+            }
+            let Some(z) = self.bounce(&q, rng, s) else {
+                break;
+            };
+            p = z;
+            bounce += 1;
+        }
+        sum
+    }
+
+    /// Direct irradiance `E_direct` (W/m²) at `p` from every light, with lifted shadow rays.
+    pub fn direct(&self, p: &SurfacePoint, s: &mut Scratch) -> Vec3 {
+        let lifted = p.position_m + p.face_normal * p.eps_m;
+        let mut e = Vec3::ZERO;
+        for l in self.lights {
+            let el = irradiance_unshadowed_at(p.position_m, p.normal, l);
+            if el == Vec3::ZERO {
+                continue;
+            }
+            s.rays += 1;
+            if light_visible_from(lifted, p.eps_m, l, self.vis) {
+                e += el;
+            }
+        }
+        e
+    }
+
+    /// A cosine-sampled direction about `q`'s shading normal and the surface it reaches, if
+    /// that surface faces `q`.
+    fn bounce(
+        &self,
+        q: &SurfacePoint,
+        rng: &mut ChaCha8Rng,
+        s: &mut Scratch,
+    ) -> Option<SurfacePoint> {
+        let (u1, u2): (f32, f32) = (rng.random(), rng.random());
+        let (r, phi) = (u1.sqrt(), std::f32::consts::TAU * u2);
+        let (t1, t2) = tangent_frame(q.normal);
+        let z = (1.0 - u1).max(0.0).sqrt();
+        let dir = (t1 * (r * phi.cos()) + t2 * (r * phi.sin()) + q.normal * z).normalize();
+        let origin = q.position_m + q.face_normal * q.eps_m;
+        s.rays += 1;
+        let hit = self
+            .vis
+            .closest_triangle_hit(origin, dir, (q.eps_m, FAR_M), q.triangle)?;
+        let p = self.point_of_hit(&hit);
+        (p.normal.dot(dir) < 0.0).then_some(p)
+    }
+
+    /// The exit point `y` of a subsurface step at `p` and its weight `R_d / pdf`.
+    fn exit_point(
+        &self,
+        sampler: &ProfileSampler,
+        p: &SurfacePoint,
+        rng: &mut ChaCha8Rng,
+        s: &mut Scratch,
+    ) -> Option<(SurfacePoint, Vec3)> {
+        let mesh = &self.scene.mesh;
+        let mut hits = std::mem::take(&mut s.hits);
+        let exit = sampler.sample_exit(
+            self.vis,
+            p.position_m,
+            p.normal,
+            |tri| mesh.triangles[tri as usize].material == p.material,
+            |tri| self.face_normal(tri),
+            rng,
+            &mut hits,
+            &mut s.rays,
+        );
+        s.hits = hits;
+        let exit = exit?;
+        let mut y = self.point_of_hit(&exit.hit);
+        y.position_m = exit.position_m;
+        Some((y, exit.weight))
+    }
+
+    /// Unit geometric normal of triangle `tri` (as the texels compute it).
+    fn face_normal(&self, tri: u32) -> Vec3 {
+        let mesh = &self.scene.mesh;
+        let t = &mesh.triangles[tri as usize];
+        let p: [Vec3; 3] = std::array::from_fn(|k| mesh.positions_m[t.position[k] as usize]);
+        (p[1] - p[0]).cross(p[2] - p[0]).normalize_or_zero()
+    }
+
+    /// The surface point of a ray hit: interpolated position, shading normal and UV, the
+    /// albedo as [`crate::bake::texels`] computes a texel's.
+    pub fn point_of_hit(&self, hit: &RayHit) -> SurfacePoint {
+        let mesh = &self.scene.mesh;
+        let tri = &mesh.triangles[hit.triangle as usize];
+        let b = hit.barycentrics;
+        let pos: [Vec3; 3] = std::array::from_fn(|k| mesh.positions_m[tri.position[k] as usize]);
+        let nrm: [Vec3; 3] = std::array::from_fn(|k| mesh.normals[tri.normal[k] as usize]);
+        let uvs: [Vec2; 3] = std::array::from_fn(|k| mesh.uvs[tri.uv[k] as usize]);
+        let face_normal = (pos[1] - pos[0]).cross(pos[2] - pos[0]).normalize_or_zero();
+        let normal = (nrm[0] * b[0] + nrm[1] * b[1] + nrm[2] * b[2])
+            .try_normalize()
+            .unwrap_or(face_normal);
+        let uv = uvs[0] * b[0] + uvs[1] * b[1] + uvs[2] * b[2];
+        let material = tri.material;
+        let albedo = match self.rho_bar[material as usize] {
+            Some(rho) => rho,
+            None => self.scene.materials[material as usize].albedo.at(uv),
+        };
+        SurfacePoint {
+            position_m: pos[0] * b[0] + pos[1] * b[1] + pos[2] * b[2],
+            normal,
+            face_normal,
+            eps_m: self.hit_eps_m,
+            albedo,
+            material,
+            triangle: hit.triangle,
+        }
+    }
+}
