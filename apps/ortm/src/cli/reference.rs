@@ -124,9 +124,12 @@ pub fn run(a: Args) -> Result<()> {
         stats.rays
     );
     println!(
-        "mean relative standard error: final {:.4}, indirect {:.4}",
+        "mean relative standard error: final {:.4}, indirect {:.4}; as a relative RMSE \
+         (sqrt Σσ² / sqrt ΣB²): final {:.4}, indirect {:.4}",
         maps.mean_relative_std_error(&maps.final_b),
-        maps.mean_relative_std_error(&indirect)
+        maps.mean_relative_std_error(&indirect),
+        maps.rms_relative_std_error(&maps.final_b),
+        maps.rms_relative_std_error(&indirect)
     );
     println!(
         "first-order power {:.4?} W, final {:.4?} W (RGB)",

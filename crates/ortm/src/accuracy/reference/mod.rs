@@ -111,6 +111,19 @@ impl ReferenceMaps {
         if count == 0 { 0.0 } else { sum / count as f64 }
     }
 
+    /// The noise's share of a relative RMSE: `sqrt(Σ σ²) / sqrt(Σ |value|²)` over covered texels
+    /// and channels, the relative RMSE that the reference's own noise adds to a comparison with
+    /// `values` ([`crate::accuracy::compare::relative_rmse`]'s form; e.g. of `final_b`). 0 when
+    /// `values` are all 0.
+    pub fn rms_relative_std_error(&self, values: &[Vec3]) -> f64 {
+        let (mut num, mut den) = (0.0f64, 0.0f64);
+        for (v, e) in values.iter().zip(&self.std_error) {
+            num += e.as_dvec3().length_squared();
+            den += v.as_dvec3().length_squared();
+        }
+        if den > 0.0 { (num / den).sqrt() } else { 0.0 }
+    }
+
     /// `final − first order` per texel.
     pub fn indirect(&self) -> Vec<Vec3> {
         self.final_b

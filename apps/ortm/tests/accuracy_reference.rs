@@ -1,0 +1,468 @@
+//! The path-traced reference (`ortm::accuracy::reference`) against the exact dense solve of the
+//! same scene: two independent computations of the transport's model (Monte Carlo paths through
+//! the BVH and the profile by probe rays, vs form factors and the profile's texel quadrature
+//! solved by LU). Plus determinism (seed, thread count).
+
+mod common;
+
+use std::sync::atomic::AtomicBool;
+
+use glam::Vec3;
+use ortm::accuracy::compare::relative_rmse;
+use ortm::accuracy::reference::{self, ReferenceMaps, Settings};
+use ortm::bake::lighting;
+use ortm::bake::raycast::Visibility;
+use ortm::bake::texels::TexelGrid;
+use ortm::bake::transport::dense::DenseTransport;
+use ortm::bake::transport::{Effects, Kernels, texel_patches};
+use ortm::scene::{Light, Scene};
+use std::sync::Arc;
+
+/// The exact dense solve's final radiosity of `grid` under `lights`.
+fn exact(scene: &Scene, grid: &TexelGrid, lights: &[Light], effects: Effects) -> Vec<Vec3> {
+    let vis = Arc::new(Visibility::new(&scene.mesh));
+    let b_o = lighting::first_order(grid, lights, &vis);
+    let kernels = Kernels::new(scene, effects, vis);
+    DenseTransport::new(&texel_patches(grid), &kernels).solve(&b_o)
+}
+
+fn run(scene: &Scene, grid: &TexelGrid, lights: &[Light], settings: &Settings) -> ReferenceMaps {
+    let (maps, stats) = reference::trace_with_stats(
+        scene,
+        grid,
+        lights,
+        settings,
+        &|_, _| {},
+        &AtomicBool::new(false),
+    )
+    .expect("not cancelled");
+    println!(
+        "{} texels × {} spp: {:.1} s, {:.2} Mrays/s",
+        grid.texels.len(),
+        settings.samples_per_texel,
+        stats.seconds,
+        stats.rays_per_second() / 1e6
+    );
+    maps
+}
+
+/// Figures of the reference against the exact solve over the texels of `mask`: fraction of
+/// texels within `k` standard errors in every channel, relative RMSE, and the worst texels by
+/// z-score.
+struct Agreement {
+    within: f64,
+    rmse: f64,
+    indirect_power_ratio: f64,
+}
+
+fn agreement(
+    grid: &TexelGrid,
+    maps: &ReferenceMaps,
+    exact: &[Vec3],
+    k: f32,
+    mask: &[bool],
+) -> Agreement {
+    // An absolute floor of 10⁻³ × the mean exact value: texels in deep shadow, where both are
+    // ~0 and the reference's samples are all 0 (σ = 0).
+    let floor =
+        1e-3 * exact.iter().map(|e| e.element_sum() / 3.0).sum::<f32>() / exact.len() as f32;
+    let mut within = 0usize;
+    let mut z: Vec<(f32, usize)> = Vec::new();
+    for (i, (b, e)) in maps.final_b.iter().zip(exact).enumerate() {
+        if !mask[i] {
+            continue;
+        }
+        let se = maps.std_error[i];
+        let zi = (0..3)
+            .map(|c| ((b[c] - e[c]).abs() - floor).max(0.0) / se[c].max(1e-12))
+            .fold(0.0f32, f32::max);
+        within += usize::from(zi <= k);
+        z.push((zi, i));
+    }
+    let mut by_abs: Vec<(f32, usize)> = z
+        .iter()
+        .map(|&(_, i)| ((maps.final_b[i] - exact[i]).length(), i))
+        .collect();
+    by_abs.sort_by(|a, b| b.0.total_cmp(&a.0));
+    for &(d, i) in by_abs.iter().take(6) {
+        let t = &grid.texels[i];
+        println!(
+            "  largest |Δ| {d:.4} at ({}, {}): reference {:.4} ± {:.4}, exact {:.4}, first {:.4}",
+            t.x, t.y, maps.final_b[i], maps.std_error[i], exact[i], maps.first_order[i]
+        );
+    }
+    z.sort_by(|a, b| b.0.total_cmp(&a.0));
+    for &(zi, i) in z.iter().take(4) {
+        let t = &grid.texels[i];
+        println!(
+            "  texel ({}, {}) chart {} at {:?} n {:?} z = {zi:.1}: reference {:?} ± {:?}, exact {:?}, first {:?}",
+            t.x,
+            t.y,
+            t.chart,
+            t.position_m,
+            t.normal,
+            maps.final_b[i],
+            maps.std_error[i],
+            exact[i],
+            maps.first_order[i]
+        );
+    }
+    let (mut pr, mut pe) = (0.0f64, 0.0f64);
+    for i in (0..exact.len()).filter(|&i| mask[i]) {
+        let a = grid.texels[i].area_m2 as f64;
+        pr += a * (maps.final_b[i] - maps.first_order[i]).element_sum() as f64;
+        pe += a * (exact[i] - maps.first_order[i]).element_sum() as f64;
+    }
+    println!("indirect power reference / exact: {:.4}", pr / pe);
+    let a = Agreement {
+        within: within as f64 / z.len() as f64,
+        rmse: relative_rmse(&maps.final_b, exact, Some(mask)),
+        indirect_power_ratio: pr / pe,
+    };
+    println!(
+        "{} texels: within {k} σ: {:.4}; relative RMSE {:.5}; mean relative standard error {:.5}",
+        z.len(),
+        a.within,
+        a.rmse,
+        maps.mean_relative_std_error(&maps.final_b)
+    );
+    a
+}
+
+/// Texels within two texel sizes of a texel of another chart facing another way (creases,
+/// corners, where the blocks stand on the floor): where the exact solve's form factors between
+/// neighbouring texels (point-to-disk, sub-sampled squares) approximate the continuous kernel
+/// most coarsely.
+fn near_creases(grid: &TexelGrid) -> Vec<bool> {
+    let t = &grid.texels;
+    t.iter()
+        .map(|a| {
+            t.iter().any(|b| {
+                b.chart != a.chart
+                    && a.normal.dot(b.normal) < 0.99
+                    && (a.position_m - b.position_m).length()
+                        < 2.0 * a.area_m2.max(b.area_m2).sqrt()
+            })
+        })
+        .collect()
+}
+
+fn settings(spp: u32, seed: u64, effects: Effects) -> Settings {
+    Settings {
+        samples_per_texel: spp,
+        seed,
+        effects,
+    }
+}
+
+const RADIOSITY: Effects = Effects {
+    radiosity: true,
+    subsurface: false,
+};
+
+/// Cornell 64², radiosity. The scene's own light hangs 2 cm under the ceiling, so the ceiling's
+/// first order peaks as h/(r²+h²)^{3/2} (20,000 W/m² above the lamp): paths that land there are
+/// rare and carry most of the indirect light, and the reference needs far more samples (mean
+/// relative standard error 0.24 of the final at 64 spp, against 0.09 here). The test moves the
+/// lamp to (0.4, 0.45, 0.2) m, ≥ 0.1 m from every surface.
+#[test]
+fn cornell_64_agrees_with_the_exact_solve() {
+    let scene = ortm::scene::cornell::cornell_box(64);
+    let grid = TexelGrid::build(&scene).unwrap();
+    let spp = 1024;
+    let lights = vec![Light::Point {
+        position_m: Vec3::new(0.4, 0.45, 0.2),
+        color: Vec3::ONE,
+        intensity_w_sr: 1.0,
+    }];
+    let maps = run(&scene, &grid, &lights, &settings(spp, 1, RADIOSITY));
+    let exact = exact(&scene, &grid, &lights, RADIOSITY);
+    let creases = near_creases(&grid);
+    let all = vec![true; grid.texels.len()];
+    let away: Vec<bool> = creases.iter().map(|c| !c).collect();
+    println!("all texels:");
+    let a_all = agreement(&grid, &maps, &exact, 3.0, &all);
+    println!("near creases:");
+    let _ = agreement(&grid, &maps, &exact, 3.0, &creases);
+    println!("away from creases:");
+    let a_away = agreement(&grid, &maps, &exact, 3.0, &away);
+    // Measured (1024 spp, seed 1; mean relative standard error of the final 0.040): all 2,100
+    // texels 0.9905 within 3σ, relative RMSE 0.0171, indirect power 1.0097 × the exact solve's;
+    // the 1,068 texels near creases 0.9850 / 0.0239; the 1,032 away from them 0.9961 / 0.0134.
+    // The RMSE is the reference's noise (it falls as 1/√spp: 0.0375 at 256 spp, 0.0150 at
+    // 2048 before the roulette was tuned); the brief's 1 % needs ~4,000 spp, beyond a test's
+    // time. The misses concentrate at creases, where the exact solve's near-pair form factors
+    // (sub-sampled squares) differ from the continuous kernel. Bounds: measured + 25 % of the
+    // error.
+    assert!(a_all.within >= 0.988, "all: {:.4} within 3σ", a_all.within);
+    assert!(
+        a_away.within >= 0.99,
+        "away from creases: {:.4} within 3σ",
+        a_away.within
+    );
+    assert!(a_all.rmse < 0.0215, "all: relative RMSE {:.4}", a_all.rmse);
+    assert!(
+        a_away.rmse < 0.0170,
+        "away: relative RMSE {:.4}",
+        a_away.rmse
+    );
+    assert!(
+        (a_all.indirect_power_ratio - 1.0).abs() < 0.0125,
+        "indirect power ratio {:.4}",
+        a_all.indirect_power_ratio
+    );
+}
+
+/// The head at 64², radiosity + subsurface, with the scene's light (the paper's Fig. 5 lamp):
+/// the measured distance between the reference and the exact solve (see the comment below).
+#[test]
+fn head_64_agrees_with_the_exact_solve() {
+    let Ok(mut scene) = ortm::scene::head::head_scene() else {
+        panic!("head scene (../shared/faces/head.obj)");
+    };
+    scene.lightmap_size = (64, 64);
+    let grid = TexelGrid::build(&scene).unwrap();
+    let spp = 256;
+    let effects = Effects::default();
+    let lights = scene.lights.clone();
+    let maps = run(&scene, &grid, &lights, &settings(spp, 1, effects));
+    let exact = exact(&scene, &grid, &lights, effects);
+    let creases = near_creases(&grid);
+    let all = vec![true; grid.texels.len()];
+    let away: Vec<bool> = creases.iter().map(|c| !c).collect();
+    println!("all texels:");
+    let a_all = agreement(&grid, &maps, &exact, 3.0, &all);
+    println!("near seams:");
+    let _ = agreement(&grid, &maps, &exact, 3.0, &creases);
+    println!("away from seams:");
+    let _ = agreement(&grid, &maps, &exact, 3.0, &away);
+    let noise = maps.rms_relative_std_error(&maps.final_b);
+    println!("the reference's noise as a relative RMSE: {noise:.4}");
+    // Measured (256 spp, seed 1): 0.834 of the 3,782 texels within 3σ, relative RMSE 0.155, of
+    // which the reference's noise is 0.085 (sqrt Σσ² / sqrt ΣB²): ~0.13 is systematic, far from
+    // the 1 % target. The largest differences are where the 64² discretisation of the profile is
+    // coarse (texels of 4–9 mm against a profile of 1–3 mm mean free path):
+    // - texels whose centre is shadowed but whose neighbourhood is lit: e.g. (37, 19), a 3.8 mm
+    //   texel, reference 2.30 ± 0.29 W/m² red, exact 0.50: the continuous convolution gathers
+    //   the lit skin a millimetre away, the midpoint rule only lit texel centres mm away;
+    // - texels whose sender scale min(1, ρ̄/Q_j) cuts their light: 966 of the 3,782 texels are
+    //   scaled; e.g. (32, 30), a 9.2 mm texel whose neighbours' centres lie inside its disk, raw
+    //   Q = 2.02 against ρ̄ = 0.436 (red), scale 0.216: first order 2.06, reference
+    //   2.26 ± 0.28, exact 0.90.
+    // The flat-square test checks the subsurface estimator analytically. Bounds: measured + 25 %
+    // of the error.
+    assert!(a_all.within >= 0.79, "{:.4} within 3σ", a_all.within);
+    assert!(a_all.rmse < 0.195, "relative RMSE {:.4}", a_all.rmse);
+    assert!(noise < 0.106, "noise {noise:.4}");
+}
+
+fn bits(m: &ReferenceMaps) -> Vec<[u32; 3]> {
+    m.final_b
+        .iter()
+        .chain(&m.std_error)
+        .map(|v| v.to_array().map(f32::to_bits))
+        .collect()
+}
+
+/// Same seed → bit-identical maps, with 1 and 2 worker threads; another seed → other noise.
+/// Cornell 32² with radiosity and the head at 48² with subsurface (the probe rays).
+#[test]
+fn reference_is_deterministic_for_a_seed_whatever_the_thread_count() {
+    let cornell = ortm::scene::cornell::cornell_box(32);
+    let mut head = ortm::scene::head::head_scene().expect("head scene");
+    head.lightmap_size = (48, 48);
+    for scene in [&cornell, &head] {
+        let grid = TexelGrid::build(scene).unwrap();
+        let trace = |threads: usize, seed: u64| {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            pool.install(|| {
+                reference::trace(
+                    scene,
+                    &grid,
+                    &scene.lights,
+                    &settings(8, seed, Effects::default()),
+                    &|_, _| {},
+                    &AtomicBool::new(false),
+                )
+                .unwrap()
+            })
+        };
+        let one = bits(&trace(1, 5));
+        assert_eq!(one, bits(&trace(2, 5)), "{}: 1 vs 2 threads", scene.name);
+        assert_eq!(one, bits(&trace(2, 5)), "{}: same seed", scene.name);
+        assert_ne!(one, bits(&trace(2, 6)), "{}: another seed", scene.name);
+    }
+}
+
+/// A raised cancel flag stops the trace with `Cancelled`.
+#[test]
+fn a_raised_cancel_flag_stops_the_reference() {
+    let scene = ortm::scene::cornell::cornell_box(32);
+    let grid = TexelGrid::build(&scene).unwrap();
+    let r = reference::trace(
+        &scene,
+        &grid,
+        &scene.lights,
+        &settings(64, 1, RADIOSITY),
+        &|_, _| {},
+        &AtomicBool::new(true),
+    );
+    assert!(matches!(r, Err(reference::ReferenceError::Cancelled)));
+}
+
+/// `ortm reference` writes the four EXRs (the covered texels' values; uncovered texels 0) and
+/// PNGs; a missing scene file is a clear error naming it.
+#[test]
+fn cli_writes_the_four_exrs_and_names_a_bad_scene() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = common::ok(common::ortm(
+        &[
+            "reference",
+            "cornell",
+            "--size",
+            "32",
+            "--spp",
+            "4",
+            "--effects",
+            "radiosity",
+            "-o",
+            "out",
+        ],
+        dir.path(),
+    ));
+    assert!(text.contains("4 paths per texel"), "{text}");
+    let scene = ortm::scene::cornell::cornell_box(32);
+    let grid = TexelGrid::build(&scene).unwrap();
+    let read = |name: &str| {
+        ortm::render::lightmap_exr::read_lightmap_exr(&dir.path().join("out").join(name))
+            .unwrap_or_else(|e| panic!("{name}: {e}"))
+    };
+    let (fin, first, ind, se) = (
+        read("final.exr"),
+        read("first_order.exr"),
+        read("indirect.exr"),
+        read("std_error.exr"),
+    );
+    let vis = Visibility::new(&scene.mesh);
+    let b_o = lighting::first_order(&grid, &scene.lights, &vis);
+    for (i, t) in grid.texels.iter().enumerate() {
+        let (f, o, d) = (fin.get(t.x, t.y), first.get(t.x, t.y), ind.get(t.x, t.y));
+        assert_eq!(o, b_o[i].to_array(), "first order at texel {i}");
+        for c in 0..3 {
+            assert!((f[c] - o[c] - d[c]).abs() <= 1e-4 * f[c].abs().max(1.0));
+            assert!(se.get(t.x, t.y)[c] >= 0.0);
+        }
+    }
+    let uncovered = (0..32u32).flat_map(|y| (0..32u32).map(move |x| (x, y)));
+    for (x, y) in uncovered.filter(|&(x, y)| grid.at(x as i32, y as i32).is_none()) {
+        assert_eq!(fin.get(x, y), [0.0; 3]);
+    }
+    for png in ["final.png", "first_order.png", "indirect.png"] {
+        assert!(dir.path().join("out").join(png).is_file(), "{png}");
+    }
+    let text = common::fails(common::ortm(
+        &["reference", "no_such_scene.toml", "-o", "out2"],
+        dir.path(),
+    ));
+    assert!(
+        text.contains("no_such_scene.toml") && text.contains("not found"),
+        "{text}"
+    );
+}
+
+/// A flat translucent square (0.2 m, skin1 of Jensen et al. 2001) under a uniform directional
+/// light of 1 W/m² along its normal, subsurface only: away from the edges (farther than the
+/// profile's support `R`) the convolution gives exactly `B = E·∫₀^R R_d(r) 2πr dr` per channel
+/// (the profile's disk integral), an analytic check of the subsurface path (probe rays, the
+/// multiple-importance density, the weights). Dipole and exponential profiles.
+#[test]
+fn flat_translucent_square_reemits_the_profile_integral() {
+    use glam::Vec2;
+    use ortm::scene::subsurface::Profile;
+    use ortm::scene::{Albedo, Material, Mesh, MeshTriangle, Subsurface, SubsurfaceModel};
+    for model in [SubsurfaceModel::Dipole, SubsurfaceModel::Exponential] {
+        let sss = Subsurface {
+            sigma_a_per_mm: Vec3::new(0.032, 0.17, 0.48),
+            sigma_s_prime_per_mm: Vec3::new(0.74, 0.88, 1.01),
+            eta: 1.3,
+            model,
+        };
+        let h = 0.1f32;
+        let scene = Scene {
+            name: "square".into(),
+            mesh: Mesh {
+                positions_m: vec![
+                    Vec3::new(-h, -h, 0.0),
+                    Vec3::new(h, -h, 0.0),
+                    Vec3::new(h, h, 0.0),
+                    Vec3::new(-h, h, 0.0),
+                ],
+                uvs: vec![
+                    Vec2::new(0.0, 0.0),
+                    Vec2::new(1.0, 0.0),
+                    Vec2::new(1.0, 1.0),
+                    Vec2::new(0.0, 1.0),
+                ],
+                normals: vec![Vec3::Z],
+                triangles: [[0, 1, 2], [0, 2, 3]]
+                    .map(|p| MeshTriangle {
+                        position: p,
+                        uv: p,
+                        normal: [0; 3],
+                        material: 0,
+                    })
+                    .to_vec(),
+            },
+            materials: vec![Material {
+                name: "skin".into(),
+                albedo: Albedo::Constant(Vec3::ONE),
+                subsurface: Some(sss),
+            }],
+            lights: vec![Light::Directional {
+                direction: -Vec3::Z,
+                color: Vec3::ONE,
+                irradiance_w_m2: 1.0,
+            }],
+            lightmap_size: (16, 16),
+            allow_uv_overlap: false,
+        };
+        let grid = TexelGrid::build(&scene).unwrap();
+        let effects = Effects {
+            radiosity: false,
+            subsurface: true,
+        };
+        let maps = run(&scene, &grid, &scene.lights, &settings(512, 2, effects));
+        let profile = Profile::new(&sss);
+        let support = profile.support_radius(1e-4);
+        let d = profile.disk_integral(support);
+        let expected = Vec3::new(d[0] as f32, d[1] as f32, d[2] as f32);
+        let (mut n, mut sum, mut var, mut worst_z) = (0usize, Vec3::ZERO, Vec3::ZERO, 0.0f32);
+        for (i, t) in grid.texels.iter().enumerate() {
+            let p = t.position_m;
+            if p.x.abs().max(p.y.abs()) > h - support as f32 {
+                continue;
+            }
+            n += 1;
+            sum += maps.final_b[i];
+            var += maps.std_error[i] * maps.std_error[i];
+            worst_z =
+                worst_z.max(((maps.final_b[i] - expected).abs() / maps.std_error[i]).max_element());
+        }
+        let mean = sum / n as f32;
+        let se = Vec3::new(var.x.sqrt(), var.y.sqrt(), var.z.sqrt()) / n as f32;
+        let z = (mean - expected).abs() / se;
+        println!(
+            "{model:?}: {n} interior texels, mean B {mean:.5} ± {se:.5} vs ∫R_d {expected:.5} \
+             ({z:.2} σ); worst texel {worst_z:.2} σ"
+        );
+        assert!(n >= 16);
+        assert!(
+            z.max_element() < 3.0,
+            "{model:?}: mean {mean} vs {expected} ({z} σ)"
+        );
+        assert!(worst_z < 4.5, "{model:?}: a texel {worst_z} σ off");
+    }
+}
