@@ -340,14 +340,9 @@ fn assign_materials(
 /// Why a path that must name a regular file does not: it is missing, or it is something else
 /// (a directory, a device such as `/dev/zero`, a pipe), which is refused before reading.
 fn not_a_file(path: &Path) -> String {
-    if path.exists() {
-        format!(
-            "names {}, which is not a regular file (a directory, device or pipe)",
-            path.display()
-        )
-    } else {
-        format!("names {}, which does not exist", path.display())
-    }
+    let what =
+        crate::io::not_a_regular_file(path).unwrap_or_else(|| "is not a regular file".into());
+    format!("names {}, which {what}", path.display())
 }
 
 /// 1-based line of byte offset `offset` in `text`.
@@ -453,7 +448,7 @@ impl Ctx<'_> {
             ));
         }
         let mesh_path = dir.join(mesh_rel);
-        if !mesh_path.is_file() {
+        if crate::io::not_a_regular_file(&mesh_path).is_some() {
             return Err(self.err(
                 Some(mesh.span()),
                 "mesh",
@@ -634,7 +629,7 @@ impl Ctx<'_> {
         field: &str,
         file: &Path,
     ) -> Result<AlbedoTexture, SceneError> {
-        if !file.is_file() {
+        if crate::io::not_a_regular_file(file).is_some() {
             return Err(self.err(
                 Some(span.clone()),
                 field,
@@ -642,12 +637,12 @@ impl Ctx<'_> {
                 "correct the path (it is relative to the scene file's folder)",
             ));
         }
-        let mut reader = image::ImageReader::open(file)
-            .map_err(|source| SceneError::Io {
-                what: "albedo texture",
-                path: file.to_path_buf(),
-                source,
-            })?
+        let (opened, _) = crate::io::open_regular(file).map_err(|source| SceneError::Io {
+            what: "albedo texture",
+            path: file.to_path_buf(),
+            source,
+        })?;
+        let mut reader = image::ImageReader::new(std::io::BufReader::new(opened))
             .with_guessed_format()
             .map_err(|source| SceneError::Io {
                 what: "albedo texture",
