@@ -20,6 +20,8 @@
 //! | [`MAX_EXR_BYTES`] | 4 GiB | map and atlas OpenEXR files |
 //! | [`MAX_EXR_EXPANSION`] | 1100 | decoded pixel bytes per byte of an OpenEXR file |
 //! | [`MAX_OFFSETS`] | 65,536 | offsets (transfer maps) of a bake |
+//! | [`MAX_REFINEMENT_ITERATIONS`] | 100,000 | `ortm bake --iterations` |
+//! | [`MAX_COARSE_BLOCK`] | 8192 texels | `ortm bake --coarse-block` (1 or more) |
 //! | memory | physical memory, or `ORTM_MEMORY_LIMIT_BYTES` | a bake's transport ([`bake_memory_bytes`]), `ortm bin`'s atlases ([`atlas_memory_bytes`]) |
 
 use std::fs;
@@ -60,6 +62,15 @@ pub const MAX_EXR_EXPANSION: u64 = 1100;
 
 /// Most offsets (transfer maps) in one bake.
 pub const MAX_OFFSETS: usize = 65_536;
+
+/// Most refinement draws of the importance density (`--iterations`): 100× the default of
+/// 1000; each draw evaluates the transference of one offset over the selection receivers, so
+/// an unbounded count would run for ever.
+pub const MAX_REFINEMENT_ITERATIONS: usize = 100_000;
+
+/// Largest side of the texel clusters of the coarse solve (`--coarse-block`): a block as large
+/// as the largest lightmap side ([`MAX_LIGHTMAP_SIDE`]) already makes one cluster.
+pub const MAX_COARSE_BLOCK: u32 = MAX_LIGHTMAP_SIDE;
 
 /// Environment variable that lowers (or raises) the memory a bake may plan to use, in bytes;
 /// without it the limit is the machine's physical memory (`MemTotal` of `/proc/meminfo`).
