@@ -114,10 +114,18 @@ pub fn settings(a: &Args, size: (u32, u32)) -> Result<BakeSettings> {
     })
 }
 
-/// Runs `ortm bake`.
+/// Runs `ortm bake` (and reports its peak memory for tests: `ORTM_TEST_REPORT_PEAK`).
 pub fn run(a: Args) -> Result<()> {
+    let result = run_bake(a);
+    ortm::io::limits::report_peak_memory_if_asked();
+    result
+}
+
+/// `ortm bake` proper.
+fn run_bake(a: Args) -> Result<()> {
     let scene = super::load_scene(&a.scene, a.size)?;
     let s = settings(&a, scene.lightmap_size)?;
+    ortm::io::limits::check_lightmap_memory(s.size.0, s.size.1)?;
     let cancel = Arc::new(AtomicBool::new(false));
     {
         let c = cancel.clone();

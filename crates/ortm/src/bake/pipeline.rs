@@ -525,6 +525,8 @@ pub fn bake(
     let _lock = crate::io::DirLock::acquire(dir)?;
     crate::io::limits::check_bake_request(w, h, settings.offsets)
         .map_err(|e| BakeError::Settings(e.to_string()))?;
+    crate::io::limits::check_lightmap_memory(w, h)
+        .map_err(|e| BakeError::Settings(e.to_string()))?;
     let grid = TexelGrid::build_with_size(scene, w, h)?;
     let block = settings.coarse_block.max(1);
     let clusters = crate::bake::transport::coarse::cluster_count(&grid, block);
