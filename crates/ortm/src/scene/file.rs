@@ -337,6 +337,10 @@ fn assign_materials(
     }
 }
 
+/// Upper bound of the bytes decoding an albedo texture takes per pixel: the decoded image (at
+/// most 8, RGBA 16-bit), its RGB f32 copy (12) and the linear RGB texture (12).
+const TEXTURE_BYTES_PER_PIXEL: u64 = 32;
+
 /// Why a path that must name a regular file does not: it is missing, or it is something else
 /// (a directory, a device such as `/dev/zero`, a pipe), which is refused before reading.
 fn not_a_file(path: &Path) -> String {
@@ -655,11 +659,32 @@ impl Ctx<'_> {
         limits.max_image_height = Some(crate::io::limits::MAX_TEXTURE_SIDE);
         limits.max_alloc = Some(crate::io::limits::MAX_TEXTURE_DECODE_BYTES);
         reader.limits(limits);
-        let decoded = reader.decode().map_err(|source| SceneError::Texture {
+        let tex_err = |source| SceneError::Texture {
             path: file.to_path_buf(),
             source,
-        })?;
+        };
+        let decoder = reader.into_decoder().map_err(tex_err)?;
+        // The decode's memory, from the declared size, against the memory limit before any
+        // pixel is allocated.
+        let (w, h) = image::ImageDecoder::dimensions(&decoder);
+        let need = u64::from(w) * u64::from(h) * TEXTURE_BYTES_PER_PIXEL;
+        let limit = crate::io::limits::memory_limit_bytes()
+            .map_err(|e| self.err(Some(span.clone()), field, e.to_string(), "fix the variable"))?;
+        if let Some(limit) = limit.filter(|&l| need > l) {
+            return Err(self.err(
+                Some(span.clone()),
+                field,
+                format!(
+                    "names {}, a {w}×{h} image whose decoding needs {need} bytes, more than the \
+                     memory limit of {limit} bytes (physical memory or ORTM_MEMORY_LIMIT_BYTES)",
+                    file.display()
+                ),
+                "use a smaller texture",
+            ));
+        }
+        let decoded = image::DynamicImage::from_decoder(decoder).map_err(tex_err)?;
         let rgb = decoded.to_rgb32f();
+        drop(decoded);
         let data = rgb
             .pixels()
             .map(|p| {
