@@ -200,7 +200,7 @@ fn write_then_read_round_trips() {
     let text = fs::read_to_string(dir.path().join(ATLAS_INDEX_FILE_NAME)).unwrap();
     let v: serde_json::Value = serde_json::from_str(&text).unwrap();
     assert_eq!(v["format"], "ortm-atlases");
-    assert_eq!(v["version"], 1);
+    assert_eq!(v["version"], 2);
     assert_eq!(
         v["atlas_size"],
         serde_json::json!({"width": 16, "height": 16})
@@ -277,9 +277,9 @@ fn tampered_or_inconsistent_atlases_are_refused() {
     read_atlas_set(d).unwrap();
 
     // Wrong version / format / missing version.
-    let e = read_after_edit(d, |v| v["version"] = 2.into());
+    let e = read_after_edit(d, |v| v["version"] = 3.into());
     assert!(matches!(e, AtlasError::Version { .. }), "{e}");
-    assert!(e.to_string().contains("version 1"), "{e}");
+    assert!(e.to_string().contains("version 2"), "{e}");
     restore();
     let e = read_after_edit(d, |v| {
         v.as_object_mut().unwrap().remove("version");

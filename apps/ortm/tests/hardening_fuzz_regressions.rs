@@ -114,7 +114,7 @@ const REASONS: &[(&str, &str, &[&str])] = &[
         "device_mesh.toml",
         &[
             "scene.toml:1",
-            "/dev/zero, which is not a regular file (a directory, device or pipe)",
+            "/dev/zero, which is a device, not a regular file",
         ],
     ),
     (

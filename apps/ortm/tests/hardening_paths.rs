@@ -95,7 +95,10 @@ fn bake_index_naming_a_directory_or_device_is_refused() {
         matches!(e, MapsError::File(FileError::PathEscape { .. })),
         "{e}"
     );
-    assert!(e.to_string().contains("is not a regular file"), "{e}");
+    assert!(
+        e.to_string().contains("is a directory, not a regular file"),
+        "{e}"
+    );
 }
 
 #[test]
@@ -197,12 +200,15 @@ fn scene_naming_a_device_as_mesh_is_refused() {
     let e = ortm::scene::load_scene_with_warnings(&scene).unwrap_err();
     assert!(
         e.to_string()
-            .contains("/dev/zero, which is not a regular file"),
+            .contains("/dev/zero, which is a device, not a regular file"),
         "{e}"
     );
     // The OBJ loader itself refuses it before reading (it would never reach end of file).
     let e = ortm::scene::load_obj(Path::new("/dev/zero"), 1.0).unwrap_err();
-    assert!(e.to_string().contains("not a regular file"), "{e}");
+    assert!(
+        e.to_string().contains("is a device, not a regular file"),
+        "{e}"
+    );
 }
 
 #[test]

@@ -10,6 +10,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use ortm::bake::offsets::ImportanceMetric;
 use ortm::bake::transport::Effects;
 use ortm::bake::{BakeEvent, BakeSettings, CellRule, Selector, bake};
+use ortm::io::limits::{MAX_COARSE_BLOCK, MAX_REFINEMENT_ITERATIONS};
 
 /// Arguments of `ortm bake`.
 #[derive(clap::Args, Debug)]
@@ -42,11 +43,21 @@ pub struct Args {
     /// `sampled` (the paper's Eq. 10, `TR·TVA`).
     #[arg(long, default_value = "integrated")]
     pub cell_rule: String,
-    /// Refinement iterations of the importance density.
-    #[arg(long, default_value_t = 1000)]
-    pub iterations: usize,
+    /// Refinement iterations of the importance density (0 to MAX_REFINEMENT_ITERATIONS).
+    #[arg(
+        long,
+        default_value_t = BakeSettings::default().refinement_iterations as u32,
+        value_parser = clap::value_parser!(u32).range(0..=MAX_REFINEMENT_ITERATIONS as i64),
+        help = format!("Refinement iterations of the importance density, 0..={MAX_REFINEMENT_ITERATIONS}")
+    )]
+    pub iterations: u32,
     /// Texels per side of the clusters of the coarse higher-order solve.
-    #[arg(long, default_value_t = 8)]
+    #[arg(
+        long,
+        default_value_t = BakeSettings::default().coarse_block,
+        value_parser = clap::value_parser!(u32).range(1..=i64::from(MAX_COARSE_BLOCK)),
+        help = format!("Texels per side of the clusters of the coarse higher-order solve, 1..={MAX_COARSE_BLOCK}")
+    )]
     pub coarse_block: u32,
 }
 
@@ -96,17 +107,25 @@ pub fn settings(a: &Args, size: (u32, u32)) -> Result<BakeSettings> {
         seed: a.seed,
         selector,
         metric,
-        refinement_iterations: a.iterations,
-        coarse_block: a.coarse_block.max(1),
+        refinement_iterations: a.iterations as usize,
+        coarse_block: a.coarse_block,
         scene: Some(a.scene.clone()),
         ..BakeSettings::default()
     })
 }
 
-/// Runs `ortm bake`.
+/// Runs `ortm bake` (and reports its peak memory for tests: `ORTM_TEST_REPORT_PEAK`).
 pub fn run(a: Args) -> Result<()> {
+    let result = run_bake(a);
+    ortm::io::limits::report_peak_memory_if_asked();
+    result
+}
+
+/// `ortm bake` proper.
+fn run_bake(a: Args) -> Result<()> {
     let scene = super::load_scene(&a.scene, a.size)?;
     let s = settings(&a, scene.lightmap_size)?;
+    ortm::io::limits::check_lightmap_memory(s.size.0, s.size.1)?;
     let cancel = Arc::new(AtomicBool::new(false));
     {
         let c = cancel.clone();

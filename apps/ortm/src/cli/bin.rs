@@ -79,7 +79,7 @@ pub fn run(a: Args) -> Result<()> {
             dir.display()
         );
     }
-    let index = BakeIndex::read(dir)
+    let (index, index_sha256) = BakeIndex::read_with_sha256(dir)
         .with_context(|| format!("reading the bake index of '{}'", dir.display()))?;
     let stored: u64 = index
         .maps
@@ -96,9 +96,12 @@ pub fn run(a: Args) -> Result<()> {
         .with_context(|| format!("packing the maps of '{}'", dir.display()))?;
 
     let out = a.output.as_deref().unwrap_or(dir);
-    let written = atlas::write_atlas_set(out, &set, &index.bake_key)
+    // One writer per folder: atlases, index and pictures all under the lock.
+    let lock = ortm::io::DirLock::acquire(out)?;
+    let written = atlas::write_atlas_set_locked(&lock, &set, &index.bake_key, Some(&index_sha256))
         .with_context(|| format!("writing the atlases to '{}'", out.display()))?;
     write_pictures(out, &set)?;
+    drop(lock);
 
     let (lw, lh) = set.lightmap_size;
     let crops: usize = maps.iter().map(|m| m.crops().len()).sum();

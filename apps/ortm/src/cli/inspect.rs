@@ -18,8 +18,15 @@ pub struct Args {
     output: PathBuf,
 }
 
-/// Runs `ortm inspect`.
+/// Runs `ortm inspect` (and reports its peak memory for tests: `ORTM_TEST_REPORT_PEAK`).
 pub fn run(a: Args) -> Result<()> {
+    let result = inspect(&a);
+    ortm::io::limits::report_peak_memory_if_asked();
+    result
+}
+
+/// `ortm inspect` proper.
+fn inspect(a: &Args) -> Result<()> {
     let scene = super::load_scene(&a.scene, a.size)?;
     let m = &scene.mesh;
     let (lo, hi) = m.bounds();
@@ -48,6 +55,7 @@ pub fn run(a: Args) -> Result<()> {
         area
     );
     let (w, h) = scene.lightmap_size;
+    ortm::io::limits::check_lightmap_memory(w, h)?;
     let grid = TexelGrid::build(&scene)
         .with_context(|| format!("rasterizing the lightmap UVs of '{}'", a.scene))?;
     let s = &grid.stats;

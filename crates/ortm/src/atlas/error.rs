@@ -43,6 +43,10 @@ pub enum AtlasError {
     #[error("cannot pack the transfer maps: {0}")]
     Pack(#[from] binning::BinError),
 
+    /// Another process is writing the atlas directory.
+    #[error(transparent)]
+    Lock(#[from] crate::io::LockError),
+
     /// An in-memory atlas set or the bake key passed to [`super::write_atlas_set`] is inconsistent.
     #[error("invalid atlas set: {reason}; build it with build_atlas_set")]
     InvalidSet {

@@ -11,7 +11,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use super::file::{atlas_file_name, decode_atlas, encode_atlas};
-use super::validate::check_geometry;
+use super::validate::{check_coverage, check_geometry};
 use super::{AtlasError, AtlasPiece, AtlasSet};
 use crate::bake_dir::{INDEX_FILE_NAME, INDEX_FORMAT, LightmapSize};
 use crate::io::DirKind::Atlas;
@@ -25,7 +25,7 @@ pub const ATLAS_INDEX_FILE_NAME: &str = "atlases.json";
 pub const ATLAS_INDEX_FORMAT: &str = "ortm-atlases";
 
 /// The atlas index version this build writes and reads.
-pub const ATLAS_INDEX_VERSION: u32 = 1;
+pub const ATLAS_INDEX_VERSION: u32 = 2;
 
 /// One atlas file of the index.
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -47,6 +47,10 @@ pub struct AtlasIndex {
     pub lightmap: LightmapSize,
     /// Bake key of the bake whose maps were packed (64 lower-case hex digits).
     pub bake_key: String,
+    /// SHA-256 (64 lower-case hex digits) of the bytes of the bake's `index.json` the maps
+    /// were packed from; `None` for a set not made from an index file. Readers that find an
+    /// `index.json` beside `atlases.json` require it and compare.
+    pub bake_index_sha256: Option<String>,
     /// One entry per atlas, in atlas order.
     pub atlases: Vec<AtlasFileEntry>,
     /// Every piece, sorted by `(atlas, src_y, src_x)`.
@@ -54,8 +58,10 @@ pub struct AtlasIndex {
 }
 
 /// Removes temporary files an interrupted `write_atlas_set` left (`.atlas_*.tmp`,
-/// `.atlases.json.*.tmp`: never read, since final names are only created by rename).
-fn remove_stale_temp_files(dir: &Path) {
+/// `.atlases.json.*.tmp`: never read, since final names are only created by rename). Only
+/// called under the directory's lock, so no live writer's temporaries are removed.
+fn remove_stale_temp_files(lock: &crate::io::DirLock) {
+    let dir = lock.dir();
     let Ok(entries) = fs::read_dir(dir) else {
         return;
     };
@@ -69,7 +75,8 @@ fn remove_stale_temp_files(dir: &Path) {
     }
 }
 
-/// Writes `set` into `dir` (created if needed): one OpenEXR file per atlas
+/// Writes `set` into `dir` (created if needed), holding its write lock ([`crate::io::DirLock`];
+/// [`AtlasError::Lock`] when another process holds it): one OpenEXR file per atlas
 /// ([`atlas_file_name`]) and then `atlases.json`, each atomically (temporary name, `fsync`,
 /// rename). An existing `atlases.json` is removed first, so an interrupted run never leaves an
 /// index that points at half-replaced atlases. Files from an earlier run that the new index does
@@ -86,17 +93,53 @@ pub fn write_atlas_set(
     set: &AtlasSet,
     bake_key: &str,
 ) -> Result<AtlasIndex, AtlasError> {
+    let lock = crate::io::DirLock::acquire(dir)?;
+    write_atlas_set_locked(&lock, set, bake_key, None)
+}
+
+/// [`write_atlas_set`] into the directory of `lock`, which the caller holds (so that it can
+/// write more files, such as pictures, under the same lock). `bake_index_sha256` is the
+/// SHA-256 of the bake's `index.json` the maps came from ([`crate::bake_dir::BakeIndex::read_with_sha256`]);
+/// `None` records that of the `index.json` in the directory, if there is one.
+///
+/// # Errors
+/// Those of [`write_atlas_set`] but [`AtlasError::Lock`].
+pub fn write_atlas_set_locked(
+    lock: &crate::io::DirLock,
+    set: &AtlasSet,
+    bake_key: &str,
+    bake_index_sha256: Option<&str>,
+) -> Result<AtlasIndex, AtlasError> {
+    let dir = lock.dir();
     set.validate()?;
     if !is_hex_digest(bake_key) {
         return Err(AtlasError::InvalidSet {
             reason: format!("bake key {bake_key:?} is not 64 lower-case hex digits"),
         });
     }
+    let bake_index_sha256 = match bake_index_sha256 {
+        Some(d) if is_hex_digest(d) => Some(d.to_owned()),
+        Some(d) => {
+            return Err(AtlasError::InvalidSet {
+                reason: format!("bake index digest {d:?} is not 64 lower-case hex digits"),
+            });
+        }
+        None => {
+            let path = dir.join(INDEX_FILE_NAME);
+            match crate::io::read_bounded(&path, MAX_JSON_BYTES, "MAX_JSON_BYTES") {
+                Ok(bytes) => crate::bake_dir::index_digest(&bytes).ok(),
+                Err(e) if e.kind() == std::io::ErrorKind::NotFound => None,
+                Err(e) => {
+                    return Err(FileError::io("cannot read bake index", &path, Atlas)(e).into());
+                }
+            }
+        }
+    };
     let atlas_count = u32::try_from(set.atlases.len()).map_err(|_| AtlasError::InvalidSet {
         reason: format!("{} atlases is too many", set.atlases.len()),
     })?;
     fs::create_dir_all(dir).map_err(FileError::io("cannot create directory", dir, Atlas))?;
-    remove_stale_temp_files(dir);
+    remove_stale_temp_files(lock);
     let index_path = dir.join(ATLAS_INDEX_FILE_NAME);
     match fs::remove_file(&index_path) {
         Ok(()) => {}
@@ -131,6 +174,7 @@ pub fn write_atlas_set(
             height: set.lightmap_size.1,
         },
         bake_key: bake_key.to_owned(),
+        bake_index_sha256,
         atlases: entries.into_iter().collect::<Result<_, _>>()?,
         pieces: set.pieces.clone(),
     };
@@ -209,6 +253,13 @@ fn check_entries(path: &Path, index: &AtlasIndex) -> Result<(), AtlasError> {
         return Err(bad(format!(
             "bake_key {:?} is not 64 lower-case hex digits",
             index.bake_key
+        )));
+    }
+    if let Some(d) = &index.bake_index_sha256
+        && !is_hex_digest(d)
+    {
+        return Err(bad(format!(
+            "bake_index_sha256 {d:?} is not 64 lower-case hex digits"
         )));
     }
     let mut names = HashSet::new();
@@ -306,10 +357,11 @@ fn check_bake(dir: &Path, atlas_index: &Path, index: &AtlasIndex) -> Result<(), 
         return Err(mismatch("lightmap size"));
     }
     // Every piece's map is in the bake index with the piece's offset.
-    let offsets: Vec<Option<[i32; 2]>> = v
+    let maps = v
         .get("maps")
         .and_then(|m| m.as_array())
-        .ok_or_else(|| bad("field \"maps\" is missing or not an array".into()))?
+        .ok_or_else(|| bad("field \"maps\" is missing or not an array".into()))?;
+    let offsets: Vec<Option<[i32; 2]>> = maps
         .iter()
         .map(|m| {
             m.get("offset")
@@ -335,6 +387,50 @@ fn check_bake(dir: &Path, atlas_index: &Path, index: &AtlasIndex) -> Result<(), 
                     ),
                 });
             }
+        }
+    }
+    // The pieces of each map cover its crop rectangles exactly once (a single rectangle padded
+    // to the width the packer stores: docs/atlas-format.md, "Width padding").
+    let lw = index.lightmap.width;
+    let pad = |r: Vec<[u32; 4]>| match r.as_slice() {
+        [[x, y, w, h]] if *w <= lw => match super::build::padded_columns(*x, *w, lw) {
+            Some((xp, wp)) => vec![[xp, *y, wp, *h]],
+            None => r,
+        },
+        _ => r,
+    };
+    let rects = maps
+        .iter()
+        .enumerate()
+        .map(|(m, e)| {
+            e.get("rects")
+                .and_then(|r| serde_json::from_value::<Vec<crate::maps::CropRect>>(r.clone()).ok())
+                .map(|r| pad(r.iter().map(|r| [r.x, r.y, r.w, r.h]).collect()))
+                .ok_or_else(|| {
+                    bad(format!(
+                        "maps[{m}]: field \"rects\" is missing or malformed"
+                    ))
+                })
+        })
+        .collect::<Result<Vec<Vec<[u32; 4]>>, _>>()?;
+    check_coverage(&index.pieces, &rects).map_err(|reason| AtlasError::BadIndex {
+        path: atlas_index.to_owned(),
+        reason,
+    })?;
+    // Last, so that the checks above name what differs when they can.
+    let digest = sha256_hex(&serde_json::to_vec(&v).map_err(|e| bad(e.to_string()))?);
+    match &index.bake_index_sha256 {
+        Some(d) if *d == digest => {}
+        recorded => {
+            return Err(AtlasError::BadIndex {
+                path: atlas_index.to_owned(),
+                reason: format!(
+                    "it records the bake index SHA-256 {}, but {} has {digest}: the atlases were \
+                     not made from this bake index",
+                    recorded.as_deref().unwrap_or("null"),
+                    path.display()
+                ),
+            });
         }
     }
     Ok(())

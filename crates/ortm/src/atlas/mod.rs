@@ -60,7 +60,7 @@ pub use error::AtlasError;
 pub use file::atlas_file_name;
 pub use index::{
     ATLAS_INDEX_FILE_NAME, ATLAS_INDEX_FORMAT, ATLAS_INDEX_VERSION, AtlasFileEntry, AtlasIndex,
-    read_atlas_index, read_atlas_set, write_atlas_set,
+    read_atlas_index, read_atlas_set, write_atlas_set, write_atlas_set_locked,
 };
 pub use pictures::{
     PACKING_BACKGROUND, atlas_values_image, map_color, packing_image, packing_scale,

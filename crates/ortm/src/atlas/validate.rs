@@ -43,6 +43,74 @@ impl AtlasSet {
     }
 }
 
+/// The pieces of each map cover exactly that map's crop rectangles, each texel once
+/// (`docs/atlas-format.md`, "Invariants"). `rects[m]` are map `m`'s crop rectangles
+/// `[x, y, w, h]` from the bake index; every piece's `map_index` is below `rects.len()` and the
+/// pieces of one map are already known to be disjoint ([`check_geometry`]).
+///
+/// Per map the areas must agree first (which also bounds the work below by the pieces' area,
+/// itself bounded by the atlases); then the row spans of the pieces and of the rectangles,
+/// merged, must be equal. Equal unions and equal area sums of disjoint pieces make the
+/// rectangles disjoint too, so every texel of every rectangle is covered exactly once.
+pub(super) fn check_coverage(pieces: &[AtlasPiece], rects: &[Vec<[u32; 4]>]) -> Result<(), String> {
+    let mut piece_area = vec![0u64; rects.len()];
+    for p in pieces {
+        piece_area[p.map_index as usize] += u64::from(p.w) * u64::from(p.h);
+    }
+    for (m, r) in rects.iter().enumerate() {
+        if let Some(k) = r.iter().position(|r| r[2] == 0 || r[3] == 0) {
+            return Err(format!("map {m}: crop rectangle {k} is empty"));
+        }
+        let area: u64 = r.iter().map(|r| u64::from(r[2]) * u64::from(r[3])).sum();
+        if area != piece_area[m] {
+            return Err(format!(
+                "the pieces of map {m} cover {} texels but its crop rectangles hold {area}: a \
+                 piece is missing or extra",
+                piece_area[m]
+            ));
+        }
+    }
+    let merged = |mut spans: Vec<(u32, u64, u64, u64)>| {
+        spans.sort_unstable();
+        let mut out: Vec<(u32, u64, u64, u64)> = Vec::with_capacity(spans.len());
+        for s in spans {
+            match out.last_mut() {
+                Some(l) if l.0 == s.0 && l.1 == s.1 && s.2 <= l.3 => l.3 = l.3.max(s.3),
+                _ => out.push(s),
+            }
+        }
+        out
+    };
+    let row_spans = |m: u32, x: u32, y: u32, w: u32, h: u32| {
+        (u64::from(y)..u64::from(y) + u64::from(h))
+            .map(move |row| (m, row, u64::from(x), u64::from(x) + u64::from(w)))
+    };
+    let have = merged(
+        pieces
+            .iter()
+            .flat_map(|p| row_spans(p.map_index, p.dst_x, p.dst_y, p.w, p.h))
+            .collect(),
+    );
+    let want = merged(
+        rects
+            .iter()
+            .enumerate()
+            .flat_map(|(m, r)| {
+                r.iter()
+                    .flat_map(move |r| row_spans(m as u32, r[0], r[1], r[2], r[3]))
+            })
+            .collect(),
+    );
+    if let Some(k) = (0..have.len().max(want.len())).find(|&k| have.get(k) != want.get(k)) {
+        let (m, row) = have.get(k).or(want.get(k)).map_or((0, 0), |s| (s.0, s.1));
+        return Err(format!(
+            "the pieces of map {m} do not cover its crop rectangles exactly (first difference at \
+             lightmap row {row}): a piece is shifted, missing or extra"
+        ));
+    }
+    Ok(())
+}
+
 /// `1 ≤ w, h` and `w·h ≤ MAX_TEXELS`.
 fn size_ok(w: u32, h: u32) -> bool {
     w >= 1 && h >= 1 && u64::from(w) * u64::from(h) <= MAX_TEXELS
@@ -180,4 +248,48 @@ fn check_disjoint(
         ));
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod coverage_tests {
+    use super::*;
+
+    fn piece(map: u32, dst: (u32, u32), w: u32, h: u32) -> AtlasPiece {
+        AtlasPiece {
+            atlas: 0,
+            src_x: 0,
+            src_y: 0,
+            w,
+            h,
+            dst_x: dst.0,
+            dst_y: dst.1,
+            offset: [0, 0],
+            map_index: map,
+        }
+    }
+
+    #[test]
+    fn pieces_must_tile_the_crop_rectangles() {
+        // Map 0: one 4×3 rectangle at (2, 1) cut into a 4×1 and a 4×2 piece; map 1: two
+        // rectangles side by side stored as one 5×2 piece.
+        let rects = vec![vec![[2, 1, 4, 3]], vec![[0, 0, 2, 2], [2, 0, 3, 2]]];
+        let ok = [
+            piece(0, (2, 1), 4, 1),
+            piece(0, (2, 2), 4, 2),
+            piece(1, (0, 0), 5, 2),
+        ];
+        assert_eq!(check_coverage(&ok, &rects), Ok(()));
+        let mut shifted = ok;
+        shifted[1].dst_x += 1;
+        let e = check_coverage(&shifted, &rects).unwrap_err();
+        assert!(e.contains("map 0") && e.contains("row 2"), "{e}");
+        let e = check_coverage(&ok[1..], &rects).unwrap_err();
+        assert!(
+            e.contains("cover 8 texels but its crop rectangles hold 12"),
+            "{e}"
+        );
+        // Overlapping rectangles cannot be covered exactly once by disjoint pieces.
+        let overlapping = vec![vec![[2, 1, 4, 3], [2, 1, 4, 1]], vec![[0, 0, 5, 2]]];
+        assert!(check_coverage(&ok, &overlapping).is_err());
+    }
 }

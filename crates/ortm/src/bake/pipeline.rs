@@ -124,6 +124,9 @@ pub enum BakeError {
         /// Maps planned.
         total: usize,
     },
+    /// Another process is writing the bake directory.
+    #[error(transparent)]
+    Lock(#[from] crate::io::LockError),
     /// Settings that cannot work.
     #[error("invalid bake setting: {0}")]
     Settings(String),
@@ -291,35 +294,7 @@ pub fn compute_map_values_exact(
     })
 }
 
-/// Offsets chosen by a selection, with the data needed for the report.
-#[derive(Clone, Debug, Serialize, Deserialize)]
-pub struct SelectionRecord {
-    /// Bake key the selection belongs to.
-    pub bake_key: String,
-    /// Selected offsets `(dx, dy)`.
-    pub offsets: Vec<[i32; 2]>,
-    /// Evaluated data points `(dx, dy, transference)` of the importance density.
-    pub data_points: Vec<[f64; 3]>,
-}
-
-impl SelectionRecord {
-    /// Whether a saved selection can be reused for `count` offsets of a `w×h` lightmap: that
-    /// many distinct offsets, each inside `(−w, w) × (−h, h)`, and finite data points. A file
-    /// that fails is ignored (the bake selects again, which gives the same offsets for a seed).
-    pub fn is_plausible(&self, count: usize, w: u32, h: u32) -> bool {
-        let (w, h) = (i64::from(w), i64::from(h));
-        let inside = |o: &[i32; 2]| i64::from(o[0]).abs() < w && i64::from(o[1]).abs() < h;
-        let distinct = self
-            .offsets
-            .iter()
-            .collect::<std::collections::HashSet<_>>()
-            .len();
-        self.offsets.len() == count
-            && distinct == count
-            && self.offsets.iter().all(inside)
-            && self.data_points.iter().flatten().all(|v| v.is_finite())
-    }
-}
+pub use crate::bake_dir::SelectionRecord;
 
 /// Chooses the offsets (importance-sampled or jittered grid).
 pub fn select_offsets(
@@ -546,11 +521,11 @@ pub fn bake(
     }
     let (w, h) = settings.size;
     let t0 = std::time::Instant::now();
-    std::fs::create_dir_all(dir).map_err(|source| BakeError::Io {
-        path: dir.to_owned(),
-        source,
-    })?;
+    // Held to the end: one writer per directory, and the stale-temp sweep only under it.
+    let _lock = crate::io::DirLock::acquire(dir)?;
     crate::io::limits::check_bake_request(w, h, settings.offsets)
+        .map_err(|e| BakeError::Settings(e.to_string()))?;
+    crate::io::limits::check_lightmap_memory(w, h)
         .map_err(|e| BakeError::Settings(e.to_string()))?;
     let grid = TexelGrid::build_with_size(scene, w, h)?;
     let block = settings.coarse_block.max(1);
@@ -615,34 +590,34 @@ fn saved_or_new_selection(
     events: &(dyn Fn(BakeEvent) + Sync),
 ) -> Result<(Vec<IVec2>, Vec<[f64; 3]>), BakeError> {
     let (w, h) = settings.size;
-    let sel_path = dir.join("selection.json");
-    let saved: Option<SelectionRecord> = crate::io::read_bounded(
-        &sel_path,
-        crate::io::limits::MAX_JSON_BYTES,
-        "MAX_JSON_BYTES",
-    )
-    .ok()
-    .and_then(|b| serde_json::from_slice(&b).ok())
-    .filter(|s: &SelectionRecord| {
-        s.bake_key == key.as_str() && s.is_plausible(settings.offsets, w, h)
-    });
-    if let Some(s) = saved {
-        events(BakeEvent::Message(
-            "reusing the saved offset selection".into(),
-        ));
-        return Ok((
-            s.offsets.iter().map(|o| IVec2::from_array(*o)).collect(),
-            s.data_points,
-        ));
+    let sel_path = dir.join(bake_dir::SELECTION_FILE_NAME);
+    match bake_dir::read_selection(dir, key.as_str(), settings.offsets, (w, h))
+        .map_err(MapsError::from)?
+    {
+        bake_dir::SavedSelection::Reuse(s) => {
+            events(BakeEvent::Message(
+                "reusing the saved offset selection".into(),
+            ));
+            return Ok((
+                s.offsets.iter().map(|o| IVec2::from_array(*o)).collect(),
+                s.data_points,
+            ));
+        }
+        bake_dir::SavedSelection::Discard(why) => {
+            events(BakeEvent::Message(format!(
+                "{why}: not reused; selecting the offsets again"
+            )));
+        }
+        bake_dir::SavedSelection::None => {}
     }
     let (o, p) = select_offsets(transport, grid, settings, events)?;
     write_json_atomic(
         &sel_path,
-        &SelectionRecord {
-            bake_key: key.as_str().to_owned(),
-            offsets: o.iter().map(|v| v.to_array()).collect(),
-            data_points: p.clone(),
-        },
+        &SelectionRecord::new(
+            key.as_str(),
+            o.iter().map(|v| v.to_array()).collect(),
+            p.clone(),
+        ),
     )?;
     Ok((o, p))
 }

@@ -232,6 +232,15 @@ impl BakeIndex {
     /// [`MapsError::InvalidCrop`], [`MapsError::LightmapSize`], [`FileError::MissingFile`],
     /// [`FileError::FileSize`].
     pub fn read(dir: &Path) -> Result<Self, MapsError> {
+        Self::read_with_sha256(dir).map(|(index, _)| index)
+    }
+
+    /// [`BakeIndex::read`], also returning the [`index_digest`] of the `index.json` that was
+    /// read (recorded by `ortm bin` in `atlases.json`).
+    ///
+    /// # Errors
+    /// Those of [`BakeIndex::read`].
+    pub fn read_with_sha256(dir: &Path) -> Result<(Self, String), MapsError> {
         let path = dir.join(INDEX_FILE_NAME);
         let text =
             crate::io::read_bounded(&path, crate::io::limits::MAX_JSON_BYTES, "MAX_JSON_BYTES")
@@ -276,7 +285,11 @@ impl BakeIndex {
                 .into());
             }
         }
-        Ok(index)
+        let digest = index_digest(&text).map_err(|source| MapsError::Json {
+            path: path.clone(),
+            source,
+        })?;
+        Ok((index, digest))
     }
 
     /// Loads every map listed in the index (in parallel), in index order. Each file must have
@@ -346,6 +359,17 @@ impl BakeIndex {
         }
         Ok(f.map)
     }
+}
+
+/// The digest of a bake index that `atlases.json` records (`bake_index_sha256`): the SHA-256
+/// (lower-case hex) of the index's JSON value written compactly with object keys sorted, so
+/// that it names the index's content, not its formatting.
+///
+/// # Errors
+/// The parser's error when `text` is not JSON.
+pub fn index_digest(text: &[u8]) -> Result<String, serde_json::Error> {
+    let v: serde_json::Value = serde_json::from_slice(text)?;
+    Ok(crate::io::sha256_hex(&serde_json::to_vec(&v)?))
 }
 
 /// Encodes map `index` and writes it atomically to `dir/`[`map_file_name`]`(index, offset)`

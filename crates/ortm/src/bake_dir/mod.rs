@@ -16,6 +16,8 @@
 //! - [`map_file`] — the map file codec (bytes ↔ [`MapFile`]).
 //! - [`index`] — `index.json` ([`BakeIndex`]) and [`write_map_file`].
 //! - [`resume`] — [`scan_finished_maps`].
+//! - [`selection`] — `selection.json` ([`SelectionRecord`], checksummed; [`read_selection`]).
+//! - [`trust`] — [`check_recorded_scene`]: which recorded scene a reader may open unasked.
 //!
 //! The arrows point one way: `resume → index → map_file → key`. Errors are
 //! [`crate::maps::MapsError`]; the file-level ones are [`crate::io::FileError`]s worded for a
@@ -27,10 +29,15 @@ pub mod index;
 pub mod key;
 pub mod map_file;
 pub mod resume;
+pub mod selection;
+pub mod trust;
 
 pub use index::{
-    BakeIndex, INDEX_FILE_NAME, INDEX_FORMAT, INDEX_VERSION, LightmapSize, MapEntry, write_map_file,
+    BakeIndex, INDEX_FILE_NAME, INDEX_FORMAT, INDEX_VERSION, LightmapSize, MapEntry, index_digest,
+    write_map_file,
 };
 pub use key::{BakeKey, map_file_name};
 pub use map_file::{MapFile, decode_map, encode_map, read_map_file};
 pub use resume::{ResumeScan, scan_finished_maps};
+pub use selection::{SELECTION_FILE_NAME, SavedSelection, SelectionRecord, read_selection};
+pub use trust::check_recorded_scene;

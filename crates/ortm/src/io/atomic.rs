@@ -25,6 +25,34 @@ fn stop_in_this_write() -> Option<u64> {
     (WRITES.fetch_add(1, Ordering::Relaxed) + 1 == n).then_some(n)
 }
 
+/// Environment variable of the pause hook ([`pause_in_this_write`]).
+const PAUSE_IN_WRITE_VAR: &str = "ORTM_TEST_PAUSE_IN_WRITE";
+
+/// Test hook for concurrent writers (docs/bake-format.md, "Crash tests"): when the environment
+/// variable `ORTM_TEST_PAUSE_IN_WRITE` holds `N:PATH`, the process's `N`-th call of
+/// [`write_atomic`] (counted from 1 over all threads) prints
+/// `ORTM_TEST_PAUSE_IN_WRITE: paused in write N` to stderr and waits (up to two minutes) until
+/// the file `PATH` exists, then writes normally. Unset or malformed, nothing waits.
+fn pause_in_this_write() {
+    static PAUSE_AT: std::sync::OnceLock<Option<(u64, PathBuf)>> = std::sync::OnceLock::new();
+    static WRITES: AtomicU64 = AtomicU64::new(0);
+    let Some((n, go)) = PAUSE_AT.get_or_init(|| {
+        let v = std::env::var(PAUSE_IN_WRITE_VAR).ok()?;
+        let (n, path) = v.split_once(':')?;
+        Some((n.parse().ok()?, PathBuf::from(path)))
+    }) else {
+        return;
+    };
+    if WRITES.fetch_add(1, Ordering::Relaxed) + 1 != *n {
+        return;
+    }
+    eprintln!("{PAUSE_IN_WRITE_VAR}: paused in write {n}");
+    let start = std::time::Instant::now();
+    while !go.exists() && start.elapsed() < STOP_WAIT {
+        std::thread::sleep(std::time::Duration::from_millis(10));
+    }
+}
+
 /// The temporary name [`write_atomic`] writes `path` under: `.<name>.<pid>-<n>.tmp` in the same
 /// directory (hidden, unique per process and call). Readers of bake and atlas directories treat
 /// `.*.tmp` files as leftovers of interrupted writes.
@@ -52,11 +80,14 @@ pub fn is_temp_name(name: &str) -> bool {
 /// only the first half of `bytes` to the temporary file, prints
 /// `ORTM_TEST_STOP_IN_WRITE: stopped in write N: <temporary path>` to stderr and sleeps, so that
 /// a test can kill the process in the middle of that write; if it is not killed within two
-/// minutes, the call fails (the temporary file is removed).
+/// minutes, the call fails (the temporary file is removed). The pause hook
+/// `ORTM_TEST_PAUSE_IN_WRITE=N:PATH` makes the `N`-th call wait for the file `PATH` first
+/// ([`pause_in_this_write`]).
 ///
 /// # Errors
 /// The `std::io::Error` of creating, writing, syncing or renaming.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
+    pause_in_this_write();
     let tmp = temp_path(path);
     let result = (|| {
         let mut f = fs::File::create(&tmp)?;

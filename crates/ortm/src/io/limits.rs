@@ -20,7 +20,9 @@
 //! | [`MAX_EXR_BYTES`] | 4 GiB | map and atlas OpenEXR files |
 //! | [`MAX_EXR_EXPANSION`] | 1100 | decoded pixel bytes per byte of an OpenEXR file |
 //! | [`MAX_OFFSETS`] | 65,536 | offsets (transfer maps) of a bake |
-//! | memory | physical memory, or `ORTM_MEMORY_LIMIT_BYTES` | a bake's transport ([`bake_memory_bytes`]), `ortm bin`'s atlases ([`atlas_memory_bytes`]) |
+//! | [`MAX_REFINEMENT_ITERATIONS`] | 100,000 | `ortm bake --iterations` |
+//! | [`MAX_COARSE_BLOCK`] | 8192 texels | `ortm bake --coarse-block` (1 or more) |
+//! | memory | physical memory, or `ORTM_MEMORY_LIMIT_BYTES` | a lightmap's rasterization ([`check_lightmap_memory`], before it), a bake's transport ([`bake_memory_bytes`]), `ortm bin`'s atlases ([`atlas_memory_bytes`]) |
 
 use std::fs;
 
@@ -60,6 +62,15 @@ pub const MAX_EXR_EXPANSION: u64 = 1100;
 
 /// Most offsets (transfer maps) in one bake.
 pub const MAX_OFFSETS: usize = 65_536;
+
+/// Most refinement draws of the importance density (`--iterations`): 100× the default of
+/// 1000; each draw evaluates the transference of one offset over the selection receivers, so
+/// an unbounded count would run for ever.
+pub const MAX_REFINEMENT_ITERATIONS: usize = 100_000;
+
+/// Largest side of the texel clusters of the coarse solve (`--coarse-block`): a block as large
+/// as the largest lightmap side ([`MAX_LIGHTMAP_SIDE`]) already makes one cluster.
+pub const MAX_COARSE_BLOCK: u32 = MAX_LIGHTMAP_SIDE;
 
 /// Environment variable that lowers (or raises) the memory a bake may plan to use, in bytes;
 /// without it the limit is the machine's physical memory (`MemTotal` of `/proc/meminfo`).
@@ -218,6 +229,49 @@ pub fn check_bake_memory(
             fix: "; use a smaller lightmap (--size) or larger clusters (--coarse-block)".into(),
         }),
         _ => Ok(()),
+    }
+}
+
+/// Upper bound of the memory rasterizing a lightmap takes per lightmap texel, bytes: the texel
+/// grid (per-texel lookup, covered-texel records, chart labels) plus `ortm inspect`'s coverage
+/// picture. Measured (`/usr/bin/time -f %M ortm inspect cornell --size N`): peaks of 79 MB,
+/// 296 MB and 1162 MB at 1024², 2048², 4096² (69 % covered), i.e. 70.5 bytes per lightmap
+/// texel or 102 per covered texel; 104 bounds a fully covered lightmap.
+pub const LIGHTMAP_BYTES_PER_TEXEL: u64 = 104;
+
+/// Checks, before a `width×height` lightmap is rasterized, that its texel grid
+/// ([`LIGHTMAP_BYTES_PER_TEXEL`] per texel) fits the memory limit ([`memory_limit_bytes`]).
+///
+/// # Errors
+/// [`LimitError`] with the bytes needed and the limit.
+pub fn check_lightmap_memory(width: u32, height: u32) -> Result<(), LimitError> {
+    let need = (u64::from(width) * u64::from(height)).saturating_mul(LIGHTMAP_BYTES_PER_TEXEL);
+    match memory_limit_bytes()? {
+        Some(limit) if need > limit => Err(LimitError {
+            what: format!("rasterizing the {width}×{height} lightmap"),
+            found: format!("{need} bytes ({:.2} GiB) needed", gib(need)),
+            limit_name: "memory (physical memory or ORTM_MEMORY_LIMIT_BYTES)",
+            limit: format!("{limit} bytes ({:.2} GiB)", gib(limit)),
+            fix: "; use a smaller lightmap (--size, or [lightmap] in the scene file)".into(),
+        }),
+        _ => Ok(()),
+    }
+}
+
+/// Test hook (`ORTM_TEST_REPORT_PEAK=1`): prints the process's peak resident memory
+/// (`VmHWM` of `/proc/self/status`, in bytes) to stderr as `ORTM_TEST_PEAK_BYTES: N`, so a test
+/// can check a command's peak memory; does nothing when the variable is unset.
+pub fn report_peak_memory_if_asked() {
+    if std::env::var_os("ORTM_TEST_REPORT_PEAK").is_none() {
+        return;
+    }
+    let kb = fs::read_to_string("/proc/self/status").ok().and_then(|t| {
+        t.lines()
+            .find_map(|l| l.strip_prefix("VmHWM:"))
+            .and_then(|v| v.trim().trim_end_matches("kB").trim().parse::<u64>().ok())
+    });
+    if let Some(kb) = kb {
+        eprintln!("ORTM_TEST_PEAK_BYTES: {}", kb * 1024);
     }
 }
 

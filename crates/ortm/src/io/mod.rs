@@ -1,11 +1,13 @@
 //! File and resource utilities shared by every stage.
 //!
 //! - [`limits`]: every limit on untrusted inputs and on the memory a request may need.
-//! - Reading ([`read_bounded`], [`resolve_listed`], [`read_listed`]): a byte bound before
+//! - Reading ([`open_regular`], which checks the file type without blocking, [`read_bounded`], [`resolve_listed`], [`read_listed`]): a byte bound before
 //!   anything is read, plain names resolved inside their directory, and a listed file checked
 //!   against the size and SHA-256 its index recorded.
 //! - Writing ([`write_atomic`], [`write_png_atomic`]): temporary file in the same directory,
 //!   `fsync`, rename; readers never see a half-written file.
+//! - [`DirLock`]: the one-writer lock of a bake or atlas directory (`flock` on
+//!   [`LOCK_FILE_NAME`]).
 //! - Digests ([`sha256_hex`], [`is_hex_digest`]): SHA-256 as lower-case hex, as the indexes
 //!   record it.
 //! - [`FileError`]: the failures shared by bake directories (`docs/bake-format.md`) and atlas
@@ -20,11 +22,16 @@ mod digest;
 mod error;
 pub mod exr;
 pub mod limits;
+mod lock;
 mod read;
 mod versioned;
 
 pub use atomic::{is_temp_name, write_atomic, write_png_atomic};
 pub use digest::{hex, is_hex_digest, sha256_hex};
 pub use error::{DirKind, FileError};
-pub use read::{ListedFile, plain_file_name, read_bounded, read_listed, resolve_listed};
+pub use lock::{DirLock, LOCK_FILE_NAME, LockError};
+pub use read::{
+    ListedFile, not_a_regular_file, open_regular, plain_file_name, read_bounded, read_listed,
+    resolve_listed,
+};
 pub use versioned::{VersionedError, from_versioned_json, to_versioned_json};

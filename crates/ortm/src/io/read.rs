@@ -9,22 +9,104 @@ use std::path::{Component, Path, PathBuf};
 use super::digest::sha256_hex;
 use super::error::{DirKind, FileError};
 
-/// Reads a whole file of at most `limit` bytes: refuses anything that is not a regular file
-/// (a FIFO, a device such as `/dev/zero`, a directory) and files larger than `limit`, before
-/// reading; a file that grows while being read is cut at `limit + 1` bytes and refused.
+/// What a path names when it is not a regular file that can be read: the words messages use
+/// ("is a directory", "is a FIFO (named pipe)", …), found from metadata alone, which never
+/// blocks (opening a FIFO for reading waits for a writer).
+///
+/// Returns `None` for a regular file (following symbolic links).
+pub fn not_a_regular_file(path: &Path) -> Option<String> {
+    match fs::metadata(path) {
+        Ok(meta) => kind_problem(&meta),
+        Err(e) => Some(metadata_problem(path, &e)),
+    }
+}
+
+/// Why metadata that was read does not describe a regular file (`None` when it does).
+fn kind_problem(meta: &fs::Metadata) -> Option<String> {
+    use std::os::unix::fs::FileTypeExt;
+    let t = meta.file_type();
+    let what = if t.is_file() {
+        return None;
+    } else if t.is_dir() {
+        "is a directory"
+    } else if t.is_fifo() {
+        "is a FIFO (named pipe)"
+    } else if t.is_block_device() || t.is_char_device() {
+        "is a device"
+    } else if t.is_socket() {
+        "is a socket"
+    } else {
+        "is not a regular file"
+    };
+    Some(format!("{what}, not a regular file"))
+}
+
+/// Words for an error of `fs::metadata(path)`: a missing file, a symbolic link loop, a
+/// dangling link, or the error itself.
+fn metadata_problem(path: &Path, e: &std::io::Error) -> String {
+    if e.raw_os_error() == Some(libc::ELOOP) {
+        return "is a symbolic link loop (too many levels of symbolic links)".into();
+    }
+    if e.kind() == std::io::ErrorKind::NotFound {
+        if fs::symlink_metadata(path).is_ok() {
+            return "is a symbolic link to a file that does not exist".into();
+        }
+        return "does not exist".into();
+    }
+    format!("cannot be inspected: {e}")
+}
+
+/// Opens `path` for reading only if it is a regular file, without ever blocking: the file
+/// type is checked from metadata first, the file is opened with `O_NONBLOCK` (so a FIFO put
+/// in its place between the two steps cannot make `open` wait for a writer) and the opened
+/// file's type is checked again. Every reader of user files goes through here (scene, mesh,
+/// textures, indexes, selection, maps, atlases).
+///
+/// Returns the open file and its metadata.
 ///
 /// # Errors
-/// The `std::io::Error` of opening or reading; a file over the limit or not a regular file
-/// gives an error of kind `InvalidData` whose message names the limit (`limit_name`).
-pub fn read_bounded(path: &Path, limit: u64, limit_name: &str) -> std::io::Result<Vec<u8>> {
-    let file = fs::File::open(path)?;
-    let meta = file.metadata()?;
-    if !meta.is_file() {
-        return Err(std::io::Error::new(
-            std::io::ErrorKind::InvalidData,
-            "not a regular file",
-        ));
+/// `NotFound` for a missing file; otherwise an error of kind `InvalidInput` whose message says
+/// what the path is ("is a FIFO (named pipe), not a regular file", "is a directory, …", "is a
+/// device, …", "is a symbolic link loop …"), or the error of opening.
+pub fn open_regular(path: &Path) -> std::io::Result<(fs::File, fs::Metadata)> {
+    use std::os::unix::fs::OpenOptionsExt;
+    let invalid = |msg: String| std::io::Error::new(std::io::ErrorKind::InvalidInput, msg);
+    match fs::metadata(path) {
+        Ok(meta) => {
+            if let Some(p) = kind_problem(&meta) {
+                return Err(invalid(p));
+            }
+        }
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+            if fs::symlink_metadata(path).is_err() {
+                return Err(e);
+            }
+            return Err(invalid(metadata_problem(path, &e)));
+        }
+        Err(e) => return Err(invalid(metadata_problem(path, &e))),
     }
+    let file = fs::OpenOptions::new()
+        .read(true)
+        .custom_flags(libc::O_NONBLOCK)
+        .open(path)?;
+    let meta = file.metadata()?;
+    if let Some(p) = kind_problem(&meta) {
+        return Err(invalid(p));
+    }
+    Ok((file, meta))
+}
+
+/// Reads a whole file of at most `limit` bytes: refuses anything that is not a regular file
+/// (a FIFO, a device such as `/dev/zero`, a directory; [`open_regular`], which never blocks)
+/// and files larger than `limit`, before reading; a file that grows while being read is cut at
+/// `limit + 1` bytes and refused.
+///
+/// # Errors
+/// The `std::io::Error` of opening or reading; a file that is not a regular file gives an
+/// error of kind `InvalidInput` saying what it is; a file over the limit an error of kind
+/// `InvalidData` whose message names the limit (`limit_name`).
+pub fn read_bounded(path: &Path, limit: u64, limit_name: &str) -> std::io::Result<Vec<u8>> {
+    let (file, meta) = open_regular(path)?;
     let too_large = |size: u64| {
         std::io::Error::new(
             std::io::ErrorKind::InvalidData,
@@ -74,7 +156,14 @@ enum Unresolved {
 /// [`Unresolved`] saying why.
 fn resolve_in_dir(dir: &Path, name: &str) -> Result<(PathBuf, u64), Unresolved> {
     let path = dir.join(name);
-    let real = fs::canonicalize(&path).map_err(|_| Unresolved::Missing)?;
+    let real = fs::canonicalize(&path).map_err(|_| {
+        // A dangling link or a link loop exists but does not resolve: say what it is.
+        if fs::symlink_metadata(&path).is_ok() {
+            Unresolved::NotRegular
+        } else {
+            Unresolved::Missing
+        }
+    })?;
     let real_dir = fs::canonicalize(dir).map_err(|_| Unresolved::Missing)?;
     if real == real_dir || !real.starts_with(&real_dir) {
         return Err(Unresolved::Escapes(real));
@@ -119,8 +208,8 @@ pub fn resolve_listed(
             kind,
         },
         Unresolved::NotRegular => FileError::PathEscape {
+            problem: not_a_regular_file(&path).unwrap_or_else(|| "is not a regular file".into()),
             path,
-            problem: "is not a regular file".into(),
             kind,
         },
     })
@@ -204,8 +293,22 @@ mod tests {
         assert!(read_bounded(dir.path(), 1 << 20, "L").is_err());
         if Path::new("/dev/zero").exists() {
             let e = read_bounded(Path::new("/dev/zero"), 1 << 20, "L").unwrap_err();
-            assert!(e.to_string().contains("not a regular file"), "{e}");
+            assert!(e.to_string().contains("is a device"), "{e}");
         }
+        let e = read_bounded(dir.path(), 1 << 20, "L").unwrap_err();
+        assert!(e.to_string().contains("is a directory"), "{e}");
+        // A symbolic link loop is named as one, and a missing file stays NotFound.
+        std::os::unix::fs::symlink(dir.path().join("a"), dir.path().join("b")).unwrap();
+        std::os::unix::fs::symlink(dir.path().join("b"), dir.path().join("a")).unwrap();
+        let e = read_bounded(&dir.path().join("a"), 1 << 20, "L").unwrap_err();
+        assert!(e.to_string().contains("symbolic link loop"), "{e}");
+        let e = read_bounded(&dir.path().join("none"), 1 << 20, "L").unwrap_err();
+        assert_eq!(e.kind(), std::io::ErrorKind::NotFound);
+        assert_eq!(not_a_regular_file(&p), None);
+        assert_eq!(
+            not_a_regular_file(&dir.path().join("none")).as_deref(),
+            Some("does not exist")
+        );
     }
 
     #[test]

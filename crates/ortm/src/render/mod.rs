@@ -144,6 +144,21 @@ pub enum RenderError {
         /// The bake folder.
         dir: PathBuf,
     },
+    /// The scene the bake records is not opened without the user naming it
+    /// ([`crate::bake_dir::check_recorded_scene`]).
+    #[error(
+        "the bake in '{}' records the scene '{scene}', which {problem}; a bake directory's \
+         index is not trusted to open files outside it: pass the scene with --scene",
+        dir.display()
+    )]
+    UntrustedScene {
+        /// The bake folder.
+        dir: PathBuf,
+        /// The recorded scene argument.
+        scene: String,
+        /// Why it is not opened.
+        problem: String,
+    },
     /// The scene given is not the one the bake was made from.
     #[error(
         "the bake in {} was made from a different scene (scene hash {expected}, but `{scene}` \

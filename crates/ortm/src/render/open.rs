@@ -37,8 +37,9 @@ pub fn load_bake_atlases(
     dir: &Path,
     atlas_side: u32,
 ) -> Result<(Option<BakeIndex>, AtlasSet, AtlasSource), RenderError> {
-    let has_index = dir.join(INDEX_FILE_NAME).is_file();
-    let has_atlases = dir.join(ATLAS_INDEX_FILE_NAME).is_file();
+    // Anything at the name counts (a FIFO or directory there is then refused by its reader).
+    let has_index = std::fs::symlink_metadata(dir.join(INDEX_FILE_NAME)).is_ok();
+    let has_atlases = std::fs::symlink_metadata(dir.join(ATLAS_INDEX_FILE_NAME)).is_ok();
     if !has_index && !has_atlases {
         return Err(RenderError::NotABake {
             dir: dir.to_owned(),
@@ -126,7 +127,16 @@ pub fn open_bake<E: From<RenderError>>(
         })?;
     let scene_arg = match (scene, index.as_ref().and_then(scene_arg_from_settings)) {
         (Some(s), _) => s.to_owned(),
-        (None, Some(s)) => s,
+        (None, Some(s)) => {
+            crate::bake_dir::check_recorded_scene(dir, &s).map_err(|problem| {
+                RenderError::UntrustedScene {
+                    dir: dir.to_owned(),
+                    scene: s.clone(),
+                    problem,
+                }
+            })?;
+            s
+        }
         (None, None) => {
             return Err(RenderError::NoSceneRecorded {
                 dir: dir.to_owned(),

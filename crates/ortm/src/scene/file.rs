@@ -337,17 +337,16 @@ fn assign_materials(
     }
 }
 
+/// Upper bound of the bytes decoding an albedo texture takes per pixel: the decoded image (at
+/// most 8, RGBA 16-bit), its RGB f32 copy (12) and the linear RGB texture (12).
+const TEXTURE_BYTES_PER_PIXEL: u64 = 32;
+
 /// Why a path that must name a regular file does not: it is missing, or it is something else
 /// (a directory, a device such as `/dev/zero`, a pipe), which is refused before reading.
 fn not_a_file(path: &Path) -> String {
-    if path.exists() {
-        format!(
-            "names {}, which is not a regular file (a directory, device or pipe)",
-            path.display()
-        )
-    } else {
-        format!("names {}, which does not exist", path.display())
-    }
+    let what =
+        crate::io::not_a_regular_file(path).unwrap_or_else(|| "is not a regular file".into());
+    format!("names {}, which {what}", path.display())
 }
 
 /// 1-based line of byte offset `offset` in `text`.
@@ -453,7 +452,7 @@ impl Ctx<'_> {
             ));
         }
         let mesh_path = dir.join(mesh_rel);
-        if !mesh_path.is_file() {
+        if crate::io::not_a_regular_file(&mesh_path).is_some() {
             return Err(self.err(
                 Some(mesh.span()),
                 "mesh",
@@ -634,7 +633,7 @@ impl Ctx<'_> {
         field: &str,
         file: &Path,
     ) -> Result<AlbedoTexture, SceneError> {
-        if !file.is_file() {
+        if crate::io::not_a_regular_file(file).is_some() {
             return Err(self.err(
                 Some(span.clone()),
                 field,
@@ -642,12 +641,12 @@ impl Ctx<'_> {
                 "correct the path (it is relative to the scene file's folder)",
             ));
         }
-        let mut reader = image::ImageReader::open(file)
-            .map_err(|source| SceneError::Io {
-                what: "albedo texture",
-                path: file.to_path_buf(),
-                source,
-            })?
+        let (opened, _) = crate::io::open_regular(file).map_err(|source| SceneError::Io {
+            what: "albedo texture",
+            path: file.to_path_buf(),
+            source,
+        })?;
+        let mut reader = image::ImageReader::new(std::io::BufReader::new(opened))
             .with_guessed_format()
             .map_err(|source| SceneError::Io {
                 what: "albedo texture",
@@ -660,11 +659,32 @@ impl Ctx<'_> {
         limits.max_image_height = Some(crate::io::limits::MAX_TEXTURE_SIDE);
         limits.max_alloc = Some(crate::io::limits::MAX_TEXTURE_DECODE_BYTES);
         reader.limits(limits);
-        let decoded = reader.decode().map_err(|source| SceneError::Texture {
+        let tex_err = |source| SceneError::Texture {
             path: file.to_path_buf(),
             source,
-        })?;
+        };
+        let decoder = reader.into_decoder().map_err(tex_err)?;
+        // The decode's memory, from the declared size, against the memory limit before any
+        // pixel is allocated.
+        let (w, h) = image::ImageDecoder::dimensions(&decoder);
+        let need = u64::from(w) * u64::from(h) * TEXTURE_BYTES_PER_PIXEL;
+        let limit = crate::io::limits::memory_limit_bytes()
+            .map_err(|e| self.err(Some(span.clone()), field, e.to_string(), "fix the variable"))?;
+        if let Some(limit) = limit.filter(|&l| need > l) {
+            return Err(self.err(
+                Some(span.clone()),
+                field,
+                format!(
+                    "names {}, a {w}×{h} image whose decoding needs {need} bytes, more than the \
+                     memory limit of {limit} bytes (physical memory or ORTM_MEMORY_LIMIT_BYTES)",
+                    file.display()
+                ),
+                "use a smaller texture",
+            ));
+        }
+        let decoded = image::DynamicImage::from_decoder(decoder).map_err(tex_err)?;
         let rgb = decoded.to_rgb32f();
+        drop(decoded);
         let data = rgb
             .pixels()
             .map(|p| {

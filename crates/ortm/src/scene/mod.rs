@@ -244,15 +244,8 @@ pub(crate) fn read_text_bounded(
             }
         }
     };
-    let file = std::fs::File::open(path).map_err(io_err)?;
-    let meta = file.metadata().map_err(io_err)?;
-    if !meta.is_file() {
-        // A device (`/dev/zero`), FIFO or directory: reading it could block or never end.
-        return Err(io_err(std::io::Error::new(
-            std::io::ErrorKind::InvalidInput,
-            "not a regular file (a directory, device or pipe); name a file",
-        )));
-    }
+    // Never blocks: a FIFO, device or directory is refused from its metadata, with its kind.
+    let (file, meta) = crate::io::open_regular(path).map_err(io_err)?;
     let size = meta.len();
     if size > limit {
         return Err(SceneError::TooLarge {

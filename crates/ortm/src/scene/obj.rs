@@ -103,6 +103,17 @@ pub fn load_obj_with(
             ));
         }
     }
+    if let Some(&(line, corners)) = scan.short_faces.first() {
+        warnings.push(format!(
+            "{}:{line}: a face (`f`) with {corners} corner{} makes no triangle; ignored{}",
+            path.display(),
+            if corners == 1 { "" } else { "s" },
+            match scan.short_faces.len() - 1 {
+                0 => String::new(),
+                n => format!(" (and {n} more such faces)"),
+            }
+        ));
+    }
     build_mesh(path, metres_per_unit, options, &models, &scan, warnings)
 }
 
@@ -227,6 +238,8 @@ struct Scan {
     all_corners_have_normals: bool,
     /// `mtllib` file names.
     mtllibs: Vec<String>,
+    /// `(line, corners)` of the faces with one or two corners, which make no triangle.
+    short_faces: Vec<(usize, usize)>,
 }
 
 /// Shortens a line for a message.
@@ -426,6 +439,7 @@ impl Scan {
             )?;
         }
         if corners.len() < 3 {
+            self.short_faces.push((at.line, corners.len()));
             return Ok(());
         }
         let name = material.clone().unwrap_or_default();
