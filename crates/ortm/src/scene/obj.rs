@@ -3,24 +3,34 @@
 //! # Data flow
 //! 1. The file is read whole (refused up front when larger than [`MAX_OBJ_BYTES`]) and must
 //!    be UTF-8.
-//! 2. `tobj` parses it (`triangulate: true`, `single_index: false` so positions and UVs keep
+//! 2. `tobj` parses it (`triangulate: false`, `single_index: false` so positions and UVs keep
 //!    separate indices: per-corner UVs such as the head scan's survive; points and lines are
 //!    ignored). A syntax error is reported with the line the parser stopped on.
 //! 3. A light line scan of the same text finds what `tobj` does not report: NaN/infinite
 //!    numbers in `v`/`vt`/`vn` (with the line), face corners without a UV, indices out of
-//!    range (with the line), `usemtl` names and `mtllib` files. `tobj` triangulates faces in
-//!    file order (a quad `a b c d` becomes `a b c` + `a c d`, larger polygons a fan from the
-//!    first corner), so the scan also knows each triangle's OBJ face, line and `usemtl` name.
+//!    range (with the line), `usemtl` names and `mtllib` files. Every face of n corners
+//!    becomes n − 2 triangles in file order, so the scan also knows each triangle's OBJ face,
+//!    line and `usemtl` name.
 //! 4. The `tobj` models (one per `o`/`g`/`usemtl` run) are merged into one [`Mesh`]:
 //!    positions are welded by bit-identical coordinates (this undoes `tobj`'s per-group
 //!    duplication, so the head's 8,844 positions stay 8,844 and smooth normals do not break
-//!    at group borders), UVs and normals are concatenated.
+//!    at group borders), UVs and normals are concatenated. Polygons (more than 3 corners) are
+//!    ear-clipped in their best-fit plane (`triangulate_polygon`): concave polygons come out
+//!    right, and a convex one becomes the fan from its first corner (a quad `a b c d` →
+//!    `a b c` + `a c d`). A polygon that cannot be ear-clipped (self-intersecting) becomes that
+//!    fan, with a warning naming its line.
 //! 5. Validation: every UV must lie in `[0, 1]` (within 1e-6, then clamped). Triangles whose
-//!    world area is at most 1e-10 × (bounding-box diagonal)² are *degenerate*: an error
-//!    listing the count and the first faces, or, with [`ObjOptions::skip_degenerate_faces`],
-//!    dropped with a warning. Triangles with (near-)zero UV area (≤ 1e-12; the head scan has
-//!    16, collapsed by its 5-decimal UVs) are kept with a warning: they still occlude light,
-//!    but cover no texel centre, so the lightmap holds nothing for them.
+//!    world area is at most 1e-10 × (bounding-box diagonal)² are *degenerate*. A degenerate
+//!    triangle of a polygon whose own total area is not degenerate is a *sliver* of its
+//!    triangulation (every triangulation of a finely sampled circle has some): it is dropped,
+//!    with one warning per polygon naming its line, the count and the share of the polygon's
+//!    area lost (at most count × 1e-10 × diagonal²); it would hold no lightmap texel. Any
+//!    other degenerate triangle (a face given with 3 corners, or every triangle of a polygon
+//!    that is degenerate as a whole) is an error listing the count and the first faces, or,
+//!    with [`ObjOptions::skip_degenerate_faces`], dropped with a warning. Triangles with
+//!    (near-)zero UV area (≤ 1e-12; the head scan has 16, collapsed by its 5-decimal UVs) are
+//!    kept with a warning: they still occlude light, but cover no texel centre, so the
+//!    lightmap holds nothing for them.
 //! 6. Normals: the file's `vn` normals (normalised) when every face corner has one; otherwise
 //!    smooth area-weighted normals per (welded) position, computed from the triangles.
 //!
@@ -40,7 +50,7 @@ use std::collections::HashMap;
 use std::io::{BufRead, Read};
 use std::path::Path;
 
-use glam::{DVec3, Vec2, Vec3};
+use glam::{DVec2, DVec3, Vec2, Vec3};
 
 use super::{Mesh, MeshTriangle, SceneError, read_text_bounded};
 
@@ -52,6 +62,8 @@ pub const UV_TOLERANCE: f32 = 1e-6;
 pub const DEGENERATE_RELATIVE_AREA: f64 = 1e-10;
 /// A triangle whose UV area (unit square = 1) is at most this gets a warning (no texels).
 pub const DEGENERATE_UV_AREA: f64 = 1e-12;
+/// Most corner-in-ear tests spent on one polygon (about a second) before it is fanned instead.
+const EAR_TEST_BUDGET: u64 = 1_000_000_000;
 /// How many faces a degenerate-face message or warning lists.
 const LIST_FIRST: usize = 5;
 
@@ -162,7 +174,8 @@ impl BufRead for CountingReader<'_> {
 fn parse_with_tobj(path: &Path, text: &str) -> Result<Vec<tobj::Model>, SceneError> {
     let options = tobj::LoadOptions {
         single_index: false,
-        triangulate: true,
+        // Polygons are triangulated here ([`triangulate_polygon`]), not by tobj's fan.
+        triangulate: false,
         ignore_points: true,
         ignore_lines: true,
     };
@@ -514,7 +527,7 @@ fn build_mesh(
         file_normals,
         tris,
         use_file_normals,
-    } = merge_models(path, models, scan.all_corners_have_normals)?;
+    } = merge_models(path, models, scan, &mut warnings)?;
     let faces = triangle_faces(path, scan, tris.len())?;
     let positions_m = to_metres(path, &positions, metres_per_unit)?;
     check_uvs(path, &faces, &tris, &mut uvs)?;
@@ -562,11 +575,13 @@ fn build_mesh(
 }
 
 /// Merges the `tobj` models: positions welded by bit-identical coordinates, UVs and normals
-/// concatenated. `all_corners_have_normals` is the scan's finding.
+/// concatenated, polygons triangulated ([`triangulate_polygon`]; a polygon that cannot be
+/// ear-clipped becomes a fan with a warning naming its line, from the `scan`).
 fn merge_models(
     path: &Path,
     models: &[tobj::Model],
-    all_corners_have_normals: bool,
+    scan: &Scan,
+    warnings: &mut Vec<String>,
 ) -> Result<Merged, SceneError> {
     let mut weld: HashMap<[u32; 3], u32> = HashMap::new();
     let mut out = Merged {
@@ -574,8 +589,9 @@ fn merge_models(
         uvs: Vec::new(),
         file_normals: Vec::new(),
         tris: Vec::new(),
-        use_file_normals: all_corners_have_normals,
+        use_file_normals: scan.all_corners_have_normals,
     };
+    let mut face_no = 0usize;
     for model in models {
         let m = &model.mesh;
         let positions = &mut out.positions;
@@ -599,29 +615,181 @@ fn merge_models(
                 .chunks_exact(3)
                 .map(|n| Vec3::new(n[0], n[1], n[2])),
         );
-        if m.indices.len() % 3 != 0 || m.texcoord_indices.len() != m.indices.len() {
+        if m.texcoord_indices.len() != m.indices.len() {
             return Err(internal(path, "face corners without UV indices"));
         }
         if m.normal_indices.len() != m.indices.len() {
             out.use_file_normals = false;
         }
-        for t in 0..m.indices.len() / 3 {
-            let corners = [3 * t, 3 * t + 1, 3 * t + 2];
-            let mut position = [0u32; 3];
-            for (p, &c) in position.iter_mut().zip(&corners) {
-                *p = *pos_map
-                    .get(m.indices[c] as usize)
-                    .ok_or_else(|| internal(path, "position index"))?;
+        let arities: Vec<usize> = if m.face_arities.is_empty() {
+            if m.indices.len() % 3 != 0 {
+                return Err(internal(path, "triangle corners"));
             }
-            let uv = corners.map(|c| uv_offset + m.texcoord_indices[c]);
-            let normal = corners.map(|c| n_offset + m.normal_indices.get(c).copied().unwrap_or(0));
+            vec![3; m.indices.len() / 3]
+        } else {
+            m.face_arities.iter().map(|&a| a as usize).collect()
+        };
+        let mut first = 0usize;
+        for arity in arities {
+            let corners = first..first + arity;
+            first += arity;
+            if arity < 3 {
+                continue; // points and lines make no triangle
+            }
+            let mut position = Vec::with_capacity(arity);
+            for c in corners.clone() {
+                let p = m
+                    .indices
+                    .get(c)
+                    .and_then(|&i| pos_map.get(i as usize))
+                    .ok_or_else(|| internal(path, "position index"))?;
+                position.push(*p);
+            }
+            let uv: Vec<u32> = corners
+                .clone()
+                .map(|c| uv_offset + m.texcoord_indices[c])
+                .collect();
             if uv.iter().any(|&i| i as usize >= out.uvs.len()) {
                 return Err(internal(path, "UV index"));
             }
-            out.tris.push([position, uv, normal]);
+            let normal: Vec<u32> = corners
+                .map(|c| n_offset + m.normal_indices.get(c).copied().unwrap_or(0))
+                .collect();
+            let line = scan.faces.get(face_no).map_or(0, |f| f.line);
+            face_no += 1;
+            let points: Vec<DVec3> = position
+                .iter()
+                .map(|&i| out.positions[i as usize].as_dvec3())
+                .collect();
+            let local = triangulate_polygon(&points).unwrap_or_else(|| {
+                warnings.push(format!(
+                    "{}:{line}: the {arity}-corner polygon could not be ear-clipped (it is \
+                     self-intersecting, or has too many concave corners to clip in \
+                     {EAR_TEST_BUDGET} tests); triangulated as a fan from its first corner, \
+                     which may overlap itself: split it into simple polygons",
+                    path.display()
+                ));
+                fan(arity)
+            });
+            for t in local {
+                out.tris.push([
+                    t.map(|k| position[k]),
+                    t.map(|k| uv[k]),
+                    t.map(|k| normal[k]),
+                ]);
+            }
         }
     }
     Ok(out)
+}
+
+/// The fan from corner 0 of an `n`-corner polygon: `[0, k, k + 1]` for `k` in `1..n − 1`.
+fn fan(n: usize) -> Vec<[usize; 3]> {
+    (1..n - 1).map(|k| [0, k, k + 1]).collect()
+}
+
+/// Triangulates a polygon (corners in order, counter-clockwise seen from the front) by ear
+/// clipping in its best-fit plane; returns `corners − 2` triangles of corner indices, each
+/// counter-clockwise, or `None` when no ear can be found (self-intersecting polygon) or
+/// [`EAR_TEST_BUDGET`] is spent.
+///
+/// The plane is the one normal to the Newell normal; a triangle (`a b c`) is fanned. The walk
+/// starts at corner 1 and moves forward, so a convex polygon becomes exactly the fan from
+/// corner 0 (`0 1 2`, `0 2 3`, ...: a quad `a b c d` → `a b c` + `a c d`) in O(n). A corner
+/// is an ear when it is convex and no reflex corner lies in its triangle (only reflex corners
+/// are tested: O(n × reflex corners), O(n²) in the worst case). *Flat* corners, whose triangle
+/// with their neighbours has at most [`DEGENERATE_RELATIVE_AREA`] × (polygon bounding-box
+/// diagonal)² area (collinear corners, the corners of a finely sampled circle), are neither:
+/// they are clipped only after a full turn of the ring found no convex ear, and never block
+/// an ear. Polygons of zero area become the fan.
+fn triangulate_polygon(points: &[DVec3]) -> Option<Vec<[usize; 3]>> {
+    let n = points.len();
+    if n <= 3 {
+        return Some(fan(n.max(2)));
+    }
+    let o = points[0];
+    let normal: DVec3 = (0..n)
+        .map(|i| (points[i] - o).cross(points[(i + 1) % n] - o))
+        .sum();
+    let Some(normal) = normal.try_normalize() else {
+        return Some(fan(n));
+    };
+    let u = normal.any_orthonormal_vector();
+    let v = normal.cross(u);
+    let p: Vec<DVec2> = points
+        .iter()
+        .map(|&q| DVec2::new((q - o).dot(u), (q - o).dot(v)))
+        .collect();
+    let (lo, hi) = p
+        .iter()
+        .fold((p[0], p[0]), |(lo, hi), &q| (lo.min(q), hi.max(q)));
+    let flat = 2.0 * DEGENERATE_RELATIVE_AREA * (hi - lo).length_squared();
+    if flat == 0.0 {
+        return Some(fan(n));
+    }
+    ear_clip(&p, flat)
+}
+
+/// Twice the signed area of the 2D triangle `a b c` (> 0: counter-clockwise).
+fn orient(a: DVec2, b: DVec2, c: DVec2) -> f64 {
+    (b - a).perp_dot(c - a)
+}
+
+/// Ear clipping of the counter-clockwise 2D polygon `p` (see [`triangulate_polygon`]); a
+/// corner whose doubled triangle area is within ±`flat` is flat.
+fn ear_clip(p: &[DVec2], flat: f64) -> Option<Vec<[usize; 3]>> {
+    let n = p.len();
+    let mut prev: Vec<usize> = (0..n).map(|i| (i + n - 1) % n).collect();
+    let mut next: Vec<usize> = (0..n).map(|i| (i + 1) % n).collect();
+    let turn = |prev: &[usize], next: &[usize], i: usize| orient(p[prev[i]], p[i], p[next[i]]);
+    let mut reflex: Vec<bool> = (0..n).map(|i| turn(&prev, &next, i) < -flat).collect();
+    let mut reflex_list: Vec<usize> = (0..n).filter(|&i| reflex[i]).collect();
+    let mut out = Vec::with_capacity(n - 2);
+    let (mut alive, mut i, mut since_ear, mut allow_flat) = (n, 1usize, 0usize, false);
+    let mut tests = 0u64;
+    while alive > 3 {
+        if since_ear > alive {
+            if allow_flat {
+                return None;
+            }
+            allow_flat = true;
+            since_ear = 0;
+        }
+        let (a, c) = (prev[i], next[i]);
+        let t = turn(&prev, &next, i);
+        let tip = t > flat || (allow_flat && t >= -flat);
+        let blocked = tip && {
+            reflex_list.retain(|&r| reflex[r]);
+            tests += reflex_list.len() as u64;
+            if tests > EAR_TEST_BUDGET {
+                return None;
+            }
+            reflex_list.iter().any(|&r| {
+                r != a
+                    && r != c
+                    && orient(p[a], p[i], p[r]) >= 0.0
+                    && orient(p[i], p[c], p[r]) >= 0.0
+                    && orient(p[c], p[a], p[r]) >= 0.0
+            })
+        };
+        if tip && !blocked {
+            out.push([a, i, c]);
+            next[a] = c;
+            prev[c] = a;
+            reflex[i] = false;
+            for k in [a, c] {
+                reflex[k] = reflex[k] && turn(&prev, &next, k) < -flat;
+            }
+            alive -= 1;
+            since_ear = 0;
+            i = c;
+        } else {
+            i = next[i];
+            since_ear += 1;
+        }
+    }
+    out.push([prev[i], i, next[i]]);
+    Some(out)
 }
 
 /// The OBJ face of every triangle.
@@ -726,9 +894,9 @@ fn check_uvs(
     Ok(())
 }
 
-/// The degenerate-triangle rules of the module docs: which triangles to keep (all, unless
-/// zero-world-area ones are skipped), an error for zero world area unless skipped, and
-/// warnings for skipped and zero-UV-area triangles.
+/// The degenerate-triangle rules of the module docs: which triangles to keep, an error for
+/// zero world area unless skipped, and warnings for skipped and zero-UV-area triangles.
+/// Slivers of a polygon whose own area is not degenerate are dropped ([`polygon_slivers`]).
 fn degenerate_triangles(
     path: &Path,
     options: &ObjOptions,
@@ -742,14 +910,23 @@ fn degenerate_triangles(
     let diag2 = (hi.as_dvec3() - lo.as_dvec3()).length_squared();
     let world_limit = 2.0 * DEGENERATE_RELATIVE_AREA * diag2;
     let uv_limit = 2.0 * DEGENERATE_UV_AREA;
+    let area2: Vec<f64> = tris
+        .iter()
+        .map(|tri| {
+            let p = tri[0].map(|i| positions_m[i as usize].as_dvec3());
+            double_area(p[0], p[1], p[2])
+        })
+        .collect();
+    let mut keep = polygon_slivers(path, faces, &area2, world_limit, warnings);
     let mut zero_world: Vec<FaceRecord> = Vec::new();
     let mut zero_uv: Vec<FaceRecord> = Vec::new();
-    let mut keep = vec![true; tris.len()];
     for (t, tri) in tris.iter().enumerate() {
-        let p = tri[0].map(|i| positions_m[i as usize].as_dvec3());
+        if !keep[t] {
+            continue;
+        }
         let q = tri[1].map(|i| uvs[i as usize].as_dvec2().extend(0.0));
         let rec = faces.of(t);
-        if double_area(p[0], p[1], p[2]) <= world_limit {
+        if area2[t] <= world_limit {
             zero_world.push(rec);
             keep[t] = !options.skip_degenerate_faces;
         } else if double_area(q[0], q[1], q[2]) <= uv_limit {
@@ -781,6 +958,53 @@ fn degenerate_triangles(
         ));
     }
     Ok(keep)
+}
+
+/// Drops the sliver triangles of polygons: a triangle of a face with more than three corners
+/// whose doubled area (`area2`, m²) is at most `world_limit`, when the face's total is above
+/// it. One warning per such polygon names its line, the count and the area lost (at most
+/// count × `world_limit` / 2). Returns which triangles are kept.
+fn polygon_slivers(
+    path: &Path,
+    faces: &TriangleFaces,
+    area2: &[f64],
+    world_limit: f64,
+    warnings: &mut Vec<String>,
+) -> Vec<bool> {
+    let mut keep = vec![true; area2.len()];
+    let mut face_area2 = vec![0.0f64; faces.scan.faces.len()];
+    for (t, &a) in area2.iter().enumerate() {
+        face_area2[faces.tri_face[t]] += a;
+    }
+    // Per face: (sliver count, doubled area lost).
+    let mut slivers: HashMap<usize, (usize, f64)> = HashMap::new();
+    for (t, &a) in area2.iter().enumerate() {
+        let f = faces.tri_face[t];
+        if faces.of(t).triangles > 1 && a <= world_limit && face_area2[f] > world_limit {
+            keep[t] = false;
+            let e = slivers.entry(f).or_default();
+            e.0 += 1;
+            e.1 += a;
+        }
+    }
+    let mut slivers: Vec<_> = slivers.into_iter().collect();
+    slivers.sort_unstable_by_key(|&(f, _)| f);
+    for (f, (count, lost2)) in slivers {
+        let rec = faces.scan.faces[f];
+        warnings.push(format!(
+            "{}:{}: polygon (face {}, {} corners) triangulates into {count} sliver triangle{} \
+             of zero area (each ≤ {DEGENERATE_RELATIVE_AREA:e} × diagonal²); dropped: they \
+             hold no lightmap texels and lose {:.1e} of the polygon's area (at most {:.1e})",
+            path.display(),
+            rec.line,
+            rec.face,
+            rec.triangles + 2,
+            if count == 1 { "" } else { "s" },
+            lost2 / face_area2[f],
+            count as f64 * world_limit / face_area2[f],
+        ));
+    }
+    keep
 }
 
 /// Whether the file's `vn` normals are used (`usable`: every corner has one): not when one has
