@@ -14,11 +14,11 @@
 //! 4. The `tobj` models (one per `o`/`g`/`usemtl` run) are merged into one [`Mesh`]:
 //!    positions are welded by bit-identical coordinates (this undoes `tobj`'s per-group
 //!    duplication, so the head's 8,844 positions stay 8,844 and smooth normals do not break
-//!    at group borders), UVs and normals are concatenated. Polygons (more than 3 corners) are
-//!    ear-clipped in their best-fit plane (`triangulate_polygon`): concave polygons come out
-//!    right, and a convex one becomes the fan from its first corner (a quad `a b c d` →
-//!    `a b c` + `a c d`). A polygon that cannot be ear-clipped (self-intersecting) becomes that
-//!    fan, with a warning naming its line.
+//!    at group borders), UVs and normals are concatenated. A quad `a b c d` is split into
+//!    `a b c` + `a c d`, as written. Polygons of 5 or more corners are ear-clipped in their
+//!    best-fit plane (`triangulate_polygon`): concave polygons come out right, and a convex
+//!    one becomes the fan from its first corner. A polygon that cannot be ear-clipped
+//!    (self-intersecting) becomes that fan, with a warning naming its line.
 //! 5. Validation: every UV must lie in `[0, 1]` (within 1e-6, then clamped). Triangles whose
 //!    world area is at most 1e-10 × (bounding-box diagonal)² are *degenerate*. A degenerate
 //!    triangle of a polygon whose own total area is not degenerate is a *sliver* of its
@@ -693,9 +693,13 @@ fn fan(n: usize) -> Vec<[usize; 3]> {
 /// counter-clockwise, or `None` when no ear can be found (self-intersecting polygon) or
 /// [`EAR_TEST_BUDGET`] is spent.
 ///
-/// The plane is the one normal to the Newell normal; a triangle (`a b c`) is fanned. The walk
+/// Triangles and quads are not clipped: a quad `a b c d` is split along its first diagonal,
+/// `a b c` + `a c d`, as written (scanned quads are often non-planar, and the diagonal is
+/// then the modeller's choice: the head scan has 16 quads that are concave seen along their
+/// Newell normal; a planar quad concave at `b` or `d` must be written as two triangles).
+/// The plane is the one normal to the Newell normal. The walk
 /// starts at corner 1 and moves forward, so a convex polygon becomes exactly the fan from
-/// corner 0 (`0 1 2`, `0 2 3`, ...: a quad `a b c d` → `a b c` + `a c d`) in O(n). A corner
+/// corner 0 (`0 1 2`, `0 2 3`, ...) in O(n). A corner
 /// is an ear when it is convex and no reflex corner lies in its triangle (only reflex corners
 /// are tested: O(n × reflex corners), O(n²) in the worst case). *Flat* corners, whose triangle
 /// with their neighbours has at most [`DEGENERATE_RELATIVE_AREA`] × (polygon bounding-box
@@ -704,7 +708,7 @@ fn fan(n: usize) -> Vec<[usize; 3]> {
 /// an ear. Polygons of zero area become the fan.
 fn triangulate_polygon(points: &[DVec3]) -> Option<Vec<[usize; 3]>> {
     let n = points.len();
-    if n <= 3 {
+    if n <= 4 {
         return Some(fan(n.max(2)));
     }
     let o = points[0];
