@@ -1,6 +1,7 @@
 //! Polygon triangulation of OBJ faces: ear clipping (concave, star and collinear polygons come
 //! out inside the polygon, where the fan from the first corner does not) and the sliver
-//! policy (a convex 100,000-corner polygon is accepted with one warning).
+//! policy (a convex 100,000-corner polygon is accepted with one warning; a quad's sliver is
+//! dropped, a zero-area quad stays an error).
 
 use std::f64::consts::PI;
 use std::path::PathBuf;
@@ -189,4 +190,23 @@ fn a_convex_100k_corner_polygon_is_accepted_with_one_sliver_warning() {
     // Texels inside the circle: about π/4 of them.
     let covered = grid.texels.len() as f64 / (256.0 * 256.0);
     assert!((covered - PI / 4.0).abs() < 0.01, "{covered}");
+}
+
+#[test]
+fn a_sliver_of_a_quad_is_dropped_but_a_zero_area_quad_is_an_error() {
+    // `a b c` is collinear (zero area), `a c d` has area 1: the sliver is dropped.
+    let quad = [(0., 0.), (1., 0.), (2., 0.), (1., 1.)].map(DVec2::from);
+    let (_dir, p) = polygon_obj(&quad, 0.5);
+    let (mesh, _, warnings) = load_obj(&p, 1.0).unwrap();
+    assert_eq!(triangles_2d(&mesh), vec![[quad[0], quad[2], quad[3]]]);
+    let w = warnings.join("\n");
+    assert!(
+        w.contains("polygon.obj:9:") && w.contains("1 sliver triangle "),
+        "{w}"
+    );
+    // A quad of zero area as a whole keeps the degenerate-face rule (an error).
+    let flat = [(0., 0.), (1., 0.), (2., 0.), (3., 0.)].map(DVec2::from);
+    let (_dir, p) = polygon_obj(&flat, 0.25);
+    let e = load_obj(&p, 1.0).unwrap_err().to_string();
+    assert!(e.contains("skip_degenerate_faces"), "{e}");
 }
