@@ -210,3 +210,29 @@ fn a_sliver_of_a_quad_is_dropped_but_a_zero_area_quad_is_an_error() {
     let e = load_obj(&p, 1.0).unwrap_err().to_string();
     assert!(e.contains("skip_degenerate_faces"), "{e}");
 }
+
+#[test]
+fn a_self_intersecting_polygon_falls_back_to_the_fan_with_a_warning() {
+    // A square loop whose tail crosses back over itself: no ear can be found.
+    let c = [
+        (0., 0.),
+        (4., 0.),
+        (4., 4.),
+        (2., 4.),
+        (2., 6.),
+        (3., 6.),
+        (3., 5.),
+        (1., 5.),
+        (1., 2.),
+        (0., 2.),
+    ]
+    .map(DVec2::from);
+    let (_dir, p) = polygon_obj(&c, 0.1);
+    let (mesh, _, warnings) = load_obj(&p, 1.0).unwrap();
+    let w = warnings.join("\n");
+    assert!(
+        w.contains("polygon.obj:21:") && w.contains("could not be ear-clipped"),
+        "{w}"
+    );
+    assert_eq!(triangles_2d(&mesh), fan(&c));
+}
