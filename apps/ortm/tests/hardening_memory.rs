@@ -62,6 +62,44 @@ fn huge_lightmap_is_refused_before_rasterizing_under_the_memory_limit() {
     }
 }
 
+/// The integrated cell rule holds one RGB value per lightmap slot and map while the transport
+/// is alive (`limits::CELL_VALUE_BYTES`): the Cornell box at 512² with 400 maps needs 1.79 GiB
+/// (the coarse solve's 0.56 GB + 512² × 400 × 12 bytes) and is refused under a 1 GB limit
+/// before the transport is built (peak measured: 25 MB). Without the cell values in the check
+/// it would be accepted (0.56 GB) and grow past the limit. With 20 maps (0.62 GB estimated) the
+/// same bake runs and peaks at 823 MB (`ORTM_MEMORY_LIMIT_BYTES=1000000000
+/// ORTM_TEST_REPORT_PEAK=1 ortm bake cornell --size 512 --offsets 20`, 2 min; not run here).
+#[test]
+fn cell_values_count_in_the_bake_memory_check() {
+    let dir = tempfile::tempdir().unwrap();
+    let limit: u64 = 1_000_000_000;
+    let out = ortm_command()
+        .args([
+            "bake",
+            "cornell",
+            "--size",
+            "512",
+            "--offsets",
+            "400",
+            "-o",
+            "out",
+        ])
+        .current_dir(dir.path())
+        .env(ortm::io::limits::MEMORY_LIMIT_ENV, limit.to_string())
+        .env("ORTM_TEST_REPORT_PEAK", "1")
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    let cell_values = 512u64 * 512 * 400;
+    assert!(
+        err.contains(&format!("{cell_values} cell values")) && err.contains("--offsets"),
+        "{err}"
+    );
+    let p = peak(&err);
+    assert!(p < limit + limit / 10, "peak {p} bytes");
+}
+
 /// CRC-32 (IEEE, as PNG chunks use), bit by bit.
 fn crc32(bytes: &[u8]) -> u32 {
     let mut c = 0xffff_ffffu32;

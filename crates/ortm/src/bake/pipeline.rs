@@ -530,8 +530,17 @@ pub fn bake(
     let grid = TexelGrid::build_with_size(scene, w, h)?;
     let block = settings.coarse_block.max(1);
     let clusters = crate::bake::transport::coarse::cluster_count(&grid, block);
-    crate::io::limits::check_bake_memory(clusters as u64, grid.texels.len() as u64, block)
-        .map_err(|e| BakeError::Settings(e.to_string()))?;
+    let cell_values = match settings.cell_rule {
+        CellRule::Integrated => u64::from(w) * u64::from(h) * settings.offsets as u64,
+        CellRule::Sampled => 0,
+    };
+    crate::io::limits::check_bake_memory(
+        clusters as u64,
+        grid.texels.len() as u64,
+        block,
+        cell_values,
+    )
+    .map_err(|e| BakeError::Settings(e.to_string()))?;
     let hash = scene_hash(scene);
     let settings_json = serde_json::to_value(settings).expect("settings serialise");
     let key = BakeKey::new(&hash, &settings_json);

@@ -22,7 +22,7 @@
 //! | [`MAX_OFFSETS`] | 65,536 | offsets (transfer maps) of a bake |
 //! | [`MAX_REFINEMENT_ITERATIONS`] | 100,000 | `ortm bake --iterations` |
 //! | [`MAX_COARSE_BLOCK`] | 8192 texels | `ortm bake --coarse-block` (1 or more) |
-//! | memory | physical memory, or `ORTM_MEMORY_LIMIT_BYTES` | a lightmap's rasterization ([`check_lightmap_memory`], before it), a bake's transport ([`bake_memory_bytes`]), `ortm bin`'s atlases ([`atlas_memory_bytes`]) |
+//! | memory | physical memory, or `ORTM_MEMORY_LIMIT_BYTES` | a lightmap's rasterization ([`check_lightmap_memory`], before it), a bake's transport and cell values ([`bake_memory_bytes`]), `ortm bin`'s atlases ([`atlas_memory_bytes`]) |
 
 use std::fs;
 
@@ -167,17 +167,24 @@ pub fn check_bake_request(width: u32, height: u32, offsets: usize) -> Result<(),
     Ok(())
 }
 
+/// Bytes of one cell value of the integrated cell rule (`bake/cells.rs`, `CellValues`: RGB f32
+/// per lightmap slot and map, all held while the transport is alive).
+pub const CELL_VALUE_BYTES: u64 = 12;
+
 /// Bytes the bake's transport needs for `clusters` clusters of the coarse higher-order solve
 /// (`src/transport/coarse.rs`): per pair of clusters an f64 form factor, an f64 system matrix
 /// and its LU factors, three f64 transfer channels and three f32 remainders (`8+8+8+24+12 = 60`
-/// bytes), plus `per_texel` bytes for each covered texel (patches, BVH, grid).
-pub fn bake_memory_bytes(clusters: u64, covered_texels: u64) -> u64 {
+/// bytes), plus `per_texel` bytes for each covered texel (patches, BVH, grid), plus
+/// [`CELL_VALUE_BYTES`] per cell value the integrated cell rule holds at once (`cell_values` =
+/// lightmap slots × maps; 0 for the sampled rule, which makes one map at a time).
+pub fn bake_memory_bytes(clusters: u64, covered_texels: u64, cell_values: u64) -> u64 {
     const PER_CLUSTER_PAIR: u64 = 60;
     const PER_TEXEL: u64 = 512;
     clusters
         .saturating_mul(clusters)
         .saturating_mul(PER_CLUSTER_PAIR)
         .saturating_add(covered_texels.saturating_mul(PER_TEXEL))
+        .saturating_add(cell_values.saturating_mul(CELL_VALUE_BYTES))
 }
 
 /// The memory a bake may plan to use, bytes: `$ORTM_MEMORY_LIMIT_BYTES` if set, else the
@@ -205,9 +212,10 @@ pub fn memory_limit_bytes() -> Result<Option<u64>, LimitError> {
     }))
 }
 
-/// Refuses a bake whose transport would need more memory than [`memory_limit_bytes`], naming
-/// the bytes it would need ([`bake_memory_bytes`]). `clusters` is the number of clusters the
-/// coarse solve forms (one per `coarse_block²` tile, chart and material of the covered texels).
+/// Refuses a bake whose transport and cell values would need more memory than
+/// [`memory_limit_bytes`], naming the bytes it would need ([`bake_memory_bytes`]). `clusters` is
+/// the number of clusters the coarse solve forms (one per `coarse_block²` tile, chart and
+/// material of the covered texels); `cell_values` as [`bake_memory_bytes`].
 ///
 /// # Errors
 /// A [`LimitError`] with the bytes needed and the limit.
@@ -215,18 +223,21 @@ pub fn check_bake_memory(
     clusters: u64,
     covered_texels: u64,
     coarse_block: u32,
+    cell_values: u64,
 ) -> Result<(), LimitError> {
-    let need = bake_memory_bytes(clusters, covered_texels);
+    let need = bake_memory_bytes(clusters, covered_texels, cell_values);
     match memory_limit_bytes()? {
         Some(limit) if need > limit => Err(LimitError {
             what: format!(
                 "bake transport ({covered_texels} covered texels in {clusters} clusters of \
-                 {coarse_block}×{coarse_block})"
+                 {coarse_block}×{coarse_block}) and {cell_values} cell values"
             ),
             found: format!("{need} bytes ({:.2} GiB) needed", gib(need)),
             limit_name: "memory (physical memory or ORTM_MEMORY_LIMIT_BYTES)",
             limit: format!("{limit} bytes ({:.2} GiB)", gib(limit)),
-            fix: "; use a smaller lightmap (--size) or larger clusters (--coarse-block)".into(),
+            fix: "; use a smaller lightmap (--size), larger clusters (--coarse-block) or fewer \
+                  offsets (--offsets)"
+                .into(),
         }),
         _ => Ok(()),
     }
@@ -361,8 +372,9 @@ mod tests {
 
     #[test]
     fn bake_memory_is_quadratic_in_clusters() {
-        assert_eq!(bake_memory_bytes(1000, 0), 60_000_000);
-        assert_eq!(bake_memory_bytes(0, 10), 5120);
-        assert_eq!(bake_memory_bytes(u64::MAX, 1), u64::MAX);
+        assert_eq!(bake_memory_bytes(1000, 0, 0), 60_000_000);
+        assert_eq!(bake_memory_bytes(0, 10, 0), 5120);
+        assert_eq!(bake_memory_bytes(0, 0, 1000), 12_000);
+        assert_eq!(bake_memory_bytes(u64::MAX, 1, 0), u64::MAX);
     }
 }
