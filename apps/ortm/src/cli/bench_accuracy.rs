@@ -36,6 +36,7 @@ use ortm::bake::texels::TexelGrid;
 use ortm::bake::transport::dense::{self, DenseTransport};
 use ortm::bake::transport::{Effects, Kernels, Transport, texel_patches};
 use ortm::bake::{self, BakeSettings, lighting};
+use ortm::io::limits::MAX_SAMPLES_PER_TEXEL;
 use ortm::scene::Scene;
 
 /// The cases of the table when `--cases` is not given.
@@ -57,10 +58,20 @@ pub struct Args {
     #[arg(long, value_delimiter = ',', default_values_t = [100usize, 400])]
     offsets: Vec<usize>,
     /// Paths per texel the path-traced reference starts with.
-    #[arg(long, default_value_t = 64)]
+    #[arg(
+        long,
+        default_value_t = 64,
+        value_parser = clap::value_parser!(u32).range(1..=i64::from(MAX_SAMPLES_PER_TEXEL)),
+        help = format!("Paths per texel the path-traced reference starts with, 1..={MAX_SAMPLES_PER_TEXEL}")
+    )]
     spp: u32,
     /// Most paths per texel of the path-traced reference.
-    #[arg(long, default_value_t = 4096)]
+    #[arg(
+        long,
+        default_value_t = 4096,
+        value_parser = clap::value_parser!(u32).range(1..=i64::from(MAX_SAMPLES_PER_TEXEL)),
+        help = format!("Most paths per texel of the path-traced reference, 1..={MAX_SAMPLES_PER_TEXEL}")
+    )]
     max_spp: u32,
     /// Largest covered-texel count for the `evaluator, every pair` row (its cost is n²).
     #[arg(long, default_value_t = 12_000)]

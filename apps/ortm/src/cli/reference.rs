@@ -30,7 +30,12 @@ pub struct Args {
     #[arg(long)]
     size: Option<u32>,
     /// Paths per covered texel (the standard error falls as 1/√spp).
-    #[arg(long, default_value_t = 256)]
+    #[arg(
+        long,
+        default_value_t = 256,
+        value_parser = clap::value_parser!(u32).range(1..=i64::from(ortm::io::limits::MAX_SAMPLES_PER_TEXEL)),
+        help = format!("Paths per covered texel, 1..={} (the standard error falls as 1/√spp)", ortm::io::limits::MAX_SAMPLES_PER_TEXEL)
+    )]
     spp: u32,
     /// Seed of the random streams (same seed → same output, whatever the thread count).
     #[arg(long, default_value_t = 1)]

@@ -99,7 +99,13 @@ pub struct Args {
     #[arg(long, value_enum, default_value_t = MethodArg::Auto)]
     reference_method: MethodArg,
     /// Paths per texel of the path-traced reference.
-    #[arg(long, value_name = "SPP", default_value_t = DEFAULT_SPP)]
+    #[arg(
+        long,
+        value_name = "SPP",
+        default_value_t = DEFAULT_SPP,
+        value_parser = clap::value_parser!(u32).range(1..=i64::from(ortm::io::limits::MAX_SAMPLES_PER_TEXEL)),
+        help = format!("Paths per texel of the path-traced reference, 1..={}", ortm::io::limits::MAX_SAMPLES_PER_TEXEL)
+    )]
     reference_spp: u32,
     /// Relative error shown red in the error view (× the reference's RMS).
     #[arg(long, value_name = "X", default_value_t = crate::view::app::DEFAULT_ERROR_SCALE)]

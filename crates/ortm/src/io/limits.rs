@@ -68,6 +68,11 @@ pub const MAX_OFFSETS: usize = 65_536;
 /// an unbounded count would run for ever.
 pub const MAX_REFINEMENT_ITERATIONS: usize = 100_000;
 
+/// Most paths per texel of the path-traced reference (`ortm reference --spp`, the viewer's
+/// `--reference-spp`, `ortm bench accuracy --spp/--max-spp`): 2²⁰, a thousand times what a 1 %
+/// standard error usually needs; beyond it a run would take days.
+pub const MAX_SAMPLES_PER_TEXEL: u32 = 1 << 20;
+
 /// Largest side of the texel clusters of the coarse solve (`--coarse-block`): a block as large
 /// as the largest lightmap side ([`MAX_LIGHTMAP_SIDE`]) already makes one cluster.
 pub const MAX_COARSE_BLOCK: u32 = MAX_LIGHTMAP_SIDE;
