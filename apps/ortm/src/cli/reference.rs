@@ -16,7 +16,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use ortm::accuracy::compare::power_w;
 use ortm::accuracy::reference::{self, ReferenceError, Settings};
 use ortm::bake::lighting;
-use ortm::bake::report::{lightmap_image, percentile_99, save_png};
+use ortm::bake::report::save_solution_pngs;
 use ortm::bake::texels::TexelGrid;
 use ortm::render::lightmap_exr::write_lightmap_exr;
 
@@ -108,16 +108,7 @@ pub fn run(a: Args) -> Result<()> {
     let first = lighting::to_lightmap(&grid, &maps.first_order);
     let fin = lighting::to_lightmap(&grid, &maps.final_b);
     let ind = lighting::to_lightmap(&grid, &indirect);
-    let white = percentile_99(&fin);
-    save_png(
-        &lightmap_image(&first, white),
-        &a.output.join("first_order.png"),
-    )?;
-    save_png(&lightmap_image(&fin, white), &a.output.join("final.png"))?;
-    save_png(
-        &lightmap_image(&ind, percentile_99(&ind)),
-        &a.output.join("indirect.png"),
-    )?;
+    save_solution_pngs(&a.output, &first, &fin, &ind)?;
     println!(
         "{} texels at {}x{}, {} paths per texel: {:.2} s, {:.2} Mrays/s ({} rays)",
         grid.texels.len(),

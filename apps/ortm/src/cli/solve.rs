@@ -8,9 +8,10 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
+use ortm::accuracy::compare::power_w;
 use ortm::bake::lighting;
 use ortm::bake::raycast::Visibility;
-use ortm::bake::report::{lightmap_image, percentile_99, save_png};
+use ortm::bake::report::save_solution_pngs;
 use ortm::bake::texels::TexelGrid;
 use ortm::bake::transport::dense::DenseTransport;
 use ortm::bake::transport::{Effects, Kernels, texel_patches};
@@ -76,22 +77,8 @@ pub fn run(a: Args) -> Result<()> {
     ] {
         write_lightmap_exr(&a.output.join(name), map)?;
     }
-    let white = percentile_99(&fin);
-    save_png(
-        &lightmap_image(&first, white),
-        &a.output.join("first_order.png"),
-    )?;
-    save_png(&lightmap_image(&fin, white), &a.output.join("final.png"))?;
-    save_png(
-        &lightmap_image(&ind, percentile_99(&ind)),
-        &a.output.join("indirect.png"),
-    )?;
-    let power = |v: &[glam::Vec3]| -> glam::DVec3 {
-        v.iter()
-            .zip(&patches)
-            .map(|(x, p)| x.as_dvec3() * p.area_m2 as f64)
-            .sum()
-    };
+    save_solution_pngs(&a.output, &first, &fin, &ind)?;
+    let power = |v: &[glam::Vec3]| power_w(&grid, v);
     println!(
         "{} texels at {}x{}: assembled in {:.2} s, solved in {:.2} s",
         grid.texels.len(),

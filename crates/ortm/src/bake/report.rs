@@ -30,6 +30,27 @@ pub fn save_png(img: &RgbImage, path: &Path) -> Result<(), ReportError> {
     crate::io::write_png_atomic(img, path).map_err(|e| err(Box::new(e)))
 }
 
+/// Writes `first_order.png`, `final.png` (both at the final map's 99th percentile, so they
+/// compare) and `indirect.png` (at its own) into `dir`: the pictures of a solution that
+/// `ortm solve` and `ortm reference` write beside their OpenEXRs.
+pub fn save_solution_pngs(
+    dir: &Path,
+    first_order: &Lightmap,
+    final_map: &Lightmap,
+    indirect: &Lightmap,
+) -> Result<(), ReportError> {
+    let white = percentile_99(final_map);
+    save_png(
+        &lightmap_image(first_order, white),
+        &dir.join("first_order.png"),
+    )?;
+    save_png(&lightmap_image(final_map, white), &dir.join("final.png"))?;
+    save_png(
+        &lightmap_image(indirect, percentile_99(indirect)),
+        &dir.join("indirect.png"),
+    )
+}
+
 /// Linear → sRGB-encoded 8-bit.
 pub fn srgb8(x: f32) -> u8 {
     let x = x.clamp(0.0, 1.0);
