@@ -6,7 +6,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use anyhow::{Context, Result, bail};
-use indicatif::{ProgressBar, ProgressStyle};
+use super::progress::Progress;
 use ortm::bake::offsets::ImportanceMetric;
 use ortm::bake::transport::Effects;
 use ortm::bake::{BakeEvent, BakeSettings, CellRule, Selector, bake};
@@ -15,8 +15,8 @@ use ortm::io::limits::{MAX_COARSE_BLOCK, MAX_REFINEMENT_ITERATIONS};
 /// Arguments of `ortm bake`.
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// Scene file (TOML) or built-in scene name (`cornell`, `maze`, `head`).
-    #[arg(default_value = "cornell")]
+    /// Scene file or built-in scene name ([`super::SCENE_HELP`]).
+    #[arg(default_value = "cornell", help = super::SCENE_HELP)]
     pub scene: String,
     /// Output bake directory.
     #[arg(short, long, default_value = "out/bake")]
@@ -109,9 +109,64 @@ pub fn settings(a: &Args, size: (u32, u32)) -> Result<BakeSettings> {
         metric,
         refinement_iterations: a.iterations as usize,
         coarse_block: a.coarse_block,
-        scene: Some(a.scene.clone()),
+        scene: Some(recorded_scene(&a.scene)),
         ..BakeSettings::default()
     })
+}
+
+/// The scene argument as the bake records it: a built-in name as given, a scene file as its
+/// absolute path (so that `ortm render DIR` finds it from any folder; a file outside the bake
+/// folder is still only opened when named with `--scene`, see
+/// [`ortm::bake_dir::check_recorded_scene`]).
+fn recorded_scene(arg: &str) -> String {
+    if super::BUILTIN_SCENES.contains(&arg) {
+        return arg.to_owned();
+    }
+    std::fs::canonicalize(arg)
+        .ok()
+        .and_then(|p| p.to_str().map(str::to_owned))
+        .unwrap_or_else(|| arg.to_owned())
+}
+
+/// After a finished bake in `dir`: removes the map files its new `index.json` does not name
+/// (left by an earlier bake with other settings) and, when the atlases of `atlases.json` were
+/// not packed from this index's bake, the atlas index, atlas files and their pictures. Returns
+/// how many files were removed. A resumed bake is not affected: this runs only once the index
+/// is written, and the files it names are kept.
+fn remove_stale_files(dir: &std::path::Path) -> Result<usize> {
+    let (index, index_sha256) = ortm::bake_dir::BakeIndex::read_with_sha256(dir)
+        .with_context(|| format!("reading the new index of '{}'", dir.display()))?;
+    let named: std::collections::HashSet<&str> =
+        index.maps.iter().map(|m| m.file.as_str()).collect();
+    let atlases_stale = match ortm::atlas::read_atlas_index(dir) {
+        Ok(atlases) => {
+            atlases.bake_key != index.bake_key
+                || atlases
+                    .bake_index_sha256
+                    .is_some_and(|sha| sha != index_sha256)
+        }
+        Err(_) => dir.join(ortm::atlas::ATLAS_INDEX_FILE_NAME).exists(),
+    };
+    let mut removed = 0;
+    let listing =
+        std::fs::read_dir(dir).with_context(|| format!("listing '{}'", dir.display()))?;
+    for entry in listing {
+        let entry = entry.with_context(|| format!("listing '{}'", dir.display()))?;
+        let Ok(name) = entry.file_name().into_string() else {
+            continue;
+        };
+        let stale_map = name.starts_with("map_") && name.ends_with(".exr") && !named.contains(name.as_str());
+        let stale_atlas = atlases_stale
+            && (name == ortm::atlas::ATLAS_INDEX_FILE_NAME
+                || (name.starts_with("atlas_")
+                    && (name.ends_with(".exr") || name.ends_with(".png"))));
+        if (stale_map || stale_atlas) && entry.file_type().is_ok_and(|t| t.is_file()) {
+            std::fs::remove_file(entry.path())
+                .with_context(|| format!("removing the stale file '{}'", entry.path().display()))?;
+            removed += 1;
+        }
+    }
+    Ok(removed)
 }
 
 /// Runs `ortm bake` (and reports its peak memory for tests: `ORTM_TEST_REPORT_PEAK`).
@@ -139,34 +194,28 @@ fn run_bake(a: Args) -> Result<()> {
             );
         });
     }
-    let bar = std::sync::Mutex::new(ProgressBar::hidden());
-    let style =
-        ProgressStyle::with_template("{msg:24} [{bar:40}] {pos}/{len} {elapsed_precise} eta {eta}")
-            .expect("valid template")
-            .progress_chars("=> ");
+    let bar = std::sync::Mutex::new(Progress::hidden());
     let events = |e: BakeEvent| match e {
         BakeEvent::Phase { name, total } => {
             let mut b = bar.lock().expect("progress lock");
             b.finish();
-            *b = ProgressBar::new(total)
-                .with_style(style.clone())
-                .with_message(name);
+            *b = Progress::new(total, name);
         }
         BakeEvent::Advance(n) => bar.lock().expect("progress lock").inc(n),
-        BakeEvent::Message(m) => {
-            let b = bar.lock().expect("progress lock");
-            // A hidden bar (stderr is not a terminal) drops `println`: print plainly instead.
-            if b.is_hidden() {
-                eprintln!("{m}");
-            } else {
-                b.println(m);
-            }
-        }
+        BakeEvent::Message(m) => bar.lock().expect("progress lock").println(m),
     };
     let summary = bake(&scene, &s, &a.output, &events, &cancel)
         .with_context(|| format!("baking '{}' into '{}'", a.scene, a.output.display()));
     bar.lock().expect("progress lock").finish();
     let summary = summary?;
+    let removed = remove_stale_files(&a.output)?;
+    if removed > 0 {
+        println!(
+            "removed {removed} file(s) of an earlier bake in {} (maps not in the new index, \
+             atlases of the old maps)",
+            a.output.display()
+        );
+    }
     println!(
         "baked {} maps ({} reused) for {} texels at {}x{} into {}",
         summary.maps,

@@ -27,7 +27,6 @@ use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
 use glam::Vec3;
-use indicatif::{ProgressBar, ProgressStyle};
 use ortm::accuracy::compare::{self, Comparison};
 use ortm::accuracy::reference::{self, ReferenceMaps};
 use ortm::bake::pipeline::CellRule;
@@ -262,12 +261,7 @@ fn reference_for(case: &Case, rows: &[Row], a: &Args) -> Result<(Vec<Vec3>, Stri
 /// Runs the path tracer with a progress bar.
 fn traced_reference(case: &Case, spp: u32, seed: u64) -> Result<ReferenceMaps> {
     let n = case.grid.texels.len() as u64;
-    let bar = ProgressBar::new(n).with_style(
-        ProgressStyle::with_template("{msg:24} [{bar:40}] {pos}/{len} {elapsed_precise} eta {eta}")
-            .expect("valid template")
-            .progress_chars("=> "),
-    );
-    bar.set_message(format!("reference {spp} paths/texel"));
+    let bar = super::progress::Progress::new(n, format!("reference {spp} paths/texel"));
     let progress = |done: usize, _total: usize| bar.set_position(done as u64);
     let settings = reference::Settings {
         samples_per_texel: spp,

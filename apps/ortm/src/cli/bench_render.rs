@@ -81,9 +81,9 @@ pub struct Args {
     /// Bench this bake directory instead of synthetic maps (repeatable).
     #[arg(long = "bake")]
     bakes: Vec<PathBuf>,
-    /// Scene: `head` (built in), `cornell`, `maze` or a scene file; for --bake, the scene recorded
-    /// in the bake's settings takes precedence.
-    #[arg(long, default_value = "head")]
+    /// Scene ([`super::SCENE_HELP`]); for --bake, the scene recorded in the bake's settings
+    /// takes precedence.
+    #[arg(long, default_value = "head", help = format!("{}; for --bake, the scene recorded in the bake's settings takes precedence", super::SCENE_HELP))]
     scene: String,
     /// Timed runs per measurement (median; one warm-up run first).
     #[arg(long, default_value_t = 3)]

@@ -28,9 +28,9 @@ pub struct Args {
     /// The two first-order lightmaps (reference's, then test's) for the indirect figure.
     #[arg(long, num_args = 2, value_names = ["REF_FIRST", "TEST_FIRST"])]
     first: Option<Vec<PathBuf>>,
-    /// Scene file (TOML) or built-in scene name (`cornell`, `maze`, `head`): its covered
-    /// texels are the ones compared.
-    #[arg(long)]
+    /// Scene file or built-in scene name ([`super::SCENE_HELP`]): its covered texels are the
+    /// ones compared.
+    #[arg(long, help = format!("{}; its covered texels are the ones compared", super::SCENE_HELP))]
     scene: String,
     /// Lightmap size (square), overriding the scene's; must be the EXRs' size.
     #[arg(long)]

@@ -8,7 +8,8 @@ use ortm::bake::texels::TexelGrid;
 /// Arguments of `ortm inspect`.
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// Scene file (TOML) or built-in scene name (`cornell`, `maze`, `head`).
+    /// Scene file or built-in scene name ([`super::SCENE_HELP`]).
+    #[arg(help = super::SCENE_HELP)]
     scene: String,
     /// Lightmap size (square), overriding the scene's.
     #[arg(long)]

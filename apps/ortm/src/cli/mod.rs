@@ -12,8 +12,10 @@ mod bin;
 mod compare;
 mod demo;
 mod inspect;
+mod progress;
 mod reference;
 mod render;
+mod render_cpu;
 mod solve;
 mod view;
 
@@ -105,9 +107,17 @@ pub fn run(cli: Cli) -> Result<()> {
     }
 }
 
-/// Loads a scene argument: the name of a built-in scene (`cornell`, `maze`, `head`,
-/// `head-exponential`) or a scene-file path.
-/// `size` overrides the lightmap size (square).
+/// The built-in scene names [`load_scene`] accepts.
+pub const BUILTIN_SCENES: [&str; 4] = ["cornell", "maze", "head", "head-exponential"];
+
+/// Help text of a scene argument (every subcommand taking one says the same).
+pub const SCENE_HELP: &str = "Scene file (TOML) or built-in scene name: `cornell` (the Cornell box), \
+     `maze` (four bays, indirect light), `head` or `head-exponential` (the scanned head; its OBJ \
+     is read from $ORTM_HEAD_OBJ, else ../shared/faces/head.obj beside the repository)";
+
+/// Loads a scene argument: the name of a built-in scene ([`BUILTIN_SCENES`]) or a scene-file
+/// path. `size` overrides the lightmap size (square). A word that is neither a built-in name
+/// nor an existing file is answered with the built-in names, the closest first.
 pub fn load_scene(arg: &str, size: Option<u32>) -> Result<Scene> {
     let mut scene = match arg {
         "cornell" => {
@@ -129,13 +139,12 @@ pub fn load_scene(arg: &str, size: Option<u32>) -> Result<Scene> {
             ortm::scene::maze::maze(size.unwrap_or(ortm::scene::maze::DEFAULT_LIGHTMAP_SIZE))
         }
         "head" => head_scene()?,
-        "head-exponential" => ortm::scene::head::head_scene_with(faces::Falloff::Exponential)
-            .with_context(|| {
-                format!(
-                    "loading the head scan '{}'",
-                    faces::head_obj_path().display()
-                )
-            })?,
+        "head-exponential" => {
+            check_head_obj()?;
+            ortm::scene::head::head_scene_with(faces::Falloff::Exponential)
+                .with_context(|| format!("loading the head scan {}", head_obj_location()))?
+        }
+        name if looks_like_a_name(name) => bail_unknown_scene(name)?,
         path => ortm::scene::file::load_scene(&PathBuf::from(path))
             .with_context(|| format!("loading scene '{path}'"))?,
     };
@@ -160,12 +169,82 @@ pub fn ensure_dir(dir: &std::path::Path) -> Result<()> {
 /// lightmap, the point light of the paper's Fig. 5. The mesh comes from `$ORTM_HEAD_OBJ` or
 /// `../shared/faces/head.obj`. Head scan © Lee Perry-Smith / Infinite Realities, CC BY 3.0.
 pub fn head_scene() -> Result<Scene> {
+    check_head_obj()?;
     ortm::scene::head::head_scene().with_context(|| {
         format!(
-            "loading the head scan '{}' (set {} to its path; it is {})",
-            faces::head_obj_path().display(),
-            faces::HEAD_OBJ_ENV,
+            "loading the head scan {} (it is {})",
+            head_obj_location(),
             faces::head::HEAD_SOURCE
         )
     })
+}
+
+/// Where the head OBJ is looked for, in words: the path and where the path came from.
+fn head_obj_location() -> String {
+    let path = faces::head_obj_path();
+    let env = faces::HEAD_OBJ_ENV;
+    if std::env::var_os(env).is_some_and(|v| !v.is_empty()) {
+        format!("'{}' (from ${env})", path.display())
+    } else {
+        format!(
+            "'{}' (the default, ../shared/faces/head.obj beside the repository; ${env} is not set)",
+            path.display()
+        )
+    }
+}
+
+/// An error naming where the head OBJ was looked for, and how to point at it, when it is not
+/// a file there.
+fn check_head_obj() -> Result<()> {
+    let path = faces::head_obj_path();
+    if !path.is_file() {
+        anyhow::bail!(
+            "the scanned head OBJ is not found at {}; set {}=/path/to/head.obj (it is {})",
+            head_obj_location(),
+            faces::HEAD_OBJ_ENV,
+            faces::head::HEAD_SOURCE
+        );
+    }
+    Ok(())
+}
+
+/// True when a scene argument is a bare word (no folder, no extension) that names no file:
+/// meant as a built-in scene name.
+fn looks_like_a_name(arg: &str) -> bool {
+    let p = std::path::Path::new(arg);
+    !arg.is_empty()
+        && !arg.contains(['/', '\\', '.'])
+        && std::fs::symlink_metadata(p).is_err()
+}
+
+/// The error for an unknown built-in scene name: the built-in names, closest first.
+fn bail_unknown_scene(name: &str) -> Result<Scene> {
+    let mut names = BUILTIN_SCENES.to_vec();
+    names.sort_by_key(|n| edit_distance(name, n));
+    let hint = if edit_distance(name, names[0]) <= 2 {
+        format!("did you mean `{}`? ", names[0])
+    } else {
+        String::new()
+    };
+    anyhow::bail!(
+        "unknown scene '{name}': it is neither a built-in scene nor a file; {hint}the built-in \
+         scenes are {}; or give the path of a scene file (TOML, see docs/scene-format.md)",
+        BUILTIN_SCENES.map(|n| format!("`{n}`")).join(", ")
+    )
+}
+
+/// Levenshtein distance between two short words (characters inserted, removed or replaced).
+fn edit_distance(a: &str, b: &str) -> usize {
+    let b: Vec<char> = b.chars().collect();
+    let mut row: Vec<usize> = (0..=b.len()).collect();
+    for (i, ca) in a.chars().enumerate() {
+        let mut diag = row[0];
+        row[0] = i + 1;
+        for (j, cb) in b.iter().enumerate() {
+            let next = (row[j + 1] + 1).min(row[j] + 1).min(diag + usize::from(ca != *cb));
+            diag = row[j + 1];
+            row[j + 1] = next;
+        }
+    }
+    row[b.len()]
 }

@@ -12,7 +12,6 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use anyhow::{Context, Result, bail};
 use glam::Vec3;
-use indicatif::{ProgressBar, ProgressStyle};
 use ortm::accuracy::compare::power_w;
 use ortm::accuracy::reference::{self, ReferenceError, Settings};
 use ortm::bake::lighting;
@@ -23,8 +22,8 @@ use ortm::render::lightmap_exr::write_lightmap_exr;
 /// Arguments of `ortm reference`.
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// Scene file (TOML) or built-in scene name (`cornell`, `head`, `head-exponential`).
-    #[arg(default_value = "cornell")]
+    /// Scene file or built-in scene name ([`super::SCENE_HELP`]).
+    #[arg(default_value = "cornell", help = super::SCENE_HELP)]
     scene: String,
     /// Lightmap size (square), overriding the scene's.
     #[arg(long)]
@@ -69,14 +68,7 @@ pub fn run(a: Args) -> Result<()> {
             eprintln!("\ninterrupt: stopping the reference (nothing is written)");
         });
     }
-    let bar = ProgressBar::new(grid.texels.len() as u64).with_style(
-        ProgressStyle::with_template(
-            "{msg:10} [{bar:40}] {pos}/{len} texels {elapsed_precise} eta {eta}",
-        )
-        .expect("valid template")
-        .progress_chars("=> "),
-    );
-    bar.set_message("reference");
+    let bar = super::progress::Progress::new(grid.texels.len() as u64, "reference (texels)");
     let settings = Settings {
         samples_per_texel: a.spp,
         seed: a.seed,

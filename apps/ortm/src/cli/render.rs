@@ -17,7 +17,7 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use anyhow::Result;
+use anyhow::{Context, Result};
 use ortm::bake::texels::TexelGrid;
 use ortm::render::{
     self, AtlasSource, BakeAndScene, CAMERA_SYNTAX, DEFAULT_ATLAS_SIDE, to_lightmap,
@@ -33,8 +33,9 @@ use passes::{Gpu, TexelImage};
 /// Transfer implementation.
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum PathArg {
-    /// `TransferOptions::best_for` the adapter: blend on a CPU adapter (lavapipe), compute on
-    /// a hardware GPU (both measured by `ortm bench render`).
+    /// The faster for the adapter: blend on a software adapter (lavapipe), compute on a
+    /// hardware GPU (both measured by `ortm bench render`); without any adapter, the CPU
+    /// mirrors of the passes.
     Auto,
     /// Instanced quads with additive blending (the paper's method; RGBA32F when blendable).
     Blend,
@@ -48,24 +49,45 @@ pub struct BakeArgs {
     /// Bake directory (with index.json from `ortm bake`, and atlases.json from `ortm bin` if
     /// binned; otherwise the maps are packed in memory).
     pub dir: PathBuf,
-    /// Scene the bake was made from: `cornell`, `maze` or a scene file. Default: the `scene` recorded
-    /// in the bake's settings, if any.
-    #[arg(long)]
+    /// Scene the bake was made from ([`super::SCENE_HELP`]). Default: the scene recorded in
+    /// the bake's settings, if any.
+    #[arg(long, help = format!("The scene the bake was made from. {}. Default: the scene recorded by `ortm bake`", super::SCENE_HELP))]
     pub scene: Option<String>,
     /// A light replacing the scene's lights (repeatable).
-    #[arg(long = "light", value_name = "SPEC", help = format!("A light replacing the scene's lights (repeatable): {LIGHT_SYNTAX}"))]
+    #[arg(long = "light", value_name = "SPEC", allow_hyphen_values = true, help = format!("A light replacing the scene's lights (repeatable): {LIGHT_SYNTAX}"))]
     pub lights: Vec<String>,
 }
 
 impl BakeArgs {
     /// Opens the bake directory ([`render::open_bake`], the scene loaded by
     /// [`super::load_scene`]), with atlases of `atlas_size`² when it was not binned.
+    /// A folder that does not exist is named as such; a recorded scene that cannot be loaded
+    /// is answered with the `--scene` option.
     pub fn open(&self, atlas_size: u32) -> Result<BakeAndScene> {
+        if std::fs::symlink_metadata(&self.dir).is_err() {
+            anyhow::bail!(
+                "the bake folder '{}' does not exist: pass the folder written by `ortm bake -o DIR`",
+                self.dir.display()
+            );
+        }
+        let recorded = self.scene.is_none();
         render::open_bake(
             &self.dir,
             self.scene.as_deref(),
             atlas_size,
-            super::load_scene,
+            |arg: &str, size| {
+                super::load_scene(arg, size).with_context(|| {
+                    if recorded {
+                        format!(
+                            "opening the scene '{arg}' recorded by the bake in '{}'; if it moved, \
+                             name it with --scene SCENE",
+                            self.dir.display()
+                        )
+                    } else {
+                        format!("opening the scene '{arg}' given with --scene")
+                    }
+                })
+            },
         )
     }
 
@@ -75,13 +97,17 @@ impl BakeArgs {
     }
 }
 
+/// Default side of each shadow-map layer, texels (`ortm render`, `ortm view`, `ortm bench
+/// render`).
+pub const DEFAULT_SHADOW_SIZE: u32 = 2048;
+
 /// Arguments of `ortm render`.
 #[derive(clap::Args, Debug)]
 pub struct Args {
     #[command(flatten)]
     bake: BakeArgs,
     /// Camera; default: looking along −z at the whole mesh.
-    #[arg(long, value_name = "SPEC", help = format!("Camera: {CAMERA_SYNTAX}; default: looking along −z at the whole mesh"))]
+    #[arg(long, value_name = "SPEC", allow_hyphen_values = true, help = format!("Camera: {CAMERA_SYNTAX}; default: looking along −z at the whole mesh"))]
     camera: Option<String>,
     /// Vertical field of view in degrees (default camera, or a --camera without FOV).
     #[arg(long, default_value_t = 40.0)]
@@ -99,7 +125,7 @@ pub struct Args {
     #[arg(long, default_value = "auto")]
     exposure: String,
     /// Side of each shadow-map layer, texels.
-    #[arg(long, default_value_t = 2048)]
+    #[arg(long, default_value_t = DEFAULT_SHADOW_SIZE)]
     shadow_size: u32,
     /// Atlas side when the bake has no atlases.json (power of two).
     #[arg(long, default_value_t = DEFAULT_ATLAS_SIDE)]
@@ -138,7 +164,28 @@ pub fn run(a: Args) -> Result<()> {
     let (atlases, pieces) = render::transfer_inputs(&set, (w, h))?;
     let t_load = t0.elapsed().as_secs_f64();
 
-    let gpu = Gpu::new_headless()?;
+    let gpu = match Gpu::new_headless() {
+        Ok(gpu) => gpu,
+        // No adapter at all (no Vulkan driver): the CPU mirrors of the passes, unless a GPU
+        // transfer path was asked for.
+        Err(e @ passes::PassError::NoAdapter { .. }) if a.path == PathArg::Auto => {
+            let cpu = super::render_cpu::CpuRender {
+                grid: &grid,
+                mesh: &scene.mesh,
+                set: &set,
+                lights: &lights,
+                camera: camera(&a, &scene.mesh, (img_w, img_h))?,
+                size: (img_w, img_h),
+                side_by_side: a.side_by_side,
+                exposure: render::parse_exposure(&a.exposure)?,
+                output: &a.output,
+                lightmap_out: a.lightmap_out.as_deref(),
+                first_order_out: a.first_order_out.as_deref(),
+            };
+            return super::render_cpu::run(&cpu, &e);
+        }
+        Err(e) => return Err(e.into()),
+    };
     let options = renderer_options(&a, &gpu, &lights, (img_w, img_h));
     let renderer = Renderer::new(&gpu, &options)?;
     let mesh = render::mesh_data(&scene.mesh);
@@ -179,14 +226,10 @@ pub fn run(a: Args) -> Result<()> {
         stats.maps
     );
     println!(
-        "adapter {} ({:?}); {:?} transfer; exposure {exposure:.4}; energy: first order {:.4e}, \
-         final {:.4e} W/m² summed over texels",
-        gpu.adapter_info.name,
-        gpu.adapter_info.backend,
-        options.transfer.path,
-        sum_rgb(&fo),
-        sum_rgb(&fin)
+        "adapter {} ({:?}); {:?} transfer; exposure {exposure:.4}",
+        gpu.adapter_info.name, gpu.adapter_info.backend, options.transfer.path,
     );
+    print_power(&grid, &fo, &fin);
     println!(
         "wrote {} ({img_w}x{img_h}){}{}; load {t_load:.2} s, GPU {t_gpu:.2} s",
         a.output.display(),
@@ -250,11 +293,25 @@ fn optional_path(p: Option<&Path>) -> String {
     p.map(|p| format!(", {}", p.display())).unwrap_or_default()
 }
 
-fn sum_rgb(img: &TexelImage) -> f64 {
-    img.rgba
-        .iter()
-        .map(|p| (p[0] + p[1] + p[2]) as f64 / 3.0)
-        .sum()
+/// Prints the first-order and final power `Σ B·A` (W, RGB) over the covered texels, the line
+/// `ortm solve` prints.
+pub fn print_power(grid: &TexelGrid, first_order: &TexelImage, final_map: &TexelImage) {
+    let power = |img: &TexelImage| {
+        let values: Vec<glam::Vec3> = grid
+            .texels
+            .iter()
+            .map(|t| {
+                let p = img.rgba[(t.y * img.width + t.x) as usize];
+                glam::Vec3::new(p[0], p[1], p[2])
+            })
+            .collect();
+        ortm::accuracy::compare::power_w(grid, &values).to_array()
+    };
+    println!(
+        "first-order power {:.4?} W, final {:.4?} W (RGB)",
+        power(first_order),
+        power(final_map)
+    );
 }
 
 /// Half the diagonal of the mesh's bounding box, metres.

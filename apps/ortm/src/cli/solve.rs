@@ -23,8 +23,8 @@ use ortm::bake::transport::dense::MAX_TEXELS as MAX_DENSE_TEXELS;
 /// Arguments of `ortm solve`.
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// Scene file (TOML) or built-in scene name (`cornell`, `maze`, `head`).
-    #[arg(default_value = "cornell")]
+    /// Scene file or built-in scene name ([`super::SCENE_HELP`]).
+    #[arg(default_value = "cornell", help = super::SCENE_HELP)]
     scene: String,
     /// Lightmap size (square), overriding the scene's.
     #[arg(long)]
@@ -33,7 +33,7 @@ pub struct Args {
     #[arg(short, long, default_value = "out")]
     output: PathBuf,
     /// A light replacing the scene's lights (repeatable).
-    #[arg(long = "light", value_name = "SPEC", help = format!("A light replacing the scene's lights (repeatable): {LIGHT_SYNTAX}"))]
+    #[arg(long = "light", value_name = "SPEC", allow_hyphen_values = true, help = format!("A light replacing the scene's lights (repeatable): {LIGHT_SYNTAX}"))]
     lights: Vec<String>,
 }
 

@@ -70,7 +70,7 @@ pub struct Args {
     exposure: String,
     /// Side of each shadow-map layer, texels ([`SHADOW_LAYERS`] layers: 4 point lights, or
     /// more spot and directional ones).
-    #[arg(long, default_value_t = 1024, help = format!("Side of each shadow-map layer, texels ({SHADOW_LAYERS} layers: 4 point lights, or more spot and directional ones)"))]
+    #[arg(long, default_value_t = super::render::DEFAULT_SHADOW_SIZE, help = format!("Side of each shadow-map layer, texels ({SHADOW_LAYERS} layers: 4 point lights, or more spot and directional ones)"))]
     shadow_size: u32,
     /// Atlas side when the bake has no atlases.json (power of two).
     #[arg(long, default_value_t = DEFAULT_ATLAS_SIDE)]
