@@ -111,6 +111,24 @@ pub const EXACT_FILL_CANDIDATES: usize = 64;
 /// Upper limit on the number of placements a packing may produce (see the crate docs).
 pub const MAX_PIECES: u64 = 1 << 24;
 
+/// Default atlas side of [`fitting_atlas_side`]'s cap: the paper's 1024² atlases.
+pub const DEFAULT_MAX_FIT_SIDE: u32 = 1024;
+
+/// Smallest atlas side [`fitting_atlas_side`] chooses.
+pub const MIN_FIT_SIDE: u32 = 16;
+
+/// The atlas side that fits `texels` (the sum of the sources' areas) into one square atlas:
+/// the smallest power of two `s` in `[MIN_FIT_SIDE, max_side]` with `s² ≥ texels` (the bin
+/// count is exactly `⌈texels / s²⌉`, see the crate docs, so this is one atlas); `max_side`
+/// (a power of two) when even that is too small — then several atlases of `max_side²`.
+pub fn fitting_atlas_side(texels: u64, max_side: u32) -> u32 {
+    let mut side = MIN_FIT_SIDE.min(max_side);
+    while side < max_side && u64::from(side) * u64::from(side) < texels {
+        side *= 2;
+    }
+    side
+}
+
 /// A source rectangle (one map) to be packed: its id and size in texels.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct SourceRect {
@@ -799,6 +817,23 @@ pub fn blit<T: Copy + Default>(packing: &Packing, data: &[&[T]]) -> Result<Vec<V
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn fitting_atlas_side_is_the_smallest_power_of_two_holding_every_texel() {
+        // 64² lightmap, 100 maps of ~400 texels: 40,000 texels → 256² (65,536), not 128².
+        assert_eq!(fitting_atlas_side(40_000, 1024), 256);
+        assert_eq!(fitting_atlas_side(16_384, 1024), 128);
+        assert_eq!(fitting_atlas_side(16_385, 1024), 256);
+        assert_eq!(fitting_atlas_side(0, 1024), MIN_FIT_SIDE);
+        assert_eq!(fitting_atlas_side(10_000_000, 1024), 1024);
+        assert_eq!(fitting_atlas_side(100, 8), 8);
+        // The packing of that many texels fits one atlas of the chosen side.
+        let rects: Vec<SourceRect> = (0..100)
+            .map(|id| SourceRect { id, w: 20, h: 20 })
+            .collect();
+        let side = fitting_atlas_side(100 * 400, 1024);
+        assert_eq!(pack(&rects, side, side).unwrap().atlas_count, 1);
+    }
 
     #[test]
     fn slice_widths_are_binary_digits_and_sum_to_width() {

@@ -1,5 +1,6 @@
-//! `ortm bin DIR [--atlas 1024] [-o OUT]`: packs a bake's transfer maps into texture atlases
-//! (paper Sec. 5.2).
+//! `ortm bin DIR [--atlas N] [-o OUT]`: packs a bake's transfer maps into texture atlases
+//! (paper Sec. 5.2). Without `--atlas`, the atlas side is the smallest power of two that holds
+//! every stored texel in one atlas, capped at 1024 ([`binning::fitting_atlas_side`]).
 //!
 //! Data flow: `DIR/index.json` and the map files ([`ortm::bake_dir::BakeIndex`]); every crop
 //! rectangle packed by the `binning` crate ([`ortm::atlas::build_atlas_set_with_stats`]);
@@ -61,9 +62,10 @@ fn parse_atlas_size(s: &str) -> Result<AtlasSize, String> {
 pub struct Args {
     /// Bake directory (holds index.json and the map_*.exr files).
     dir: PathBuf,
-    /// Atlas size in texels: `N` for N×N, or `WxH`; powers of two.
-    #[arg(long, default_value = "1024", value_parser = parse_atlas_size)]
-    atlas: AtlasSize,
+    /// Atlas size in texels: `N` for N×N, or `WxH`; powers of two. Default: the smallest
+    /// square that holds every stored texel in one atlas, at most 1024² (the paper's).
+    #[arg(long, value_parser = parse_atlas_size)]
+    atlas: Option<AtlasSize>,
     /// Output directory for the atlases, atlases.json and pictures (default: the bake directory).
     #[arg(short, long)]
     output: Option<PathBuf>,
@@ -87,11 +89,15 @@ pub fn run(a: Args) -> Result<()> {
         .flat_map(|m| &m.rects)
         .map(|r| r.area())
         .sum();
-    ortm::io::limits::check_atlas_request(a.atlas.0, a.atlas.1, stored)?;
+    let atlas_size = a.atlas.unwrap_or_else(|| {
+        let side = binning::fitting_atlas_side(stored, binning::DEFAULT_MAX_FIT_SIDE);
+        AtlasSize(side, side)
+    });
+    ortm::io::limits::check_atlas_request(atlas_size.0, atlas_size.1, stored)?;
     let maps = index
         .load_maps(dir)
         .with_context(|| format!("loading the transfer maps of '{}'", dir.display()))?;
-    let AtlasSize(aw, ah) = a.atlas;
+    let AtlasSize(aw, ah) = atlas_size;
     let (set, pack) = atlas::build_atlas_set_with_stats(&maps, aw, ah)
         .with_context(|| format!("packing the maps of '{}'", dir.display()))?;
 
@@ -136,7 +142,17 @@ pub fn run(a: Args) -> Result<()> {
         pack.splits,
         pack.merges
     );
-    println!("fill         {:.1} %", 100.0 * st.fill_ratio);
+    println!(
+        "fill         {:.1} %{}",
+        100.0 * st.fill_ratio,
+        if a.atlas.is_none() {
+            format!(
+                "   (atlas size chosen to fit the {stored} stored texels; --atlas N to choose)"
+            )
+        } else {
+            String::new()
+        }
+    );
     println!("texels       {}", st.texels);
     let bytes: u64 = written.atlases.iter().map(|e| e.bytes).sum();
     println!(
@@ -150,7 +166,8 @@ pub fn run(a: Args) -> Result<()> {
     Ok(())
 }
 
-/// Writes `atlas_NNN.png` (packing) and `atlas_NNN_values.png` (tone-mapped values) per atlas.
+/// Writes `atlas_NNN.png` (packing) and `atlas_NNN_values.png` (tone-mapped values) per atlas,
+/// small atlases enlarged to a readable size (one square of pixels per texel).
 fn write_pictures(out: &std::path::Path, set: &AtlasSet) -> Result<()> {
     for i in 0..set.atlases.len() as u32 {
         let stem = atlas::atlas_file_name(i);
@@ -164,6 +181,7 @@ fn write_pictures(out: &std::path::Path, set: &AtlasSet) -> Result<()> {
         ];
         for (name, img) in pictures {
             let img = img.context("atlas index out of range (internal error)")?;
+            let img = ortm::bake::report::upscale_readable(&img);
             ortm::bake::report::save_png(&img, &out.join(&name))?;
         }
     }

@@ -1,5 +1,6 @@
 //! `ortm demo [cornell] [-o OUT]`: the main job on the built-in Cornell box — inspect, exact
-//! solve, bake, bin and render — each step the same as its own subcommand, outputs under `OUT`.
+//! solve, bake, bin and render — each step the same as its own subcommand, outputs under `OUT`,
+//! with `OUT/guide.md` saying what each output shows and what to look for.
 //!
 //! `ortm demo face [-o OUT] [--size N] [--offsets K] [--falloff dipole|exponential] [--bench]`:
 //! the paper's face figures on the scanned head. One bake with radiosity and subsurface
@@ -123,8 +124,62 @@ fn cornell(a: &Args) -> Result<()> {
     for s in steps {
         step(s)?;
     }
-    println!("\ndemo outputs in {}", a.output.display());
+    write_text(
+        &a.output.join("guide.md"),
+        &cornell_guide(&a.output, &size, &offsets),
+    )?;
+    println!(
+        "\ndemo outputs in {}; what each file shows: {}",
+        a.output.display(),
+        a.output.join("guide.md").display()
+    );
     Ok(())
+}
+
+/// `guide.md` of the Cornell demo written into `out`: each output, what it shows and what to
+/// look for (the Cornell counterpart of the face demo's `figures.md`).
+fn cornell_guide(out: &Path, size: &str, offsets: &str) -> String {
+    let o = out.display();
+    format!(
+        "# The Cornell demo (`ortm demo`, {size}² lightmap, {offsets} offsets)\n\n\
+         Every step below is an `ortm` subcommand; the demo printed each command line. \
+         Lightmaps are in W/m² (radiosity per texel, linear); the PNGs carry a legend.\n\n\
+         ## 1. The lightmap layout: `coverage.png`\n\n![coverage](coverage.png)\n\n\
+         `ortm inspect cornell`: each chart (UV island: a wall, a box face) in its own colour, \
+         black where no surface maps, red where two triangles' UVs would overlap (none here). \
+         One square of pixels is one texel.\n\n\
+         ## 2. The exact answer: `exact/`\n\n\
+         ![first order](exact/first_order.png) ![final](exact/final.png) \
+         ![indirect](exact/indirect.png)\n\n\
+         `ortm solve cornell`: the dense solve `B = B_o + R·B_o` over every pair of texels. \
+         `first_order` is the light arriving straight from the lamp (black in shadow), \
+         `final` adds every bounce, `indirect` is their difference (its own scale). \
+         Look for: the white walls and the boxes tinted red and green near the side walls, \
+         and the shadows under the boxes no longer black in `final`.\n\n\
+         ## 3. The bake: `bake/`\n\n![offsets](bake/report_offsets.png) \
+         ![density](bake/report_density.png)\n\n\
+         `ortm bake cornell`: {offsets} offset transfer maps (`map_*.exr`, listed in \
+         `index.json`). `report_offsets.png`: the offsets (white dots) in the square of \
+         offsets from −1 to 1 lightmap side, each Voronoi cell coloured by its importance; \
+         `report_density.png`: the importance density they were drawn from.\n\n\
+         ## 4. The atlases: `bake/atlas_*.png`\n\n\
+         ![packing](bake/atlas_000.png)\n\n\
+         `ortm bin`: the maps cut into power-of-two slices and packed into texture atlases \
+         (one colour per map; `atlas_NNN_values.png` shows the values). The atlas size fits \
+         the maps (`atlases.json` records it).\n\n\
+         ## 5. The frame: `frame.png`, `first_order.exr`, `final.exr`\n\n\
+         ![frame](frame.png)\n\n\
+         `ortm render`: left the first order (shadow maps), right the final image (each map \
+         modulating the first order at its offset, Eq. 9 of the paper). Look for the same \
+         colour bleeding and lit shadows as in `exact/final.png`. The lightmaps the frame \
+         shows are `final.exr` and `first_order.exr`; how far they are from the exact solve:\n\n\
+         ```sh\n\
+         ortm compare {o}/exact/final.exr {o}/final.exr --first {o}/exact/first_order.exr \
+         {o}/first_order.exr --scene cornell --size {size} -o {o}/error.png\n\
+         ```\n\n\
+         Move the light yourself: `ortm view {o}/bake` (a window), or \
+         `ortm render {o}/bake --light point:0.15,0.45,0.2:8 -o moved.png`.\n"
+    )
 }
 
 /// `ortm render --light` text of a figure light ([`ortm::scene::light::LIGHT_SYNTAX`]), with

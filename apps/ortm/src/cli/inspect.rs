@@ -1,9 +1,11 @@
-//! `ortm inspect SCENE`: mesh and chart statistics, coverage, overlaps, and a coverage PNG.
+//! `ortm inspect SCENE`: mesh and chart statistics, coverage, overlaps, and a coverage PNG
+//! (charts coloured, overlapping texels red, enlarged to a readable size, with a legend).
+//! Overlapping UVs are reported, not fatal: the inspection is where a user looks at them.
 
 use std::path::PathBuf;
 
 use anyhow::{Context, Result};
-use ortm::bake::texels::TexelGrid;
+use ortm::bake::texels::{TexelError, TexelGrid, overlapping_slots};
 
 /// Arguments of `ortm inspect`.
 #[derive(clap::Args, Debug)]
@@ -28,7 +30,7 @@ pub fn run(a: Args) -> Result<()> {
 
 /// `ortm inspect` proper.
 fn inspect(a: &Args) -> Result<()> {
-    let scene = super::load_scene(&a.scene, a.size)?;
+    let mut scene = super::load_scene(&a.scene, a.size)?;
     let m = &scene.mesh;
     let (lo, hi) = m.bounds();
     let area: f64 = m
@@ -57,6 +59,13 @@ fn inspect(a: &Args) -> Result<()> {
     );
     let (w, h) = scene.lightmap_size;
     ortm::io::limits::check_lightmap_memory(w, h)?;
+    // Overlapping UVs stop a bake, not the inspection: rasterize accepting them, say what
+    // the bake would say, and draw them red.
+    let bake_refusal = match TexelGrid::build(&scene) {
+        Err(e @ TexelError::Overlap { .. }) => Some(e.to_string()),
+        _ => None,
+    };
+    scene.allow_uv_overlap = true;
     let grid = TexelGrid::build(&scene)
         .with_context(|| format!("rasterizing the lightmap UVs of '{}'", a.scene))?;
     let s = &grid.stats;
@@ -81,10 +90,22 @@ fn inspect(a: &Args) -> Result<()> {
         "overlaps     {} texel(s); {} triangle(s) cover no texel centre",
         s.overlapping, s.triangles_without_texels
     );
-    for w in &s.warnings {
+    for w in s.warnings.iter().filter(|_| bake_refusal.is_none()) {
         println!("warning      {w}");
     }
-    ortm::bake::report::save_png(&ortm::bake::report::coverage_image(&grid), &a.output)?;
-    println!("wrote        {}", a.output.display());
+    if let Some(e) = &bake_refusal {
+        println!("warning      `ortm bake` refuses this layout: {e}");
+    }
+    let overlaps = overlapping_slots(&scene, w, h);
+    let picture = ortm::bake::report::coverage_picture(&grid, &overlaps);
+    ortm::bake::report::save_png(&picture, &a.output)?;
+    println!(
+        "wrote        {} ({}x{} px: {} px per texel; charts coloured, overlapping texels red, \
+         uncovered black)",
+        a.output.display(),
+        picture.width(),
+        picture.height(),
+        ortm::bake::report::readable_factor(w, h)
+    );
     Ok(())
 }

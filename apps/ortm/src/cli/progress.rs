@@ -2,8 +2,8 @@
 //! a terminal, else plain lines on stderr, so that logs, pipes and CI show progress too.
 //!
 //! A plain line reads `NAME: POS/LEN (P %), T s elapsed`; one is printed when the work starts,
-//! then whenever at least [`PLAIN_STEP`] of it or [`PLAIN_INTERVAL`] of time has passed since
-//! the last line, and once at the end.
+//! then whenever [`PLAIN_STEP`] of it (and at least [`PLAIN_MIN_GAP`] of time) or
+//! [`PLAIN_INTERVAL`] of time has passed since the last line, and once at the end.
 
 use std::io::IsTerminal;
 use std::sync::Mutex;
@@ -15,6 +15,8 @@ use indicatif::{ProgressBar, ProgressStyle};
 pub const PLAIN_STEP: f64 = 0.10;
 /// Time between two plain progress lines when the work is slow.
 pub const PLAIN_INTERVAL: Duration = Duration::from_secs(5);
+/// Shortest time between two plain progress lines (a fast phase prints its first and last).
+pub const PLAIN_MIN_GAP: Duration = Duration::from_secs(1);
 
 /// The bar template every subcommand uses: `NAME [====>   ] POS/LEN elapsed eta`.
 pub fn bar_style() -> ProgressStyle {
@@ -43,8 +45,9 @@ impl Plain {
         let due = match self.last_pos {
             None => true,
             Some(last) => {
-                self.pos >= last + step
-                    || (self.pos > last && now - self.last_time >= PLAIN_INTERVAL)
+                let since = now - self.last_time;
+                (self.pos >= last + step && since >= PLAIN_MIN_GAP)
+                    || (self.pos > last && since >= PLAIN_INTERVAL)
             }
         };
         if force || due {

@@ -31,7 +31,8 @@ pub fn save_png(img: &RgbImage, path: &Path) -> Result<(), ReportError> {
 }
 
 /// Writes `first_order.png`, `final.png` (both at the final map's 99th percentile, so they
-/// compare) and `indirect.png` (at its own) into `dir`: the pictures of a solution that
+/// compare) and `indirect.png` (at its own) into `dir`, enlarged and with a legend
+/// ([`lightmap_picture`]): the pictures of a solution that
 /// `ortm solve` and `ortm reference` write beside their OpenEXRs.
 pub fn save_solution_pngs(
     dir: &Path,
@@ -40,15 +41,16 @@ pub fn save_solution_pngs(
     indirect: &Lightmap,
 ) -> Result<(), ReportError> {
     let white = percentile_99(final_map);
-    save_png(
-        &lightmap_image(first_order, white),
-        &dir.join("first_order.png"),
-    )?;
-    save_png(&lightmap_image(final_map, white), &dir.join("final.png"))?;
-    save_png(
-        &lightmap_image(indirect, percentile_99(indirect)),
-        &dir.join("indirect.png"),
-    )
+    let white_indirect = percentile_99(indirect);
+    for (map, name, what, white) in [
+        (first_order, "first_order.png", "FIRST ORDER", white),
+        (final_map, "final.png", "FINAL", white),
+        (indirect, "indirect.png", "INDIRECT", white_indirect),
+    ] {
+        let img = lightmap_image(map, white);
+        save_png(&lightmap_picture(&img, what, white), &dir.join(name))?;
+    }
+    Ok(())
 }
 
 /// Linear → sRGB-encoded 8-bit.
@@ -142,13 +144,43 @@ pub fn write_bake_report(
         .iter()
         .map(|o| glam::DVec2::new(o.x as f64 / w, o.y as f64 / h))
         .collect();
-    save_png(
+    let offsets = with_log_legend(
         &offsets_picture(&sites, importance),
-        &dir.join("report_offsets.png"),
-    )?;
-    save_png(
+        "IMPORTANCE OF EACH OFFSET (LOG); DOTS: OFFSETS",
+        log_range(importance),
+    );
+    save_png(&offsets, &dir.join("report_offsets.png"))?;
+    let values: Vec<f64> = data_points.iter().map(|p| p[2]).collect();
+    let density = with_log_legend(
         &density_picture(w, h, data_points),
-        &dir.join("report_density.png"),
+        "IMPORTANCE DENSITY (LOG); DOTS: DATA POINTS",
+        log_range(&values),
+    );
+    save_png(&density, &dir.join("report_density.png"))
+}
+
+/// A report picture with its legend: what the colours mean, the [`heat`] ramp between the
+/// values `exp(lo)` and `exp(hi)`, and the square's axes.
+fn with_log_legend(img: &RgbImage, title: &str, (lo, hi): (f64, f64)) -> RgbImage {
+    let (low, high) = if hi >= lo {
+        (legend_number(lo.exp()), legend_number(hi.exp()))
+    } else {
+        ("-".to_owned(), "-".to_owned())
+    };
+    with_legend(
+        img,
+        &[
+            Legend::Ramp {
+                title,
+                colour: &heat,
+                low: &low,
+                high: &high,
+            },
+            Legend::Swatch(
+                LEGEND_BG,
+                "SQUARE: OFFSET X, Y FROM -1 TO 1 LIGHTMAP SIDE; +Y DOWN",
+            ),
+        ],
     )
 }
 
@@ -256,3 +288,249 @@ fn density_picture(w: f64, h: f64, data_points: &[[f64; 3]]) -> RgbImage {
     }
     img
 }
+
+/// Smallest longer side, pixels, of the pictures of lightmaps and charts: a smaller map is
+/// enlarged by a whole factor, one square of pixels per texel (nearest), so that a 64² map
+/// can be read.
+pub const READABLE_PX: u32 = 512;
+
+/// `img` enlarged by the smallest whole factor that brings its longer side to
+/// [`READABLE_PX`] or more (nearest: each texel a square); unchanged when already that large.
+pub fn upscale_readable(img: &RgbImage) -> RgbImage {
+    let k = readable_factor(img.width(), img.height());
+    if k == 1 {
+        return img.clone();
+    }
+    RgbImage::from_fn(img.width() * k, img.height() * k, |x, y| {
+        *img.get_pixel(x / k, y / k)
+    })
+}
+
+/// The factor [`upscale_readable`] enlarges a `width × height` picture by.
+pub fn readable_factor(width: u32, height: u32) -> u32 {
+    READABLE_PX.div_ceil(width.max(height).max(1)).max(1)
+}
+
+/// One line of a picture's legend ([`with_legend`]).
+pub enum Legend<'a> {
+    /// A colour swatch and what it means.
+    Swatch(Rgb<u8>, &'a str),
+    /// A colour ramp from `t = 0` (left, labelled `low`) to `t = 1` (right, `high`) under a
+    /// title.
+    Ramp {
+        /// What the colours mean.
+        title: &'a str,
+        /// The colour at `t ∈ [0, 1]`.
+        colour: &'a dyn Fn(f32) -> Rgb<u8>,
+        /// Label of the left end.
+        low: &'a str,
+        /// Label of the right end.
+        high: &'a str,
+    },
+}
+
+/// Pixels per font pixel of legend text.
+const TEXT_SCALE: u32 = 2;
+/// Margin and line spacing of a legend, pixels.
+const LEGEND_MARGIN: u32 = 6;
+/// Background of the legend strip.
+const LEGEND_BG: Rgb<u8> = Rgb([40, 40, 44]);
+/// Legend text colour.
+const LEGEND_TEXT: Rgb<u8> = Rgb([235, 235, 235]);
+
+/// `img` with a legend strip below it: one row per [`Legend`] line (text in upper case, a
+/// 3×5-pixel font drawn at [`TEXT_SCALE`]; characters outside the font are drawn as `?`).
+pub fn with_legend(img: &RgbImage, lines: &[Legend]) -> RgbImage {
+    let glyph_h = 5 * TEXT_SCALE;
+    let line_h = |l: &Legend| match l {
+        Legend::Swatch(..) => glyph_h + LEGEND_MARGIN,
+        Legend::Ramp { .. } => 3 * glyph_h + 4 * LEGEND_MARGIN,
+    };
+    let strip_h: u32 = LEGEND_MARGIN + lines.iter().map(line_h).sum::<u32>();
+    let w = img.width();
+    let mut out = RgbImage::from_pixel(w, img.height() + strip_h, LEGEND_BG);
+    image::imageops::replace(&mut out, img, 0, 0);
+    let mut y = img.height() + LEGEND_MARGIN;
+    for l in lines {
+        match l {
+            Legend::Swatch(c, text) => {
+                fill_rect(&mut out, (LEGEND_MARGIN, y), (glyph_h, glyph_h), *c);
+                draw_text(&mut out, (2 * LEGEND_MARGIN + glyph_h, y), text);
+            }
+            Legend::Ramp {
+                title,
+                colour,
+                low,
+                high,
+            } => {
+                draw_text(&mut out, (LEGEND_MARGIN, y), title);
+                let bar_y = y + glyph_h + LEGEND_MARGIN;
+                let bar_w = w.saturating_sub(2 * LEGEND_MARGIN).max(1);
+                for x in 0..bar_w {
+                    let t = x as f32 / (bar_w - 1).max(1) as f32;
+                    fill_rect(&mut out, (LEGEND_MARGIN + x, bar_y), (1, glyph_h), colour(t));
+                }
+                let label_y = bar_y + glyph_h + LEGEND_MARGIN;
+                draw_text(&mut out, (LEGEND_MARGIN, label_y), low);
+                let high_w = text_width(high);
+                let right = w.saturating_sub(LEGEND_MARGIN + high_w);
+                draw_text(&mut out, (right.max(LEGEND_MARGIN), label_y), high);
+            }
+        }
+        y += line_h(l);
+    }
+    out
+}
+
+/// Fills the rectangle at `(x, y)` of size `(w, h)` with `c`, clipped to the image.
+fn fill_rect(img: &mut RgbImage, (x, y): (u32, u32), (w, h): (u32, u32), c: Rgb<u8>) {
+    for yy in y..(y + h).min(img.height()) {
+        for xx in x..(x + w).min(img.width()) {
+            img.put_pixel(xx, yy, c);
+        }
+    }
+}
+
+/// Width in pixels of `text` drawn by [`draw_text`].
+fn text_width(text: &str) -> u32 {
+    text.chars().count() as u32 * 4 * TEXT_SCALE
+}
+
+/// Draws `text` (upper-cased) with its top-left corner at `(x, y)`, clipped to the image.
+fn draw_text(img: &mut RgbImage, (x, y): (u32, u32), text: &str) {
+    for (i, ch) in text.chars().flat_map(char::to_uppercase).enumerate() {
+        let rows = glyph(ch);
+        let gx = x + i as u32 * 4 * TEXT_SCALE;
+        for (r, row) in rows.iter().enumerate() {
+            for (c, on) in row.bytes().enumerate() {
+                if on == b'#' {
+                    fill_rect(
+                        img,
+                        (gx + c as u32 * TEXT_SCALE, y + r as u32 * TEXT_SCALE),
+                        (TEXT_SCALE, TEXT_SCALE),
+                        LEGEND_TEXT,
+                    );
+                }
+            }
+        }
+    }
+}
+
+/// The 3×5 pixel pattern of a character (rows top to bottom, `#` lit).
+fn glyph(ch: char) -> [&'static str; 5] {
+    match ch {
+        'A' => ["###", "#.#", "###", "#.#", "#.#"],
+        'B' => ["##.", "#.#", "##.", "#.#", "##."],
+        'C' => ["###", "#..", "#..", "#..", "###"],
+        'D' => ["##.", "#.#", "#.#", "#.#", "##."],
+        'E' => ["###", "#..", "##.", "#..", "###"],
+        'F' => ["###", "#..", "##.", "#..", "#.."],
+        'G' => ["###", "#..", "#.#", "#.#", "###"],
+        'H' => ["#.#", "#.#", "###", "#.#", "#.#"],
+        'I' => ["###", ".#.", ".#.", ".#.", "###"],
+        'J' => ["..#", "..#", "..#", "#.#", "###"],
+        'K' => ["#.#", "#.#", "##.", "#.#", "#.#"],
+        'L' => ["#..", "#..", "#..", "#..", "###"],
+        'M' => ["#.#", "###", "###", "#.#", "#.#"],
+        'N' => ["##.", "#.#", "#.#", "#.#", "#.#"],
+        'O' => ["###", "#.#", "#.#", "#.#", "###"],
+        'P' => ["###", "#.#", "###", "#..", "#.."],
+        'Q' => ["###", "#.#", "#.#", "###", "..#"],
+        'R' => ["##.", "#.#", "##.", "#.#", "#.#"],
+        'S' => ["###", "#..", "###", "..#", "###"],
+        'T' => ["###", ".#.", ".#.", ".#.", ".#."],
+        'U' => ["#.#", "#.#", "#.#", "#.#", "###"],
+        'V' => ["#.#", "#.#", "#.#", "#.#", ".#."],
+        'W' => ["#.#", "#.#", "###", "###", "#.#"],
+        'X' => ["#.#", "#.#", ".#.", "#.#", "#.#"],
+        'Y' => ["#.#", "#.#", ".#.", ".#.", ".#."],
+        'Z' => ["###", "..#", ".#.", "#..", "###"],
+        '0' => ["###", "#.#", "#.#", "#.#", "###"],
+        '1' => [".#.", "##.", ".#.", ".#.", "###"],
+        '2' | '²' => ["###", "..#", "###", "#..", "###"],
+        '3' => ["###", "..#", "###", "..#", "###"],
+        '4' => ["#.#", "#.#", "###", "..#", "..#"],
+        '5' => ["###", "#..", "###", "..#", "###"],
+        '6' => ["###", "#..", "###", "#.#", "###"],
+        '7' => ["###", "..#", "..#", "..#", "..#"],
+        '8' => ["###", "#.#", "###", "#.#", "###"],
+        '9' => ["###", "#.#", "###", "..#", "###"],
+        ' ' => ["...", "...", "...", "...", "..."],
+        '.' => ["...", "...", "...", "...", ".#."],
+        ',' => ["...", "...", "...", ".#.", "#.."],
+        ':' => ["...", ".#.", "...", ".#.", "..."],
+        ';' => ["...", ".#.", "...", ".#.", "#.."],
+        '-' | '−' => ["...", "...", "###", "...", "..."],
+        '+' => ["...", ".#.", "###", ".#.", "..."],
+        '=' => ["...", "###", "...", "###", "..."],
+        '/' => ["..#", "..#", ".#.", "#..", "#.."],
+        '(' => [".#.", "#..", "#..", "#..", ".#."],
+        ')' => [".#.", "..#", "..#", "..#", ".#."],
+        '%' => ["#.#", "..#", ".#.", "#..", "#.#"],
+        '×' => ["...", "#.#", ".#.", "#.#", "..."],
+        '≥' => ["#..", ".#.", "..#", ".#.", "###"],
+        _ => ["###", "..#", ".##", "...", ".#."],
+    }
+}
+
+/// A short label of a number for legends: 3 significant digits, scientific outside
+/// `[0.01, 10000)`.
+pub fn legend_number(v: f64) -> String {
+    let a = v.abs();
+    if v == 0.0 {
+        "0".into()
+    } else if !(0.01..10_000.0).contains(&a) {
+        format!("{v:.2e}")
+    } else {
+        let decimals = (2 - a.log10().floor() as i32).max(0) as usize;
+        format!("{v:.decimals$}")
+    }
+}
+
+/// The grey ramp of [`lightmap_image`] at `t` of the white value.
+fn grey(t: f32) -> Rgb<u8> {
+    let g = srgb8(t);
+    Rgb([g, g, g])
+}
+
+/// `img` of a lightmap tone-mapped at `white` W/m²: enlarged ([`upscale_readable`]) with a
+/// legend naming `what` and the scale.
+pub fn lightmap_picture(img: &RgbImage, what: &str, white: f32) -> RgbImage {
+    let high = format!("{} W/M2 OR MORE", legend_number(white as f64));
+    let title = format!("{what}: W/M2 PER TEXEL, LINEAR (SRGB)");
+    let big = upscale_readable(img);
+    with_legend(
+        &big,
+        &[
+            Legend::Ramp {
+                title: &title,
+                colour: &grey,
+                low: "0",
+                high: &high,
+            },
+            Legend::Swatch(Rgb([0, 0, 0]), "ALSO BLACK: NO TEXEL"),
+        ],
+    )
+}
+
+/// The picture `ortm inspect` writes: [`coverage_image`] with the texels of `overlaps` (per
+/// slot, [`crate::bake::texels::overlapping_slots`]) red, enlarged, with a legend.
+pub fn coverage_picture(grid: &TexelGrid, overlaps: &[bool]) -> RgbImage {
+    let mut img = coverage_image(grid);
+    for (i, _) in overlaps.iter().enumerate().filter(|(_, o)| **o) {
+        let (x, y) = (i as u32 % grid.width, i as u32 / grid.width);
+        img.put_pixel(x, y, OVERLAP_RED);
+    }
+    let big = upscale_readable(&img);
+    with_legend(
+        &big,
+        &[
+            Legend::Swatch(Rgb([0, 0, 0]), "NO TEXEL (NOT COVERED)"),
+            Legend::Swatch(chart_color(0), "ONE COLOUR PER CHART (UV ISLAND)"),
+            Legend::Swatch(OVERLAP_RED, "OVERLAPPING UVS (2+ TRIANGLES)"),
+        ],
+    )
+}
+
+/// The colour of overlapping texels in [`coverage_picture`].
+pub const OVERLAP_RED: Rgb<u8> = Rgb([255, 0, 0]);

@@ -295,6 +295,17 @@ fn rasterize_triangle(
     any
 }
 
+/// Per lightmap slot (`y·width + x`), whether the UVs of two or more triangles cover its
+/// texel centre: the overlaps [`TexelGrid::build_with_size`] counts, for pictures
+/// (`ortm inspect` draws them red).
+pub fn overlapping_slots(scene: &Scene, width: u32, height: u32) -> Vec<bool> {
+    rasterize(scene, width, height)
+        .count
+        .iter()
+        .map(|&c| c > 1)
+        .collect()
+}
+
 /// The patch of texel `(x, y)` of a `width × height` lightmap whose centre lies in triangle
 /// `ti` at barycentrics `b` (the attributes of the module docs); `profiles` holds each
 /// material's subsurface profile, `chart` the triangle's chart.
