@@ -74,6 +74,12 @@ pub struct Args {
 /// Runs `ortm bin`.
 pub fn run(a: Args) -> Result<()> {
     let dir = &a.dir;
+    if std::fs::symlink_metadata(dir).is_err() {
+        bail!(
+            "the bake folder '{}' does not exist: pass the folder written by `ortm bake -o DIR`",
+            dir.display()
+        );
+    }
     if !dir.join(INDEX_FILE_NAME).is_file() {
         bail!(
             "'{}' has no {INDEX_FILE_NAME}: it is not a finished bake directory; run `ortm bake` \
