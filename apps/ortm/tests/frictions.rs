@@ -38,9 +38,15 @@ fn ortm_no_gpu(args: &[&str], cwd: &Path) -> Output {
 
 /// The three numbers after `label` in `text` (`label [r, g, b]`).
 fn rgb_after(text: &str, label: &str) -> [f64; 3] {
-    let rest = &text[text.find(label).unwrap_or_else(|| panic!("{label} in {text}")) + label.len()..];
+    let rest = &text[text
+        .find(label)
+        .unwrap_or_else(|| panic!("{label} in {text}"))
+        + label.len()..];
     let inner = &rest[rest.find('[').unwrap() + 1..rest.find(']').unwrap()];
-    let v: Vec<f64> = inner.split(',').map(|s| s.trim().parse().unwrap()).collect();
+    let v: Vec<f64> = inner
+        .split(',')
+        .map(|s| s.trim().parse().unwrap())
+        .collect();
     [v[0], v[1], v[2]]
 }
 
@@ -84,7 +90,10 @@ fn without_a_gpu_adapter_render_runs_on_the_cpu_mirrors() {
         rgb_after(&solve, "first-order power"),
     );
     for c in 0..3 {
-        assert!((cpu_fo[c] - solve_fo[c]).abs() <= 1e-3 * solve_fo[c], "{cpu_fo:?} vs {solve_fo:?}");
+        assert!(
+            (cpu_fo[c] - solve_fo[c]).abs() <= 1e-3 * solve_fo[c],
+            "{cpu_fo:?} vs {solve_fo:?}"
+        );
     }
     assert!(text.contains("] W (RGB)") && solve.contains("] W (RGB)"));
 
@@ -92,7 +101,10 @@ fn without_a_gpu_adapter_render_runs_on_the_cpu_mirrors() {
     let mut blend = args[..4].to_vec();
     blend.extend(["--path", "blend", "-o", "blend.png"]);
     let e = fails(ortm_no_gpu(&blend, dir));
-    assert!(e.contains("no GPU adapter") && e.contains("mesa-vulkan-drivers"), "{e}");
+    assert!(
+        e.contains("no GPU adapter") && e.contains("mesa-vulkan-drivers"),
+        "{e}"
+    );
 
     // The same frame as the GPU's (lavapipe): shadow maps and rasterisation against ray
     // casting differ only along shadow edges and silhouettes.
@@ -108,7 +120,10 @@ fn without_a_gpu_adapter_render_runs_on_the_cpu_mirrors() {
         .filter(|(p, q)| (0..3).any(|c| p[c].abs_diff(q[c]) > 24))
         .count();
     let fraction = differing as f64 / (96.0 * 64.0);
-    println!("pixels differing by more than 24/255: {:.2} %", 100.0 * fraction);
+    println!(
+        "pixels differing by more than 24/255: {:.2} %",
+        100.0 * fraction
+    );
     // Measured: 10 of 6,144 pixels (0.16 %), along the boxes' silhouettes; 25 % margin.
     assert!(differing <= 13, "{differing} pixels differ");
 }
@@ -128,7 +143,10 @@ fn unknown_scene_names_are_answered_with_the_built_in_names() {
     for cmd in ["bake", "inspect", "solve", "reference", "compare"] {
         let help = ok(ortm(&[cmd, "--help"], tmp.path()));
         for name in ["`cornell`", "`maze`", "`head`", "`head-exponential`"] {
-            assert!(help.contains(name), "ortm {cmd} --help lacks {name}:\n{help}");
+            assert!(
+                help.contains(name),
+                "ortm {cmd} --help lacks {name}:\n{help}"
+            );
         }
     }
 }
@@ -189,7 +207,15 @@ fn render_from_another_folder_finds_or_names_the_recorded_scene() {
     let bake = |scene: &str, out: &str| {
         ok(ortm(
             &[
-                "bake", scene, "-o", out, "--size", "16", "--offsets", "4", "--effects",
+                "bake",
+                scene,
+                "-o",
+                out,
+                "--size",
+                "16",
+                "--offsets",
+                "4",
+                "--effects",
                 "radiosity",
             ],
             &work,
@@ -202,9 +228,19 @@ fn render_from_another_folder_finds_or_names_the_recorded_scene() {
     assert_eq!(Path::new(&recorded), real);
     // From the parent folder: the scene lies outside the bake folder, so it must be named.
     let e = fails(ortm_no_gpu(&["render", "work/bake", "-o", "f.png"], root));
-    assert!(e.contains("--scene") && e.contains("outside the bake directory"), "{e}");
+    assert!(
+        e.contains("--scene") && e.contains("outside the bake directory"),
+        "{e}"
+    );
     ok(ortm_no_gpu(
-        &["render", "work/bake", "--scene", "work/two_quads.toml", "-o", "f.png"],
+        &[
+            "render",
+            "work/bake",
+            "--scene",
+            "work/two_quads.toml",
+            "-o",
+            "f.png",
+        ],
         root,
     ));
     // A scene kept inside the bake folder opens from anywhere.
@@ -214,7 +250,10 @@ fn render_from_another_folder_finds_or_names_the_recorded_scene() {
     // Moved away: the message names the recorded scene and --scene.
     std::fs::remove_file(work.join("inside/two_quads.toml")).unwrap();
     let e = fails(ortm_no_gpu(&["render", "work/inside", "-o", "h.png"], root));
-    assert!(e.contains("recorded by the bake") && e.contains("--scene"), "{e}");
+    assert!(
+        e.contains("recorded by the bake") && e.contains("--scene"),
+        "{e}"
+    );
     // A bake folder that does not exist is named as such.
     let e = fails(ortm_no_gpu(&["render", "work/nowhere"], root));
     assert!(e.contains("does not exist"), "{e}");
@@ -240,8 +279,16 @@ fn rebaking_into_a_used_folder_leaves_only_the_new_maps() {
     let bake = |offsets: &str| {
         ok(ortm(
             &[
-                "bake", "cornell", "--size", "32", "--offsets", offsets, "--selector",
-                "jittered-grid", "-o", "b",
+                "bake",
+                "cornell",
+                "--size",
+                "32",
+                "--offsets",
+                offsets,
+                "--selector",
+                "jittered-grid",
+                "-o",
+                "b",
             ],
             dir,
         ))
@@ -259,7 +306,10 @@ fn rebaking_into_a_used_folder_leaves_only_the_new_maps() {
     assert!(text.contains("removed"), "{text}");
     // The same settings again: every map reused, nothing removed.
     let text = bake("6");
-    assert!(text.contains("(6 reused)") && !text.contains("removed"), "{text}");
+    assert!(
+        text.contains("(6 reused)") && !text.contains("removed"),
+        "{text}"
+    );
     assert_eq!(map_files(&dir.join("b")), named);
 }
 
@@ -270,8 +320,11 @@ fn inspect_reports_overlapping_uvs_and_draws_them_red() {
     // The two quads with the right one mapped onto the left one's UVs, at 8×8: the left half
     // (4 columns × 8 rows of texel centres) is covered twice.
     let obj = std::fs::read_to_string(common::data("scene/two_quads.obj")).unwrap();
-    std::fs::write(dir.join("two_quads.obj"), obj.replace("f 2/5 3/6 6/7 5/8", "f 2/1 3/2 6/3 5/4"))
-        .unwrap();
+    std::fs::write(
+        dir.join("two_quads.obj"),
+        obj.replace("f 2/5 3/6 6/7 5/8", "f 2/1 3/2 6/3 5/4"),
+    )
+    .unwrap();
     let toml = std::fs::read_to_string(common::data("scene/two_quads.toml")).unwrap();
     std::fs::write(
         dir.join("overlap.toml"),
@@ -323,11 +376,19 @@ fn pictures_are_enlarged_with_a_legend_and_atlases_fit_the_maps() {
     tiny_cornell_bake(dir, "bake");
     let text = ok(ortm(&["bin", "bake"], dir));
     let index = BakeIndex::read(&dir.join("bake")).unwrap();
-    let stored: u64 = index.maps.iter().flat_map(|m| &m.rects).map(|r| r.area()).sum();
+    let stored: u64 = index
+        .maps
+        .iter()
+        .flat_map(|m| &m.rects)
+        .map(|r| r.area())
+        .sum();
     let set = ortm::atlas::read_atlas_set(&dir.join("bake")).unwrap();
     let side = u64::from(set.atlas_size.0);
     assert_eq!(set.atlas_size.0, set.atlas_size.1);
-    assert!(side * side >= stored && (side / 2) * (side / 2) < stored, "{side} for {stored}");
+    assert!(
+        side * side >= stored && (side / 2) * (side / 2) < stored,
+        "{side} for {stored}"
+    );
     assert_eq!(set.atlases.len(), 1);
     assert!(text.contains("chosen to fit"), "{text}");
 }
@@ -336,19 +397,28 @@ fn pictures_are_enlarged_with_a_legend_and_atlases_fit_the_maps() {
 fn the_first_command_runs_without_a_gpu_and_writes_a_guide() {
     let tmp = tempfile::tempdir().unwrap();
     let dir = tmp.path();
-    let text = ok(ortm_no_gpu(&["demo", "-o", "out", "--size", "32", "--offsets", "12"], dir));
+    let text = ok(ortm_no_gpu(
+        &["demo", "-o", "out", "--size", "32", "--offsets", "12"],
+        dir,
+    ));
     assert!(text.contains("CPU mirrors of the passes"), "{text}");
     let guide = std::fs::read_to_string(dir.join("out/guide.md")).unwrap();
     // Every picture the guide shows exists.
     let mut shown = 0;
     for part in guide.split("](").skip(1) {
         let file = &part[..part.find(')').unwrap()];
-        assert!(dir.join("out").join(file).is_file(), "guide shows missing {file}");
+        assert!(
+            dir.join("out").join(file).is_file(),
+            "guide shows missing {file}"
+        );
         shown += 1;
     }
     assert!(shown >= 8, "{shown} pictures");
     // Progress printed as plain lines (stderr is a pipe here).
-    assert!(text.contains("writing transfer maps: 12/12 (100 %)"), "{text}");
+    assert!(
+        text.contains("writing transfer maps: 12/12 (100 %)"),
+        "{text}"
+    );
 }
 
 #[test]
@@ -364,7 +434,12 @@ fn help_texts_use_one_shadow_default_and_user_words() {
     };
     assert_eq!(default(&render), default(&view));
     for help in [&render, &view] {
-        for internal in ["best_for", "TransferOptions", "MapContribution", "DebugView"] {
+        for internal in [
+            "best_for",
+            "TransferOptions",
+            "MapContribution",
+            "DebugView",
+        ] {
             assert!(!help.contains(internal), "{internal} in\n{help}");
         }
     }

@@ -828,9 +828,7 @@ mod tests {
         assert_eq!(fitting_atlas_side(10_000_000, 1024), 1024);
         assert_eq!(fitting_atlas_side(100, 8), 8);
         // The packing of that many texels fits one atlas of the chosen side.
-        let rects: Vec<SourceRect> = (0..100)
-            .map(|id| SourceRect { id, w: 20, h: 20 })
-            .collect();
+        let rects: Vec<SourceRect> = (0..100).map(|id| SourceRect { id, w: 20, h: 20 }).collect();
         let side = fitting_atlas_side(100 * 400, 1024);
         assert_eq!(pack(&rects, side, side).unwrap().atlas_count, 1);
     }

@@ -5,8 +5,8 @@ use std::path::PathBuf;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 
-use anyhow::{Context, Result, bail};
 use super::progress::Progress;
+use anyhow::{Context, Result, bail};
 use ortm::bake::offsets::ImportanceMetric;
 use ortm::bake::transport::Effects;
 use ortm::bake::{BakeEvent, BakeSettings, CellRule, Selector, bake};
@@ -148,14 +148,14 @@ fn remove_stale_files(dir: &std::path::Path) -> Result<usize> {
         Err(_) => dir.join(ortm::atlas::ATLAS_INDEX_FILE_NAME).exists(),
     };
     let mut removed = 0;
-    let listing =
-        std::fs::read_dir(dir).with_context(|| format!("listing '{}'", dir.display()))?;
+    let listing = std::fs::read_dir(dir).with_context(|| format!("listing '{}'", dir.display()))?;
     for entry in listing {
         let entry = entry.with_context(|| format!("listing '{}'", dir.display()))?;
         let Ok(name) = entry.file_name().into_string() else {
             continue;
         };
-        let stale_map = name.starts_with("map_") && name.ends_with(".exr") && !named.contains(name.as_str());
+        let stale_map =
+            name.starts_with("map_") && name.ends_with(".exr") && !named.contains(name.as_str());
         let stale_atlas = atlases_stale
             && (name == ortm::atlas::ATLAS_INDEX_FILE_NAME
                 || (name.starts_with("atlas_")

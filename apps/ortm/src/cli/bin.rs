@@ -152,9 +152,7 @@ pub fn run(a: Args) -> Result<()> {
         "fill         {:.1} %{}",
         100.0 * st.fill_ratio,
         if a.atlas.is_none() {
-            format!(
-                "   (atlas size chosen to fit the {stored} stored texels; --atlas N to choose)"
-            )
+            format!("   (atlas size chosen to fit the {stored} stored texels; --atlas N to choose)")
         } else {
             String::new()
         }

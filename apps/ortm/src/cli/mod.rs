@@ -212,9 +212,7 @@ fn check_head_obj() -> Result<()> {
 /// meant as a built-in scene name.
 fn looks_like_a_name(arg: &str) -> bool {
     let p = std::path::Path::new(arg);
-    !arg.is_empty()
-        && !arg.contains(['/', '\\', '.'])
-        && std::fs::symlink_metadata(p).is_err()
+    !arg.is_empty() && !arg.contains(['/', '\\', '.']) && std::fs::symlink_metadata(p).is_err()
 }
 
 /// The error for an unknown built-in scene name: the built-in names, closest first.
@@ -241,7 +239,9 @@ fn edit_distance(a: &str, b: &str) -> usize {
         let mut diag = row[0];
         row[0] = i + 1;
         for (j, cb) in b.iter().enumerate() {
-            let next = (row[j + 1] + 1).min(row[j] + 1).min(diag + usize::from(ca != *cb));
+            let next = (row[j + 1] + 1)
+                .min(row[j] + 1)
+                .min(diag + usize::from(ca != *cb));
             diag = row[j + 1];
             row[j + 1] = next;
         }

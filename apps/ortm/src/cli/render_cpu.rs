@@ -141,8 +141,12 @@ fn pixel_uv(
     let dir = (forward + right * (ndc_x * tan * aspect) + up * (ndc_y * tan)).normalize();
     // The near and far planes are distances along the view axis; convert for this ray.
     let along = dir.dot(forward).max(1e-6);
-    let hit =
-        vis.closest_triangle_hit(eye, dir, (camera.near / along, camera.far / along), u32::MAX)?;
+    let hit = vis.closest_triangle_hit(
+        eye,
+        dir,
+        (camera.near / along, camera.far / along),
+        u32::MAX,
+    )?;
     let tri = &mesh.triangles[hit.triangle as usize];
     let uv = (0..3).fold(Vec2::ZERO, |acc, k| {
         acc + mesh.uvs[tri.uv[k] as usize] * hit.barycentrics[k]

@@ -368,7 +368,12 @@ pub fn with_legend(img: &RgbImage, lines: &[Legend]) -> RgbImage {
                 let bar_w = w.saturating_sub(2 * LEGEND_MARGIN).max(1);
                 for x in 0..bar_w {
                     let t = x as f32 / (bar_w - 1).max(1) as f32;
-                    fill_rect(&mut out, (LEGEND_MARGIN + x, bar_y), (1, glyph_h), colour(t));
+                    fill_rect(
+                        &mut out,
+                        (LEGEND_MARGIN + x, bar_y),
+                        (1, glyph_h),
+                        colour(t),
+                    );
                 }
                 let label_y = bar_y + glyph_h + LEGEND_MARGIN;
                 draw_text(&mut out, (LEGEND_MARGIN, label_y), low);
