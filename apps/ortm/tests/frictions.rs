@@ -433,12 +433,14 @@ fn help_texts_use_one_shadow_default_and_user_words() {
         rest[d..d + rest[d..].find(']').unwrap()].to_owned()
     };
     assert_eq!(default(&render), default(&view));
-    for help in [&render, &view] {
+    let bench = ok(ortm(&["bench", "render", "--help"], tmp.path()));
+    for help in [&render, &view, &bench] {
         for internal in [
             "best_for",
             "TransferOptions",
             "MapContribution",
             "DebugView",
+            "::",
         ] {
             assert!(!help.contains(internal), "{internal} in\n{help}");
         }

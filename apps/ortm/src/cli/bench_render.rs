@@ -109,15 +109,15 @@ pub struct Args {
     /// Seed of the synthetic offsets.
     #[arg(long, default_value_t = 1)]
     seed: u64,
-    /// Blend path with paired pieces (`TransferOptions::pair_pieces`, two maps per
-    /// fragment, the renderer's default): `on` (the default path), `off` (the unpaired blend
+    /// Blend path with paired pieces (two maps drawn per fragment, the renderer's default):
+    /// `on` (the default path), `off` (the unpaired blend
     /// path) or `both` (each, same session, for comparison). The main table shows the
     /// unpaired path when it is timed, else the paired one; the paired rows follow it.
     #[arg(long, value_enum, default_value_t = Pair::On)]
     pair: Pair,
-    /// How the transfer and first-order shaders read textures (`TransferOptions::texel_reads`,
-    /// `FirstOrderOptions::texel_reads`): `auto` (the renderer's default: read-only storage
-    /// textures where the adapter has them), `sampled` or `storage`.
+    /// How the transfer and first-order shaders read textures: `auto` (the renderer's
+    /// default: read-only storage textures where the adapter has them), `sampled` or
+    /// `storage`.
     #[arg(long, value_enum, default_value_t = Reads::Auto)]
     texel_reads: Reads,
 }
@@ -125,7 +125,7 @@ pub struct Args {
 /// `--texel-reads` values.
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Reads {
-    /// `Gpu::best_texel_reads`.
+    /// Storage textures where the adapter has them, else sampled.
     Auto,
     /// Sampled textures (`texture_2d`).
     Sampled,

@@ -52,6 +52,18 @@ pub enum DebugView {
     MapContribution,
 }
 
+impl DebugView {
+    /// The words the viewer's menu shows for the view.
+    pub fn label(self) -> &'static str {
+        match self {
+            Self::Off => "off",
+            Self::Coverage => "coverage + chart borders",
+            Self::Density => "texel density",
+            Self::MapContribution => "one offset map",
+        }
+    }
+}
+
 /// Default relative error shown red in the error view.
 pub const DEFAULT_ERROR_SCALE: f64 = 0.5;
 
@@ -720,7 +732,7 @@ impl AppState {
         });
         self.source_controls(ui);
         egui::ComboBox::from_label("debug view")
-            .selected_text(format!("{:?}", self.debug))
+            .selected_text(self.debug.label())
             .show_ui(ui, |ui| {
                 ui.selectable_value(&mut self.debug, DebugView::Off, "off");
                 ui.selectable_value(

@@ -539,3 +539,32 @@ pub fn coverage_picture(grid: &TexelGrid, overlaps: &[bool]) -> RgbImage {
 
 /// The colour of overlapping texels in [`coverage_picture`].
 pub const OVERLAP_RED: Rgb<u8> = Rgb([255, 0, 0]);
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn legend_numbers_keep_three_significant_digits() {
+        assert_eq!(legend_number(210.173), "210");
+        assert_eq!(legend_number(1.4709), "1.47");
+        assert_eq!(legend_number(0.2613), "0.261");
+        assert_eq!(legend_number(0.0), "0");
+        assert_eq!(legend_number(12345.0), "1.23e4");
+        assert_eq!(legend_number(0.00123), "1.23e-3");
+    }
+
+    #[test]
+    fn enlarged_pictures_repeat_each_texel_as_a_square() {
+        let img = RgbImage::from_fn(3, 2, |x, y| Rgb([x as u8, y as u8, 7]));
+        let big = upscale_readable(&img);
+        let k = READABLE_PX.div_ceil(3);
+        assert_eq!((big.width(), big.height()), (3 * k, 2 * k));
+        for (x, y, p) in big.enumerate_pixels() {
+            assert_eq!(*p, *img.get_pixel(x / k, y / k));
+        }
+        let legend = with_legend(&img, &[Legend::Swatch(Rgb([1, 2, 3]), "A")]);
+        assert_eq!(legend.width(), 3);
+        assert!(legend.height() > 2);
+    }
+}
