@@ -169,7 +169,7 @@ fn cornell_guide(out: &Path, size: &str, offsets: &str) -> String {
          the maps (`atlases.json` records it).\n\n\
          ## 5. The frame: `frame.png`, `first_order.exr`, `final.exr`\n\n\
          ![frame](frame.png)\n\n\
-         `ortm render`: left the first order (shadow maps), right the final image (each map \
+         `ortm render`: left the first order (shadow maps on a GPU, ray-cast shadows on the CPU), right the final image (each map \
          modulating the first order at its offset, Eq. 9 of the paper). Look for the same \
          colour bleeding and lit shadows as in `exact/final.png`. The lightmaps the frame \
          shows are `final.exr` and `first_order.exr`; how far they are from the exact solve:\n\n\
