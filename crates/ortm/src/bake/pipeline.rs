@@ -11,7 +11,7 @@ use serde::{Deserialize, Serialize};
 use crate::Lightmap;
 use crate::bake::offsets::{self, ImportanceMetric, OffsetError, SelectionSettings};
 use crate::bake::texels::{TexelError, TexelGrid};
-use crate::bake::transport::{Effects, Transport};
+use crate::bake::transport::{Effects, SetupProgress, Transport};
 use crate::bake_dir::{self, BakeIndex, BakeKey, LightmapSize};
 use crate::maps::{MapsError, TransferMap};
 use crate::scene::{Scene, scene_hash};
@@ -549,7 +549,17 @@ pub fn bake(
         grid.texels.len(),
         settings.coarse_block
     )));
-    let transport = Transport::new(scene, &grid, settings.effects, settings.coarse_block);
+    let transport = Transport::build(
+        scene,
+        &grid,
+        settings.effects,
+        settings.coarse_block,
+        &SetupProgress::new(events, cancel),
+    )
+    .map_err(|_| BakeError::Interrupted {
+        done: 0,
+        total: settings.offsets,
+    })?;
     let t_transport = t0.elapsed().as_secs_f64();
 
     let (offset_list, points) =

@@ -11,7 +11,7 @@ use std::collections::HashMap;
 use glam::Vec3;
 
 use super::dense::DenseTransport;
-use super::{Kernels, Patch};
+use super::{Cancelled, Kernels, Patch, SetupProgress};
 use crate::bake::texels::{Texel, TexelGrid};
 
 /// The higher-order remainder at the coarse level.
@@ -96,11 +96,24 @@ impl Remainder {
     /// clusters' subsurface weights are normalised over the clusters
     /// ([`Kernels::normalise_subsurface`]) for both, as the dense solve does.
     pub fn new(grid: &TexelGrid, patches: &[Patch], kernels: &Kernels, block: u32) -> Self {
+        Self::build(grid, patches, kernels, block, &SetupProgress::none())
+            .unwrap_or_else(|_| unreachable!("never cancelled"))
+    }
+
+    /// [`Remainder::new`] with progress and cancellation: the clusters' form factors
+    /// ([`DenseTransport::build`]) and the solve ([`DenseTransport::transfer_with`]).
+    pub fn build(
+        grid: &TexelGrid,
+        patches: &[Patch],
+        kernels: &Kernels,
+        block: u32,
+        progress: &SetupProgress,
+    ) -> Result<Self, Cancelled> {
         let (cluster_of, mut clusters) = cluster_texels(grid, patches, block);
-        kernels.normalise_subsurface(&mut clusters);
+        kernels.normalise_subsurface_with(&mut clusters, progress)?;
         let n = clusters.len();
-        let dense = DenseTransport::new(&clusters, kernels);
-        let full = dense.transfer();
+        let dense = DenseTransport::build(&clusters, kernels, progress)?;
+        let full = dense.transfer_with(progress)?;
         let rem = std::array::from_fn(|ch| {
             let mut v = vec![0.0f32; n * n];
             for i in 0..n {
@@ -125,13 +138,13 @@ impl Remainder {
             }
             v
         });
-        Self {
+        Ok(Self {
             cluster_of,
             clusters,
             rem,
             full,
             block,
-        }
+        })
     }
 
     /// `R_rem(i, j)` per channel for texels `i`, `j` with the sender's area `area_j_m2`.

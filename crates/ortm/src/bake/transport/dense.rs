@@ -12,7 +12,7 @@ use faer::linalg::solvers::{PartialPivLu, Solve};
 use glam::Vec3;
 use rayon::prelude::*;
 
-use super::{Kernels, Patch};
+use super::{Cancelled, Kernels, Patch, SetupProgress};
 
 /// Largest number of patches the exact dense solve is run on by the tools (`ortm solve`, the
 /// viewer's and the accuracy bench's reference): memory grows as n² (three 6,000² matrices of
@@ -40,19 +40,40 @@ impl DenseTransport {
     /// ([`Kernels::normalise_subsurface`], whatever the patches' `subsurface_scale`), so the
     /// exact solve uses the weights of the pair evaluator ([`super::Transport`]).
     pub fn new(patches: &[Patch], kernels: &Kernels) -> Self {
+        Self::build(patches, kernels, &SetupProgress::none())
+            .unwrap_or_else(|_| unreachable!("never cancelled"))
+    }
+
+    /// [`DenseTransport::new`] reporting the form factors' rows to `progress` ("transport:
+    /// form factors", one step per pair) and stopping between rows when it is cancelled.
+    pub fn build(
+        patches: &[Patch],
+        kernels: &Kernels,
+        progress: &SetupProgress,
+    ) -> Result<Self, Cancelled> {
         let mut patches = patches.to_vec();
-        kernels.normalise_subsurface(&mut patches);
+        kernels.normalise_subsurface_with(&mut patches, progress)?;
         let patches = &patches[..];
         let n = patches.len();
+        progress.phase(
+            "transport: form factors",
+            (n as u64) * (n as u64).saturating_sub(1) / 2,
+        );
         // Symmetric c_ij = F_ij / A_j, upper triangle computed in parallel, rows of the full matrix.
         let rows: Vec<Vec<f32>> = (0..n)
             .into_par_iter()
             .map(|i| {
-                (i + 1..n)
+                if progress.check().is_err() {
+                    return Vec::new();
+                }
+                let row = (i + 1..n)
                     .map(|j| kernels.form_factor_c(&patches[i], &patches[j]))
-                    .collect()
+                    .collect();
+                progress.advance((n - i - 1) as u64);
+                row
             })
             .collect();
+        progress.check()?;
         let c = |i: usize, j: usize| -> f64 {
             match i.cmp(&j) {
                 std::cmp::Ordering::Less => rows[i][j - i - 1] as f64,
@@ -91,13 +112,13 @@ impl DenseTransport {
                 })
             })
         });
-        Self {
+        Ok(Self {
             n,
             form_factors,
             subsurface,
             rho: patches.iter().map(|p| p.rho).collect(),
             translucent,
-        }
+        })
     }
 
     fn inv_rho(&self, j: usize, ch: usize) -> f64 {
@@ -180,7 +201,27 @@ impl DenseTransport {
     /// The full transfer `R = M⁻¹ X ρ̄⁻¹ − I` per channel (`R[(i, j)]` = fraction of `B_o(j)`
     /// added to `B(i)`); columns of black patches (ρ̄ = 0, never lit) are zero.
     pub fn transfer(&self) -> [Mat<f64>; 3] {
-        std::array::from_fn(|ch| {
+        self.transfer_with(&SetupProgress::none())
+            .unwrap_or_else(|_| unreachable!("never cancelled"))
+    }
+
+    /// [`DenseTransport::transfer`] reporting one step per channel to `progress` ("transport:
+    /// solve") and stopping between channels when it is cancelled (each channel's
+    /// factorisation and solve, `O(n³)`, runs whole).
+    pub fn transfer_with(&self, progress: &SetupProgress) -> Result<[Mat<f64>; 3], Cancelled> {
+        progress.phase("transport: solve (R, G, B)", 3);
+        let mut out: [Option<Mat<f64>>; 3] = [None, None, None];
+        for (ch, o) in out.iter_mut().enumerate() {
+            progress.check()?;
+            *o = Some(self.transfer_channel(ch));
+            progress.advance(1);
+        }
+        Ok(out.map(|m| m.expect("every channel solved")))
+    }
+
+    /// The full transfer of channel `ch` ([`DenseTransport::transfer`]).
+    fn transfer_channel(&self, ch: usize) -> Mat<f64> {
+        {
             let x = self.exitance(ch);
             let m = self.system(&x);
             let rhs = Mat::from_fn(self.n, self.n, |i, j| x[(i, j)] * self.inv_rho(j, ch));
@@ -195,7 +236,7 @@ impl DenseTransport {
                 }
             }
             r
-        })
+        }
     }
 
     /// Row sums `Σ_j F_ij` (1 inside a closed environment; less where light escapes).

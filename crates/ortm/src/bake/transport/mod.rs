@@ -65,17 +65,71 @@ pub mod form_factor;
 
 use std::collections::HashMap;
 use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 use glam::Vec3;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
+use crate::bake::BakeEvent;
 use crate::bake::raycast::Visibility;
 use crate::bake::texels::TexelGrid;
 use crate::scene::Scene;
 use crate::scene::subsurface::Profile;
 use dipole::RdTable;
 use form_factor::{FfPatch, unoccluded_form_factor};
+
+/// Progress reporting and cancellation for the transport's set-up: phases and steps go to
+/// `events` (the bake's progress bars), and `cancel` is polled between steps.
+#[derive(Clone, Copy)]
+pub struct SetupProgress<'a> {
+    events: Option<&'a (dyn Fn(BakeEvent) + Sync)>,
+    cancel: Option<&'a AtomicBool>,
+}
+
+/// The set-up stopped because its `cancel` flag was raised.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Cancelled;
+
+impl<'a> SetupProgress<'a> {
+    /// No reporting, never cancelled.
+    pub fn none() -> Self {
+        Self {
+            events: None,
+            cancel: None,
+        }
+    }
+
+    /// Reports to `events` and stops when `cancel` is raised.
+    pub fn new(events: &'a (dyn Fn(BakeEvent) + Sync), cancel: &'a AtomicBool) -> Self {
+        Self {
+            events: Some(events),
+            cancel: Some(cancel),
+        }
+    }
+
+    /// A phase of `total` steps starts.
+    pub fn phase(&self, name: &'static str, total: u64) {
+        if let Some(e) = self.events {
+            e(BakeEvent::Phase { name, total });
+        }
+    }
+
+    /// `n` more steps are done.
+    pub fn advance(&self, n: u64) {
+        if let Some(e) = self.events {
+            e(BakeEvent::Advance(n));
+        }
+    }
+
+    /// `Err(Cancelled)` once the cancel flag is raised.
+    pub fn check(&self) -> Result<(), Cancelled> {
+        match self.cancel {
+            Some(c) if c.load(Ordering::Relaxed) => Err(Cancelled),
+            _ => Ok(()),
+        }
+    }
+}
 
 /// Which transport effects a bake includes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -260,10 +314,22 @@ impl Kernels {
     /// term included; 0 for opaque patches). The continuous profile re-emits at most the
     /// material's total diffuse reflectance ρ̄ (module docs, "Subsurface weights").
     pub fn subsurface_reemission(&self, patches: &[Patch]) -> Vec<[f64; 3]> {
+        self.subsurface_reemission_with(patches, &SetupProgress::none())
+            .unwrap_or_else(|_| unreachable!("never cancelled"))
+    }
+
+    /// [`Kernels::subsurface_reemission`] reporting one step per patch to `progress`
+    /// ("subsurface weights") and stopping when it is cancelled.
+    pub fn subsurface_reemission_with(
+        &self,
+        patches: &[Patch],
+        progress: &SetupProgress,
+    ) -> Result<Vec<[f64; 3]>, Cancelled> {
         let cell = self.support_m.iter().copied().fold(0.0f64, f64::max);
         if cell <= 0.0 || !patches.iter().any(|p| self.is_translucent(p.material)) {
-            return vec![[0.0; 3]; patches.len()];
+            return Ok(vec![[0.0; 3]; patches.len()]);
         }
+        progress.phase("transport: subsurface weights", patches.len() as u64);
         // Uniform grid of cells one support radius wide: every pair within the support lies
         // in neighbouring cells.
         let key = |p: Vec3| {
@@ -276,12 +342,15 @@ impl Kernels {
                 grid.entry(key(p.position_m)).or_default().push(i as u32);
             }
         }
-        patches
+        let q: Vec<[f64; 3]> = patches
             .par_iter()
             .enumerate()
             .map(|(j, b)| {
                 let mut q = [0.0f64; 3];
-                if !self.is_translucent(b.material) {
+                if j % 1024 == 0 {
+                    progress.advance(1024.min(patches.len() - j) as u64);
+                }
+                if !self.is_translucent(b.material) || progress.check().is_err() {
                     return q;
                 }
                 let (x, y, z) = key(b.position_m);
@@ -306,7 +375,9 @@ impl Kernels {
                 }
                 q
             })
-            .collect()
+            .collect();
+        progress.check()?;
+        Ok(q)
     }
 
     /// Sets every patch's [`Patch::subsurface_scale`] so that no sender re-emits more than
@@ -315,7 +386,18 @@ impl Kernels {
     /// only on the patches' geometry (any earlier scale is replaced), so it may be applied
     /// again. Returns the number of patches scaled in some channel.
     pub fn normalise_subsurface(&self, patches: &mut [Patch]) -> usize {
-        let q = self.subsurface_reemission(patches);
+        self.normalise_subsurface_with(patches, &SetupProgress::none())
+            .unwrap_or_else(|_| unreachable!("never cancelled"))
+    }
+
+    /// [`Kernels::normalise_subsurface`] with progress and cancellation
+    /// ([`Kernels::subsurface_reemission_with`]).
+    pub fn normalise_subsurface_with(
+        &self,
+        patches: &mut [Patch],
+        progress: &SetupProgress,
+    ) -> Result<usize, Cancelled> {
+        let q = self.subsurface_reemission_with(patches, progress)?;
         let mut scaled = 0;
         for (p, q) in patches.iter_mut().zip(&q) {
             p.subsurface_scale = Vec3::ONE;
@@ -330,7 +412,7 @@ impl Kernels {
             }
             scaled += usize::from(p.subsurface_scale != Vec3::ONE);
         }
-        scaled
+        Ok(scaled)
     }
 
     /// True when material `m` scatters under the surface.
@@ -395,16 +477,30 @@ impl Transport {
     /// Builds the evaluator: texel patches, BVH, and the coarse remainder solve with clusters of
     /// `block × block` texels.
     pub fn new(scene: &Scene, grid: &TexelGrid, effects: Effects, block: u32) -> Self {
+        Self::build(scene, grid, effects, block, &SetupProgress::none())
+            .unwrap_or_else(|_| unreachable!("never cancelled"))
+    }
+
+    /// [`Transport::new`] reporting its phases to `progress` (subsurface weights, the coarse
+    /// level's form factors, its solve per channel) and stopping between steps when it is
+    /// cancelled. The result does not depend on `progress`.
+    pub fn build(
+        scene: &Scene,
+        grid: &TexelGrid,
+        effects: Effects,
+        block: u32,
+        progress: &SetupProgress,
+    ) -> Result<Self, Cancelled> {
         let visibility = Arc::new(Visibility::new(&scene.mesh));
         let kernels = Kernels::new(scene, effects, visibility);
         let mut patches = texel_patches(grid);
-        kernels.normalise_subsurface(&mut patches);
-        let remainder = coarse::Remainder::new(grid, &patches, &kernels, block);
-        Self {
+        kernels.normalise_subsurface_with(&mut patches, progress)?;
+        let remainder = coarse::Remainder::build(grid, &patches, &kernels, block, progress)?;
+        Ok(Self {
             patches,
             kernels,
             remainder,
-        }
+        })
     }
 
     /// True when texel `i` is translucent (its `R(i, i)` holds the subsurface point mass `−1`).
@@ -493,6 +589,53 @@ mod tests {
                 assert!(rel[c] > 1.0 - deficit, "{model:?} {pitch} m: Q/ρ̄ = {rel:?}");
             }
         }
+    }
+
+    /// The set-up reports its phases with totals that its steps reach, gives the same
+    /// transport as without reporting, and stops with `Cancelled` when its flag is raised.
+    #[test]
+    fn setup_progress_reaches_its_totals_and_cancels() {
+        use std::sync::Mutex;
+        let scene = crate::scene::cornell::cornell_box(24);
+        let grid = TexelGrid::build(&scene).unwrap();
+        let log: Mutex<Vec<(&'static str, u64, u64)>> = Mutex::new(Vec::new());
+        let events = |e: BakeEvent| {
+            let mut l = log.lock().unwrap();
+            match e {
+                BakeEvent::Phase { name, total } => l.push((name, total, 0)),
+                BakeEvent::Advance(n) => l.last_mut().expect("a phase first").2 += n,
+                BakeEvent::Message(_) => {}
+            }
+        };
+        let cancel = AtomicBool::new(false);
+        let progress = SetupProgress::new(&events, &cancel);
+        let built = Transport::build(&scene, &grid, Effects::default(), 4, &progress).unwrap();
+        let plain = Transport::new(&scene, &grid, Effects::default(), 4);
+        let n_c = plain.remainder.clusters.len() as u64;
+        let log = log.into_inner().unwrap();
+        assert_eq!(
+            log,
+            vec![
+                (
+                    "transport: form factors",
+                    n_c * (n_c - 1) / 2,
+                    n_c * (n_c - 1) / 2
+                ),
+                ("transport: solve (R, G, B)", 3, 3),
+            ]
+        );
+        assert_eq!(built.remainder.full, plain.remainder.full);
+        assert_eq!(built.remainder.rem, plain.remainder.rem);
+        cancel.store(true, Ordering::Relaxed);
+        let none = |_: BakeEvent| {};
+        let stopped = Transport::build(
+            &scene,
+            &grid,
+            Effects::default(),
+            4,
+            &SetupProgress::new(&none, &cancel),
+        );
+        assert_eq!(stopped.err(), Some(Cancelled));
     }
 
     /// Σ_i S_ij A_i / A_j with the normalised weights ([`Kernels::subsurface`]), by brute force.
