@@ -13,7 +13,7 @@
 //!   one (subsurface on) `∫ R_d(|x − y|) E(y) dA(y)` with `y` sampled by the profile and
 //!   probe rays ([`subsurface`]), by Euclidean distance, so light crosses seams and ears;
 //! - by default ([`Estimator::FirstOrderLight`]) the first-order radiosity of opaque surfaces is
-//!   also sampled as a light at every path vertex ([`emitters`]: points drawn ∝ `B_o·A`, `B_o`
+//!   also sampled as a light at every path vertex (module `emitters`: points drawn ∝ `B_o·A`, `B_o`
 //!   evaluated exactly at the drawn point by the same lights and shadow rays), combined with the
 //!   cosine-sampled bounce by the balance heuristic: unbiased, and far less noisy where a lamp
 //!   nearly touches a surface (Cornell: ~6× lower standard error at equal paths per texel);
@@ -61,9 +61,9 @@ pub enum Estimator {
     /// Cosine-sampled bounces, next-event estimation to the lights.
     Cosine,
     /// As [`Estimator::Cosine`], plus the first-order radiosity `B_o = ρ·E_direct` of opaque
-    /// surfaces sampled as a light ([`emitters`]: points drawn ∝ `B_o·A`, one shadow ray, `B_o`
-    /// evaluated exactly at the point) at the first [`FIRST_ORDER_LIGHT_VERTICES`] vertices,
-    /// combined with the bounce by the balance heuristic.
+    /// surfaces sampled as a light (module `emitters`: points drawn ∝ `B_o·A`, one shadow ray,
+    /// `B_o` evaluated exactly at the point) at the first [`FIRST_ORDER_LIGHT_VERTICES`]
+    /// vertices, combined with the bounce by the balance heuristic.
     #[default]
     FirstOrderLight,
 }

@@ -150,7 +150,7 @@ impl<'a> SceneView<'a> {
         }
     }
 
-    /// Samples the first order as a light ([`super::emitters`]) at the first `vertices`
+    /// Samples the first order as a light (module `emitters`) at the first `vertices`
     /// irradiance steps of every path, combined with the cosine-sampled bounce by the balance
     /// heuristic; `vertices = 0` keeps cosine-sampled bounces only.
     pub fn with_first_order_light(mut self, vertices: u32) -> Self {
