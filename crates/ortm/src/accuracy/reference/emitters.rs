@@ -54,7 +54,8 @@ pub struct FirstOrderLight {
     owners: Vec<(u32, u32)>,
     /// Probability of each cell slot.
     probability: Vec<f32>,
-    /// Running sum of `probability`, ending at 1.
+    /// Running sum of `probability`, ending at 1 (up to rounding; draws and densities use the
+    /// last entry as the total).
     cdf: Vec<f64>,
 }
 
@@ -220,7 +221,8 @@ impl FirstOrderLight {
         let j = (v.max(0.0) as u32).min(c.k - 1);
         let upper = (u - i as f32) + (v - j as f32) > 1.0 && i + j + 2 <= c.k;
         let local = 2 * (i * c.k + j) + upper as u32;
-        self.probability[(c.first + local) as usize] / c.cell_area_m2
+        let total = *self.cdf.last().expect("at least one cell") as f32;
+        self.probability[(c.first + local) as usize] / (total * c.cell_area_m2)
     }
 }
 
