@@ -7,9 +7,9 @@
 //! [`TARGET_CELLS`] in all); each cell's probability is
 //! `(1 − α)·B̄_o(centroid)·A_cell / Σ + α·A_cell / A_opaque` with `B̄_o` the mean over channels
 //! of the first order `ρ·E_direct` evaluated exactly at the cell's centroid (same lights and
-//! shadow rays as the paths) and `α =` [`UNIFORM_SHARE`]. The density only shapes where points
-//! are drawn: the paths evaluate `B_o` exactly at the point they reach, so the cells' size
-//! enters no result. The uniform share keeps the density `> 0` on every opaque surface, so
+//! shadow rays as the paths) and `α =` [`UNIFORM_SHARE`] (no density when no centroid is
+//! lit). The density only shapes where points are drawn: the paths evaluate `B_o` exactly at
+//! the point they reach, so the cells' size enters no result. The uniform share keeps the density `> 0` on every opaque surface, so
 //! shadowed-centroid cells that are partly lit are still reached (and the cosine-sampled bounce
 //! covers them too under multiple importance sampling).
 //!
@@ -69,100 +69,37 @@ pub struct LightSample {
 }
 
 impl FirstOrderLight {
-    /// The density of `view`'s first order; `None` when no opaque surface is lit (nothing to
-    /// sample).
+    /// The density of `view`'s first order; `None` when the scene has no opaque surface or no
+    /// cell centroid is lit (the paths then keep cosine-sampled bounces alone).
     pub fn build(view: &SceneView<'_>) -> Option<Self> {
-        let mesh = &view.scene().mesh;
-        let areas: Vec<f64> = (0..mesh.triangles.len())
-            .map(|t| {
-                let tri = &mesh.triangles[t];
-                let p: [Vec3; 3] =
-                    std::array::from_fn(|k| mesh.positions_m[tri.position[k] as usize]);
-                0.5 * (p[1] - p[0]).cross(p[2] - p[0]).as_dvec3().length()
-            })
-            .collect();
-        let opaque = |t: usize| !view.translucent(mesh.triangles[t].material) && areas[t] > 0.0;
-        let total_area: f64 = (0..areas.len())
-            .filter(|&t| opaque(t))
-            .map(|t| areas[t])
-            .sum();
-        if total_area <= 0.0 {
-            return None;
-        }
-        let mut triangles = vec![TriangleCells::default(); areas.len()];
-        let mut slots = 0u32;
-        for (t, cells) in triangles.iter_mut().enumerate() {
-            if !opaque(t) {
-                continue;
-            }
-            let k = (areas[t] * TARGET_CELLS / total_area)
-                .sqrt()
-                .ceil()
-                .clamp(1.0, MAX_SUBDIVISION as f64) as u32;
-            *cells = TriangleCells {
-                first: slots,
-                k,
-                cell_area_m2: (areas[t] / (k * k) as f64) as f32,
-            };
-            slots += 2 * k * k;
-        }
+        let (triangles, slots, total_area) = cell_layout(view)?;
         let owners: Vec<(u32, u32)> = triangles
             .iter()
             .enumerate()
             .filter(|(_, c)| c.k > 0)
             .map(|(t, c)| (c.first, t as u32))
             .collect();
-        let owner = |slot: u32| owners[owners.partition_point(|o| o.0 <= slot) - 1].1 as usize;
-        // Mean first order × area of every slot (0 outside the triangle).
-        let lit: Vec<f64> = (0..slots)
-            .into_par_iter()
-            .map_init(Scratch::default, |s, slot| {
-                let t = owner(slot);
-                let c = triangles[t];
-                let Some(b) = slot_centroid(c.k, slot - c.first) else {
-                    return 0.0;
-                };
-                let hit = RayHit {
-                    triangle: t as u32,
-                    t: 0.0,
-                    barycentrics: b,
-                };
-                let p = view.point_of_hit(&hit);
-                let b_o = p.albedo * view.direct(&p, s);
-                b_o.element_sum() as f64 / 3.0 * c.cell_area_m2 as f64
+        let lit = lit_per_slot(view, &triangles, &owners, slots);
+        let lit_sum: f64 = lit.iter().sum();
+        if lit_sum <= 0.0 {
+            return None;
+        }
+        let mut probability = vec![0.0f32; slots as usize];
+        for c in triangles.iter().filter(|c| c.k > 0) {
+            let uniform = c.cell_area_m2 as f64 / total_area;
+            for local in (0..2 * c.k * c.k).filter(|&l| slot_centroid(c.k, l).is_some()) {
+                let slot = (c.first + local) as usize;
+                probability[slot] =
+                    ((1.0 - UNIFORM_SHARE) * lit[slot] / lit_sum + UNIFORM_SHARE * uniform) as f32;
+            }
+        }
+        let cdf = probability
+            .iter()
+            .scan(0.0f64, |run, p| {
+                *run += *p as f64;
+                Some(*run)
             })
             .collect();
-        let lit_sum: f64 = lit.iter().sum();
-        let lit_share = if lit_sum > 0.0 {
-            1.0 - UNIFORM_SHARE
-        } else {
-            0.0
-        };
-        let mut probability = vec![0.0f32; slots as usize];
-        for c in &triangles {
-            if c.k == 0 {
-                continue;
-            }
-            for local in 0..2 * c.k * c.k {
-                if slot_centroid(c.k, local).is_none() {
-                    continue;
-                }
-                let slot = (c.first + local) as usize;
-                let uniform = c.cell_area_m2 as f64 / total_area;
-                let shaped = if lit_sum > 0.0 {
-                    lit[slot] / lit_sum
-                } else {
-                    0.0
-                };
-                probability[slot] = (lit_share * shaped + (1.0 - lit_share) * uniform) as f32;
-            }
-        }
-        let mut cdf = Vec::with_capacity(probability.len());
-        let mut run = 0.0f64;
-        for p in &probability {
-            run += *p as f64;
-            cdf.push(run);
-        }
         Some(Self {
             triangles,
             owners,
@@ -245,4 +182,71 @@ fn slot_centroid(k: u32, local: u32) -> Option<[f32; 3]> {
     let kf = k as f32;
     let (b1, b2) = ((i as f32 + third) / kf, (j as f32 + third) / kf);
     Some([1.0 - b1 - b2, b1, b2])
+}
+
+/// The cells of every opaque triangle of `view`'s mesh, the number of slots and the opaque area
+/// (m²); `None` when that area is 0.
+fn cell_layout(view: &SceneView<'_>) -> Option<(Vec<TriangleCells>, u32, f64)> {
+    let mesh = &view.scene().mesh;
+    let areas: Vec<f64> = mesh
+        .triangles
+        .iter()
+        .map(|tri| {
+            let p: [Vec3; 3] = std::array::from_fn(|k| mesh.positions_m[tri.position[k] as usize]);
+            0.5 * (p[1] - p[0]).cross(p[2] - p[0]).as_dvec3().length()
+        })
+        .collect();
+    let opaque = |t: usize| !view.translucent(mesh.triangles[t].material) && areas[t] > 0.0;
+    let total_area: f64 = (0..areas.len())
+        .filter(|&t| opaque(t))
+        .map(|t| areas[t])
+        .sum();
+    if total_area <= 0.0 {
+        return None;
+    }
+    let mut triangles = vec![TriangleCells::default(); areas.len()];
+    let mut slots = 0u32;
+    for (t, cells) in triangles.iter_mut().enumerate() {
+        if !opaque(t) {
+            continue;
+        }
+        let k = (areas[t] * TARGET_CELLS / total_area)
+            .sqrt()
+            .ceil()
+            .clamp(1.0, MAX_SUBDIVISION as f64) as u32;
+        *cells = TriangleCells {
+            first: slots,
+            k,
+            cell_area_m2: (areas[t] / (k * k) as f64) as f32,
+        };
+        slots += 2 * k * k;
+    }
+    Some((triangles, slots, total_area))
+}
+
+/// Mean over channels of the first order `ρ·E_direct` at each slot's centroid × the cell's
+/// area (W); 0 for slots outside their triangle.
+fn lit_per_slot(
+    view: &SceneView<'_>,
+    triangles: &[TriangleCells],
+    owners: &[(u32, u32)],
+    slots: u32,
+) -> Vec<f64> {
+    (0..slots)
+        .into_par_iter()
+        .map_init(Scratch::default, |s, slot| {
+            let t = owners[owners.partition_point(|o| o.0 <= slot) - 1].1;
+            let c = triangles[t as usize];
+            let Some(barycentrics) = slot_centroid(c.k, slot - c.first) else {
+                return 0.0;
+            };
+            let p = view.point_of_hit(&RayHit {
+                triangle: t,
+                t: 0.0,
+                barycentrics,
+            });
+            let b_o = p.albedo * view.direct(&p, s);
+            b_o.element_sum() as f64 / 3.0 * c.cell_area_m2 as f64
+        })
+        .collect()
 }
