@@ -162,8 +162,8 @@ const RADIOSITY: Effects = Effects {
 
 /// Cornell 64², radiosity. The scene's own light hangs 2 cm under the ceiling, so the ceiling's
 /// first order peaks as h/(r²+h²)^{3/2} (20,000 W/m² above the lamp): paths that land there are
-/// rare and carry most of the indirect light, and the reference needs far more samples (mean
-/// relative standard error 0.24 of the final at 64 spp, against 0.09 here). The test moves the
+/// rare and carry most of the indirect light (with cosine-sampled bounces alone, mean relative
+/// standard error 0.24 of the final at 64 spp, against 0.09 with this lamp). The test moves the
 /// lamp to (0.4, 0.45, 0.2) m, ≥ 0.1 m from every surface.
 #[test]
 fn cornell_64_agrees_with_the_exact_solve() {
@@ -186,23 +186,23 @@ fn cornell_64_agrees_with_the_exact_solve() {
     let _ = agreement(&grid, &maps, &exact, 3.0, &creases);
     println!("away from creases:");
     let a_away = agreement(&grid, &maps, &exact, 3.0, &away);
-    // Measured (1024 spp, seed 1; mean relative standard error of the final 0.040): all 2,100
-    // texels 0.9905 within 3σ, relative RMSE 0.0171, indirect power 1.0097 × the exact solve's;
-    // the 1,068 texels near creases 0.9850 / 0.0239; the 1,032 away from them 0.9961 / 0.0134.
-    // The RMSE is the reference's noise (it falls as 1/√spp: 0.0375 at 256 spp, 0.0150 at
-    // 2048 before the roulette was tuned); the brief's 1 % needs ~4,000 spp, beyond a test's
-    // time. The misses concentrate at creases, where the exact solve's near-pair form factors
-    // (sub-sampled squares) differ from the continuous kernel. Bounds: measured + 25 % of the
-    // error.
-    assert!(a_all.within >= 0.988, "all: {:.4} within 3σ", a_all.within);
+    // Measured (1024 spp, seed 1, the first-order light at every vertex; mean relative standard
+    // error of the final 0.024, 0.040 with cosine-sampled bounces alone): all 2,100 texels
+    // 0.9838 within 3σ, relative RMSE 0.0121, indirect power 1.0103 × the exact solve's; the
+    // 1,068 texels near creases 0.9738 / 0.0179; the 1,032 away from them 0.9942 / 0.0086 (the
+    // brief's 1 %). Away from creases the RMSE is the reference's noise (cosine bounces alone:
+    // 0.9905 / 0.0171 all, 0.9961 / 0.0134 away). The misses concentrate at creases, where the
+    // exact solve's near-pair form factors (sub-sampled squares) differ from the continuous
+    // kernel; the less noisy reference shows them more. Bounds: measured + 25 % of the error.
+    assert!(a_all.within >= 0.980, "all: {:.4} within 3σ", a_all.within);
     assert!(
         a_away.within >= 0.99,
         "away from creases: {:.4} within 3σ",
         a_away.within
     );
-    assert!(a_all.rmse < 0.0215, "all: relative RMSE {:.4}", a_all.rmse);
+    assert!(a_all.rmse < 0.0151, "all: relative RMSE {:.4}", a_all.rmse);
     assert!(
-        a_away.rmse < 0.0170,
+        a_away.rmse < 0.0107,
         "away: relative RMSE {:.4}",
         a_away.rmse
     );
@@ -295,6 +295,111 @@ fn reference_is_deterministic_for_a_seed_whatever_the_thread_count() {
         assert_eq!(one, bits(&trace(2, 5)), "{}: same seed", scene.name);
         assert_ne!(one, bits(&trace(2, 6)), "{}: another seed", scene.name);
     }
+}
+
+/// `scene` traced by `estimator` at `spp` paths per texel (radiosity), with the wall time.
+fn trace_estimator(
+    scene: &Scene,
+    grid: &TexelGrid,
+    lights: &[Light],
+    estimator: reference::Estimator,
+    spp: u32,
+    seed: u64,
+) -> (ReferenceMaps, f64) {
+    let (maps, stats) = reference::trace_with_estimator(
+        scene,
+        grid,
+        lights,
+        &settings(spp, seed, RADIOSITY),
+        estimator,
+        &|_, _| {},
+        &AtomicBool::new(false),
+    )
+    .expect("not cancelled");
+    (maps, stats.seconds)
+}
+
+/// The first order sampled as a light (multiple importance sampling with the cosine-sampled
+/// bounce, at every path vertex) estimates the same `B` as cosine-sampled bounces alone:
+/// Cornell 32², the lamp moved ≥ 0.1 m from every surface (so the cosine estimator's standard
+/// error is trustworthy, see [`cornell_64_agrees_with_the_exact_solve`]), independent seeds;
+/// per texel within 3 combined standard errors, and the total power within 4.
+#[test]
+fn first_order_light_agrees_with_cosine_bounces() {
+    let scene = ortm::scene::cornell::cornell_box(32);
+    let grid = TexelGrid::build(&scene).unwrap();
+    let lights = vec![Light::Point {
+        position_m: Vec3::new(0.4, 0.45, 0.2),
+        color: Vec3::ONE,
+        intensity_w_sr: 1.0,
+    }];
+    let (cosine, _) = trace_estimator(
+        &scene,
+        &grid,
+        &lights,
+        reference::Estimator::Cosine,
+        1024,
+        7,
+    );
+    let (light, _) = trace_estimator(
+        &scene,
+        &grid,
+        &lights,
+        reference::Estimator::FirstOrderLight,
+        512,
+        8,
+    );
+    let mut within = 0usize;
+    let (mut dp, mut var_p) = (0.0f64, 0.0f64);
+    for (i, t) in grid.texels.iter().enumerate() {
+        let (a, b) = (cosine.final_b[i], light.final_b[i]);
+        let (sa, sb) = (cosine.std_error[i], light.std_error[i]);
+        let sigma = (sa * sa + sb * sb).powf(0.5);
+        let z = (0..3)
+            .map(|c| (a[c] - b[c]).abs() / sigma[c].max(1e-12))
+            .fold(0.0f32, f32::max);
+        within += usize::from(z <= 3.0);
+        let area = t.area_m2 as f64;
+        dp += area * (b - a).element_sum() as f64;
+        var_p += area * area * (sigma * sigma).element_sum() as f64;
+    }
+    let within = within as f64 / grid.texels.len() as f64;
+    let z_power = dp / var_p.sqrt();
+    println!(
+        "{} texels: within 3σ {within:.4}; total power z {z_power:.2}; noise cosine {:.4}, \
+         first-order light {:.4}",
+        grid.texels.len(),
+        cosine.rms_relative_std_error(&cosine.final_b),
+        light.rms_relative_std_error(&light.final_b)
+    );
+    // Measured (cosine 1,024 spp seed 7, light 512 spp seed 8): 0.9954 within 3σ, total power
+    // z −0.54 (noise 0.0162 and 0.0139); seeds 1, 2: 0.9954, +1.71. Independent Gaussian errors
+    // put the largest of 3 channels within 3σ for ~0.992 of the texels.
+    assert!(within >= 0.99, "{within:.4} of the texels within 3σ");
+    assert!(z_power.abs() < 4.0, "total power differs by {z_power:.2}σ");
+}
+
+/// The case the first-order light is for: Cornell 32² with its own lamp 2 cm under the ceiling
+/// (a small, very bright spot that cosine-sampled bounces rarely find). At equal paths per
+/// texel the RMS relative standard error of the final falls several times.
+#[test]
+fn first_order_light_lowers_the_noise_under_a_lamp_near_the_ceiling() {
+    let scene = ortm::scene::cornell::cornell_box(32);
+    let grid = TexelGrid::build(&scene).unwrap();
+    let spp = 256;
+    let noise = |estimator| {
+        let (m, seconds) = trace_estimator(&scene, &grid, &scene.lights, estimator, spp, 1);
+        let noise = m.rms_relative_std_error(&m.final_b);
+        println!("{estimator:?}: noise {noise:.4} at {spp} spp in {seconds:.1} s");
+        noise
+    };
+    let cosine = noise(reference::Estimator::Cosine);
+    let light = noise(reference::Estimator::FirstOrderLight);
+    // Measured: TODO.
+    assert!(
+        cosine > 4.0 * light,
+        "cosine {cosine:.4}, first-order light {light:.4}"
+    );
 }
 
 /// A raised cancel flag stops the trace with `Cancelled`.

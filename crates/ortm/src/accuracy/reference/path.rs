@@ -11,7 +11,13 @@
 //! A path alternates exitance steps (multiply by ρ, or move to a sampled `y` and multiply by
 //! the profile weight) and irradiance steps (add the direct light `E_direct` by next-event
 //! estimation to every light, the models and lifted shadow rays of [`crate::bake::lighting`];
-//! then one cosine-sampled bounce, whose estimate of `∫ L cosθ dω` is `π·L = B(z)`). Russian
+//! then one cosine-sampled bounce, whose estimate of `∫ L cosθ dω` is `π·L = B(z)`). When the
+//! first order is sampled as a light ([`super::emitters`]), the bounce's integral is split as
+//! `∫ B_o(z)/π cosθ dω + ∫ (B(z) − B_o(z))/π cosθ dω` for opaque `z` (`B_o = ρ·E_direct`, the
+//! exitance step's direct term): the first part gets two samples, one from a point drawn by the
+//! light and one from the bounce, weighted by the balance heuristic
+//! `w = p_technique / (p_cos + p_light)` in solid angle (`p_cos = cosθ/π`,
+//! `p_light = p_A·d²/|cos θ_z|`); the rest comes from the bounce as before. Russian
 //! roulette after [`ROULETTE_AFTER`] bounces, once the throughput is below [`ROULETTE_WEIGHT`],
 //! keeps it unbiased. Positions in metres, `B` and
 //! `E` in W/m², linear RGB.
@@ -20,6 +26,7 @@ use glam::{Vec2, Vec3};
 use rand::RngExt;
 use rand_chacha::ChaCha8Rng;
 
+use super::emitters::FirstOrderLight;
 use super::subsurface::ProfileSampler;
 use crate::bake::lighting::{irradiance_unshadowed_at, light_visible_from};
 use crate::bake::raycast::{RayHit, Visibility};
@@ -94,6 +101,11 @@ pub struct SceneView<'a> {
     rho_bar: Vec<Option<Vec3>>,
     /// Lift of rays leaving a hit point, metres (10⁻⁵ of the scene's bounding radius).
     hit_eps_m: f32,
+    /// The first order as a light, sampled at the first [`SceneView::light_vertices`] path
+    /// vertices (none: cosine-sampled bounces only).
+    light: Option<FirstOrderLight>,
+    /// Path vertices (irradiance steps, from the first) that sample [`SceneView::light`].
+    light_vertices: u32,
 }
 
 /// Counters and scratch space of one worker.
@@ -133,7 +145,27 @@ impl<'a> SceneView<'a> {
                 .map(|p| p.map(|p| p.total_reflectance()))
                 .collect(),
             hit_eps_m: (1e-5 * radius).max(1e-7),
+            light: None,
+            light_vertices: 0,
         }
+    }
+
+    /// Samples the first order as a light (module `emitters`) at the first `vertices`
+    /// irradiance steps of every path, combined with the cosine-sampled bounce by the balance
+    /// heuristic; `vertices = 0` keeps cosine-sampled bounces only.
+    pub fn with_first_order_light(mut self, vertices: u32) -> Self {
+        self.light = None;
+        self.light_vertices = 0;
+        if vertices > 0 && self.effects.radiosity {
+            self.light = FirstOrderLight::build(&self);
+            self.light_vertices = vertices;
+        }
+        self
+    }
+
+    /// The scene.
+    pub fn scene(&self) -> &Scene {
+        self.scene
     }
 
     /// True when paths through material `m` scatter under the surface.
@@ -175,24 +207,28 @@ impl<'a> SceneView<'a> {
     ) -> Vec3 {
         let mut sum = Vec3::ZERO;
         let mut bounce = 0u32;
+        // MIS weight of the first order reached by the last bounce (1: no light sampled there).
+        let mut emitted_weight = 1.0f32;
         loop {
             let q = if at_irradiance {
                 p
             } else {
-                let q = match &self.samplers[p.material as usize] {
+                let (q, weight) = match &self.samplers[p.material as usize] {
                     Some(sampler) => {
                         let Some(y) = self.exit_point(sampler, &p, rng, s) else {
                             break;
                         };
                         t *= y.1;
-                        y.0
+                        (y.0, 1.0)
                     }
                     None => {
                         t *= p.albedo;
-                        p
+                        (p, emitted_weight)
                     }
                 };
-                sum += t * self.direct(&q, s);
+                if weight > 0.0 {
+                    sum += t * weight * self.direct(&q, s);
+                }
                 q
             };
             at_irradiance = false;
@@ -202,6 +238,10 @@ impl<'a> SceneView<'a> {
             if bounce >= MAX_BOUNCES {
                 break;
             }
+            let light = self.light.as_ref().filter(|_| bounce < self.light_vertices);
+            if let Some(light) = light {
+                sum += t * self.first_order_light(light, &q, rng, s);
+            }
             if bounce >= ROULETTE_AFTER && t.max_element() < ROULETTE_WEIGHT {
                 let survive = (t.max_element() / ROULETTE_WEIGHT).max(1e-3);
                 if rng.random::<f32>() >= survive {
@@ -209,13 +249,77 @@ impl<'a> SceneView<'a> {
                 }
                 t /= survive;
             }
-            let Some(z) = self.bounce(&q, rng, s) else {
+            let Some((z, weight)) = self.bounce(&q, light, rng, s) else {
                 break;
             };
             p = z;
+            emitted_weight = weight;
             bounce += 1;
         }
         sum
+    }
+
+    /// The first order reaching `q` from a point drawn by `light` (one shadow ray to it, its
+    /// first order exactly, `ρ·E_direct`), as a sample of `∫ B_o(z)/π cosθ dω`, weighted
+    /// against the cosine-sampled bounce by the balance heuristic:
+    /// `B_o(z)·cosθ / (cosθ + π·p_ω)`, `p_ω = p_A·d²/|cos θ_z|` the light's solid-angle density.
+    /// 0 when the point is hidden, faces away from `q`, lies below `q`'s horizon or is
+    /// translucent (the first order as a light is the opaque surfaces' only).
+    fn first_order_light(
+        &self,
+        light: &FirstOrderLight,
+        q: &SurfacePoint,
+        rng: &mut ChaCha8Rng,
+        s: &mut Scratch,
+    ) -> Vec3 {
+        let y = light.sample(rng);
+        let mesh = &self.scene.mesh;
+        let tri = &mesh.triangles[y.triangle as usize];
+        let b = y.barycentrics;
+        let pos: [Vec3; 3] = std::array::from_fn(|k| mesh.positions_m[tri.position[k] as usize]);
+        let target = pos[0] * b[0] + pos[1] * b[1] + pos[2] * b[2];
+        let origin = q.position_m + q.face_normal * q.eps_m;
+        let Some(dir) = (target - origin).try_normalize() else {
+            return Vec3::ZERO;
+        };
+        let cos_q = q.normal.dot(dir);
+        if cos_q <= 0.0 {
+            return Vec3::ZERO;
+        }
+        s.rays += 1;
+        let Some(hit) = self
+            .vis
+            .closest_triangle_hit(origin, dir, (q.eps_m, FAR_M), q.triangle)
+        else {
+            return Vec3::ZERO;
+        };
+        if hit.triangle != y.triangle {
+            return Vec3::ZERO;
+        }
+        let z = self.point_of_hit(&hit);
+        if z.normal.dot(dir) >= 0.0 || self.translucent(z.material) {
+            return Vec3::ZERO;
+        }
+        let p_omega = self.solid_angle_density(light, &hit, &z, dir);
+        if !p_omega.is_finite() || p_omega <= 0.0 {
+            return Vec3::ZERO;
+        }
+        z.albedo * self.direct(&z, s) * (cos_q / (cos_q + std::f32::consts::PI * p_omega))
+    }
+
+    /// `light`'s density of the direction `dir` that reached `z` at `hit`, sr⁻¹.
+    fn solid_angle_density(
+        &self,
+        light: &FirstOrderLight,
+        hit: &RayHit,
+        z: &SurfacePoint,
+        dir: Vec3,
+    ) -> f32 {
+        let cos_z = z.face_normal.dot(dir).abs();
+        if cos_z <= 0.0 {
+            return f32::INFINITY;
+        }
+        light.pdf_area(hit) * hit.t * hit.t / cos_z
     }
 
     /// Direct irradiance `E_direct` (W/m²) at `p` from every light, with lifted shadow rays.
@@ -236,13 +340,15 @@ impl<'a> SceneView<'a> {
     }
 
     /// A cosine-sampled direction about `q`'s shading normal and the surface it reaches, if
-    /// that surface faces `q`.
+    /// that surface faces `q`; with the balance-heuristic weight of the first order found
+    /// there, `cosθ / (cosθ + π·p_ω)`, when `light` was sampled at `q` (else 1).
     fn bounce(
         &self,
         q: &SurfacePoint,
+        light: Option<&FirstOrderLight>,
         rng: &mut ChaCha8Rng,
         s: &mut Scratch,
-    ) -> Option<SurfacePoint> {
+    ) -> Option<(SurfacePoint, f32)> {
         let (u1, u2): (f32, f32) = (rng.random(), rng.random());
         let (r, phi) = (u1.sqrt(), std::f32::consts::TAU * u2);
         let (t1, t2) = tangent_frame(q.normal);
@@ -254,7 +360,22 @@ impl<'a> SceneView<'a> {
             .vis
             .closest_triangle_hit(origin, dir, (q.eps_m, FAR_M), q.triangle)?;
         let p = self.point_of_hit(&hit);
-        (p.normal.dot(dir) < 0.0).then_some(p)
+        if p.normal.dot(dir) >= 0.0 {
+            return None;
+        }
+        let weight = match light {
+            Some(light) if !self.translucent(p.material) => {
+                let cos_q = q.normal.dot(dir).max(0.0);
+                let p_omega = self.solid_angle_density(light, &hit, &p, dir);
+                if p_omega.is_finite() {
+                    cos_q / (cos_q + std::f32::consts::PI * p_omega)
+                } else {
+                    0.0
+                }
+            }
+            _ => 1.0,
+        };
+        Some((p, weight))
     }
 
     /// The exit point `y` of a subsurface step at `p` and its weight `R_d / pdf`.
