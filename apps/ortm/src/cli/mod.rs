@@ -13,7 +13,7 @@ mod compare;
 mod demo;
 mod inspect;
 mod reference;
-mod render;
+pub(crate) mod render;
 mod solve;
 mod view;
 
