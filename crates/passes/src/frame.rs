@@ -227,7 +227,7 @@ pub struct FrameOutput {
     /// Final lightmap (accumulation format), undilated.
     pub final_lightmap_tex: wgpu::Texture,
     /// The dilated shown lightmap (the final map unless [`FrameOptions::shown`] says
-    /// otherwise).
+    /// otherwise; with per-pixel direct light the transferred light `final − first order`).
     pub dilated_final_tex: wgpu::Texture,
     /// The displayed image (`Rgba8Unorm`, sRGB-encoded values).
     pub color_tex: wgpu::Texture,
