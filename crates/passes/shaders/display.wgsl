@@ -21,7 +21,8 @@
 // (needs FLOAT32_FILTERABLE for RGBA32F maps), *_manual ones textureLoads; the override
 // BICUBIC turns the lightmap lookups (not ρ) into a uniform cubic B-spline (4 bilinear taps,
 // or 16 loads). Without specular the lightmap pipelines use vs_uv (only the UV is
-// interpolated, no light loop); the override SPECULAR switches the direct pipelines' term.
+// interpolated, no light loop); the override SPECULAR switches the direct pipelines' term,
+// SUBSURFACE their diffusion-length split (off: w = 1, no derivatives, no first-order lookup).
 //
 // Bindings (bind-group order = @binding order; must match `DisplayPass` in display.rs):
 //   group 0: 0 = View (uniform), 1 = spec_lights (storage, read; lightmap specular only)
@@ -33,6 +34,7 @@
 
 override BICUBIC: bool = false;
 override SPECULAR: bool = false;
+override SUBSURFACE: bool = false;
 
 const PI: f32 = 3.14159265358979;
 
@@ -319,11 +321,13 @@ fn direct_share(ell: f32, footprint: f32) -> f32 {
 
 @fragment
 fn fs_direct_filtered(in: DirectOut) -> @location(0) vec4<f32> {
-    let footprint = pixel_footprint(in.world);
     let s = filtered_of(surface, in.uv);
-    let w = direct_share(s.a, footprint);
+    var w = 1.0;
+    if (SUBSURFACE) {
+        w = direct_share(s.a, pixel_footprint(in.world));
+    }
     var l = direct_radiance(in.world, in.normal, s.rgb, w);
-    if (w < 1.0) {
+    if (SUBSURFACE && w < 1.0) {
         l += (1.0 - w) * filtered_lookup(first_order_map, in.uv).rgb / PI;
     }
     if (in.direct_only == 0u) {
@@ -334,11 +338,13 @@ fn fs_direct_filtered(in: DirectOut) -> @location(0) vec4<f32> {
 
 @fragment
 fn fs_direct_manual(in: DirectOut) -> @location(0) vec4<f32> {
-    let footprint = pixel_footprint(in.world);
     let s = bilinear_of(surface, in.uv);
-    let w = direct_share(s.a, footprint);
+    var w = 1.0;
+    if (SUBSURFACE) {
+        w = direct_share(s.a, pixel_footprint(in.world));
+    }
     var l = direct_radiance(in.world, in.normal, s.rgb, w);
-    if (w < 1.0) {
+    if (SUBSURFACE && w < 1.0) {
         l += (1.0 - w) * manual_lookup(first_order_map, in.uv).rgb / PI;
     }
     if (in.direct_only == 0u) {

@@ -274,8 +274,8 @@ struct DirectPipelines {
     /// Layers of the uniform arrays the shader was built for (must equal the first-order
     /// pass's `max_shadow_layers`).
     shadow_layers: u32,
-    /// `[specular off, on][both sides, back faces culled]`.
-    pipelines: [[wgpu::RenderPipeline; 2]; 2],
+    /// `[subsurface split off, on][specular off, on][both sides, back faces culled]`.
+    pipelines: [[[wgpu::RenderPipeline; 2]; 2]; 2],
 }
 
 /// Per-scene GPU data.
@@ -339,6 +339,9 @@ pub struct DirectInputs<'a> {
     /// Direct light only (no transferred light) in a single view — the first-order view;
     /// side by side the left half always is, the right half unless this is set.
     pub direct_only: bool,
+    /// Some texel of the surface map has a diffusion length > 0: draw with the
+    /// diffusion-length split (otherwise `w = 1` everywhere, without its cost).
+    pub subsurface: bool,
 }
 
 /// Output of the pass.
@@ -559,8 +562,8 @@ fn cull_back_faces(mesh: &GpuMesh, cam: &Camera, aspect: f32) -> bool {
 
 /// The per-pixel direct light's group 2 layout (`display.wgsl`: shadow.wgsl's bindings 0,
 /// 1, 2, 4, 5, then the surface map 6 and the first-order map 7) and its pipelines
-/// (`vs_direct` + `fs_direct_filtered` / `fs_direct_manual`, the override `SPECULAR` per
-/// row). `(filter, bicubic)`: the lookup and the `BICUBIC` override value.
+/// (`vs_direct` + `fs_direct_filtered` / `fs_direct_manual`, the overrides `SUBSURFACE` and
+/// `SPECULAR` per row). `(filter, bicubic)`: the lookup and the `BICUBIC` override value.
 fn direct_pipelines(
     device: &wgpu::Device,
     module: &wgpu::ShaderModule,
@@ -615,17 +618,23 @@ fn direct_pipelines(
         LightmapFilter::Hardware => "fs_direct_filtered",
         LightmapFilter::Manual => "fs_direct_manual",
     };
-    let pipelines = [0.0, 1.0].map(|specular| {
-        let constants = [("BICUBIC", bicubic), ("SPECULAR", specular)];
-        [None, Some(wgpu::Face::Back)].map(|cull| {
-            display_pipeline(
-                device,
-                &pl,
-                module,
-                ("vs_direct", fs_name),
-                cull,
-                &constants,
-            )
+    let pipelines = [0.0, 1.0].map(|subsurface| {
+        [0.0, 1.0].map(|specular| {
+            let constants = [
+                ("BICUBIC", bicubic),
+                ("SPECULAR", specular),
+                ("SUBSURFACE", subsurface),
+            ];
+            [None, Some(wgpu::Face::Back)].map(|cull| {
+                display_pipeline(
+                    device,
+                    &pl,
+                    module,
+                    ("vs_direct", fs_name),
+                    cull,
+                    &constants,
+                )
+            })
         })
     });
     DirectPipelines {
@@ -828,9 +837,9 @@ impl DisplayPass {
             half_w as f32 / h as f32,
         ));
         let specular_on = usize::from(inputs.specular.is_some());
-        match (&direct_group, &self.direct) {
-            (Some(group), Some(d)) => {
-                pass.set_pipeline(&d.pipelines[specular_on][cull]);
+        match (&direct_group, &self.direct, &inputs.direct) {
+            (Some(group), Some(d), Some(di)) => {
+                pass.set_pipeline(&d.pipelines[usize::from(di.subsurface)][specular_on][cull]);
                 pass.set_bind_group(2, group, &[]);
             }
             _ => pass.set_pipeline(&self.pipelines[specular_on][cull]),

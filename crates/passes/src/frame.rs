@@ -420,6 +420,7 @@ impl Renderer {
                 surface: &surface,
                 first_order_map: left.as_ref().unwrap_or(&fo_view),
                 direct_only: matches!(options.shown, Shown::FirstOrder),
+                subsurface: scene.subsurface,
             });
             let inputs = DisplayInputs {
                 scene: &scene.display,
