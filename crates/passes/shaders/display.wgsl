@@ -14,7 +14,8 @@
 //   final − first order; left out when the instance index is 1: the side-by-side left half
 //   and the first-order view), and w = clamp(1 − ℓ/footprint, 0, 1) the share of per-pixel
 //   direct light (1 on diffuse surfaces, ℓ = 0; 0 on subsurface ones whose diffusion length
-//   exceeds the pixel's footprint on the surface, which keep the lightmap's diffused light).
+//   exceeds the pixel's footprint on the surface, which keep the lightmap's diffused light;
+//   the direct-only view shows the unscattered first order, so w = 1 there).
 // Then exposure, Reinhard L/(1+L) per channel, sRGB encoding, written to an Rgba8Unorm target.
 //
 // Lookups between texel centres: *_filtered entry points use the sampler's bilinear filter
@@ -324,7 +325,8 @@ fn fs_direct_filtered(in: DirectOut) -> @location(0) vec4<f32> {
     let s = filtered_of(surface, in.uv);
     var w = 1.0;
     if (SUBSURFACE) {
-        w = direct_share(s.a, pixel_footprint(in.world));
+        // The direct-only view shows the unscattered first order: per pixel everywhere.
+        w = select(direct_share(s.a, pixel_footprint(in.world)), 1.0, in.direct_only != 0u);
     }
     var l = direct_radiance(in.world, in.normal, s.rgb, w);
     if (SUBSURFACE && w < 1.0) {
@@ -341,7 +343,8 @@ fn fs_direct_manual(in: DirectOut) -> @location(0) vec4<f32> {
     let s = bilinear_of(surface, in.uv);
     var w = 1.0;
     if (SUBSURFACE) {
-        w = direct_share(s.a, pixel_footprint(in.world));
+        // The direct-only view shows the unscattered first order: per pixel everywhere.
+        w = select(direct_share(s.a, pixel_footprint(in.world)), 1.0, in.direct_only != 0u);
     }
     var l = direct_radiance(in.world, in.normal, s.rgb, w);
     if (SUBSURFACE && w < 1.0) {

@@ -34,7 +34,8 @@
 //!   (which the subsurface transfer redistributes) takes over where the diffusion length
 //!   exceeds the footprint, so scattering keeps its soft shadow edges and the total stays
 //!   the lightmap solution's. The specular term is shadowed here. The first-order view and
-//!   the left half of side-by-side show the direct light alone (`T` left out).
+//!   the left half of side-by-side show the direct light alone (`T` left out), per pixel on
+//!   every surface (`w = 1`: the first order is unscattered light).
 //! - Then `L·exposure`, Reinhard `x/(1+x)` per channel, sRGB encoding.
 //!
 //! # Lightmap filter

@@ -112,7 +112,8 @@ pub struct PixelMaps<'a> {
 /// Radiance (W/(m²·sr)) a pixel shows with per-pixel direct light (`fs_direct_*` in
 /// display.wgsl, without specular): `w·ρ·E/π + (1 − w)·B_o/π + T/π`, with `E` the irradiance
 /// of `lights` at the pixel's surface point scaled by `visibility(light index)` (1 lit, 0
-/// shadowed), ρ bilinear from the surface map, `w` = [`direct_share`].
+/// shadowed), ρ bilinear from the surface map, `w` = [`direct_share`] (1 without the
+/// transferred map: the direct-only view).
 pub fn pixel_radiance(
     lights: &[GpuLight],
     px: &PixelSurface,
@@ -122,7 +123,12 @@ pub fn pixel_radiance(
     let pi = std::f32::consts::PI;
     let n = px.normal.normalize();
     let s = bilinear_rgba(maps.surface, px.uv);
-    let w = direct_share(s[3], px.footprint_m);
+    // The direct-only view is the unscattered first order: per pixel everywhere.
+    let w = if maps.transferred.is_some() {
+        direct_share(s[3], px.footprint_m)
+    } else {
+        1.0
+    };
     let mut e = Vec3::ZERO;
     for (i, l) in lights.iter().enumerate() {
         let (to_light, e_n) = light_incident(l, px.position);
