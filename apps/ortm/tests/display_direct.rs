@@ -24,7 +24,7 @@ use ortm::bake::transport::{Effects, Transport};
 use ortm::bake::{BakeEvent, bake_maps};
 use ortm::render;
 use ortm::scene::{Light, Scene};
-use passes::cpu::display::{PixelMaps, PixelSurface, pixel_radiance, srgb_encode_exact};
+use passes::cpu::display::{PixelMaps, PixelSurface, pixel_radiance};
 use passes::display::{Camera, DirectLight, DisplayOptions, LightmapSampling};
 use passes::first_order::FirstOrderOptions;
 use passes::frame::{FrameOptions, FrameParams, RenderScene, Renderer, RendererOptions, Shown};
@@ -112,7 +112,8 @@ fn prepare(
     rs
 }
 
-/// `ortm render`'s diffusion lengths (longest `1/σ_tr` of a subsurface material, per texel).
+/// `ortm render`'s diffusion lengths (longest `1/σ_tr` of a subsurface material, per texel;
+/// the same rule as `cli::render::diffusion_lengths`, which lives in the binary).
 fn diffusion_lengths(scene: &Scene, grid: &TexelGrid) -> Option<Vec<f32>> {
     let per_material: Vec<f32> = scene
         .materials
@@ -189,7 +190,6 @@ fn byte_interval(b: u8, exposure: f32) -> (f32, f32) {
         };
         lin / (1.0 - lin) / exposure
     };
-    let _ = srgb_encode_exact;
     (inv((b as f32 - 0.5) / 255.0), inv((b as f32 + 0.5) / 255.0))
 }
 
@@ -316,6 +316,64 @@ fn cornell_three_lights(size: u32) -> Scene {
 /// below the measured counts).
 const SHADOWED_LEAST: [usize; 3] = [253, 48, 2572];
 
+/// Every pixel of `img` away from edges ([`near_edge`]) against the CPU mirror at its hit
+/// point with the ray-cast light mask; returns the pixels compared, per light the compared
+/// pixels in its shadow, and the worst relative excess over the GPU byte's interval.
+fn compare_with_mirror(
+    img: &image::RgbaImage,
+    exposure: f32,
+    hits: &[Option<Hit>],
+    masks: &[u32],
+    lights: &[passes::first_order::GpuLight],
+    maps: &PixelMaps<'_>,
+) -> (usize, [usize; 3], f32) {
+    let (img_size, _) = img.dimensions();
+    let (mut compared, mut shadowed, mut worst) = (0usize, [0usize; 3], 0f32);
+    for y in 0..img_size {
+        for x in 0..img_size {
+            if near_edge(hits, masks, img_size, img_size, x, y) {
+                continue;
+            }
+            let i = (y * img_size + x) as usize;
+            let hit = hits[i].unwrap();
+            let m = masks[i];
+            let want = pixel_radiance(lights, &hit.surface, maps, |l| ((m >> l) & 1) as f32);
+            let got = img.get_pixel(x, y);
+            compared += 1;
+            for (l, light) in lights.iter().enumerate() {
+                let s = &hit.surface;
+                let e =
+                    passes::cpu::first_order::unshadowed_irradiance(light, s.position, s.normal);
+                shadowed[l] += usize::from(e.max_element() > 0.0 && (m >> l) & 1 == 0);
+            }
+            for c in 0..3 {
+                // The GPU's value rounds to a byte: the CPU radiance must lie within that
+                // byte's interval, widened for the f32 interpolation of position, normal and
+                // albedo (rasteriser vs ray-cast barycentrics): measured worst 1.14e-3
+                // relative on lavapipe, bound 1.5e-3. Without shadows, or with a light
+                // dropped, pixels fail by far.
+                let (lo, hi) = byte_interval(got.0[c], exposure);
+                let err = if want[c] < lo {
+                    (lo - want[c]) / want[c].max(1e-6)
+                } else if want[c] > hi {
+                    (want[c] - hi) / want[c].max(1e-6)
+                } else {
+                    0.0
+                };
+                worst = worst.max(err);
+                assert!(
+                    err <= 1.5e-3,
+                    "pixel ({x}, {y}) ch {c}: GPU byte {} (radiance {lo:.4e}..{hi:.4e}) vs CPU \
+                     {:.4e} (mask {m:b})",
+                    got.0[c],
+                    want[c]
+                );
+            }
+        }
+    }
+    (compared, shadowed, worst)
+}
+
 #[test]
 fn per_pixel_direct_matches_ray_cast_mirror_away_from_edges() {
     let gpu = gpu();
@@ -354,52 +412,13 @@ fn per_pixel_direct_matches_ray_cast_mirror_away_from_edges() {
     };
     let hits = cast_pixels(&scene, &cam, (img_size, img_size));
     let masks = light_masks(&scene, &hits);
-    let (mut compared, mut shadowed, mut worst) = (0usize, [0usize; 3], 0f32);
-    for y in 0..img_size {
-        for x in 0..img_size {
-            if near_edge(&hits, &masks, img_size, img_size, x, y) {
-                continue;
-            }
-            let i = (y * img_size + x) as usize;
-            let hit = hits[i].unwrap();
-            let m = masks[i];
-            let want = pixel_radiance(&lights, &hit.surface, &maps, |l| ((m >> l) & 1) as f32);
-            let got = img.get_pixel(x, y);
-            compared += 1;
-            for (l, light) in lights.iter().enumerate() {
-                let s = &hit.surface;
-                let e =
-                    passes::cpu::first_order::unshadowed_irradiance(light, s.position, s.normal);
-                shadowed[l] += usize::from(e.max_element() > 0.0 && (m >> l) & 1 == 0);
-            }
-            for c in 0..3 {
-                // The GPU's value rounds to a byte: the CPU radiance must lie within that
-                // byte's interval, widened by 1 % for f32 interpolation of position, normal
-                // and albedo (measured worst: see the print).
-                let (lo, hi) = byte_interval(got.0[c], exposure);
-                let err = if want[c] < lo {
-                    (lo - want[c]) / want[c].max(1e-6)
-                } else if want[c] > hi {
-                    (want[c] - hi) / want[c].max(1e-6)
-                } else {
-                    0.0
-                };
-                worst = worst.max(err);
-                assert!(
-                    err <= 0.01,
-                    "pixel ({x}, {y}) ch {c}: GPU byte {} (radiance {lo:.4e}..{hi:.4e}) vs CPU \
-                     {:.4e} (mask {m:b})",
-                    got.0[c],
-                    want[c]
-                );
-            }
-        }
-    }
+    let (compared, shadowed, worst) =
+        compare_with_mirror(&img, exposure, &hits, &masks, &lights, &maps);
     eprintln!(
         "per-pixel direct vs ray-cast mirror: {compared} pixels compared, in shadow of each \
          light {shadowed:?}; worst relative excess over the byte interval {worst:.2e}"
     );
-    // Measured: 8,949 pixels compared, worst excess 1.1e-3 (the 1 % above is the bound);
+    // Measured: 8,949 pixels compared, worst excess 1.14e-3 (bound 1.5e-3 above);
     // counts 20 % below the measured ones, so each light's shadows are compared too.
     assert!(compared >= 7159, "only {compared} pixels compared");
     for (l, (&got, least)) in shadowed.iter().zip(SHADOWED_LEAST).enumerate() {
@@ -417,13 +436,11 @@ fn per_pixel_direct_matches_ray_cast_mirror_away_from_edges() {
 fn edge_width(
     img: &image::RgbaImage,
     exposure: f32,
-    scene: &Scene,
     lit: &[Option<Vec3>],
     hits: &[Option<Hit>],
     masks: &[u32],
 ) -> f64 {
     let (w, h) = img.dimensions();
-    let _ = scene;
     let (mut between, mut boundary) = (0usize, 0usize);
     for y in 1..h - 1 {
         for x in 1..w - 1 {
@@ -495,7 +512,7 @@ fn shadow_edge_width_does_not_follow_lightmap_texels() {
                     })
                 })
                 .collect();
-            let wpx = edge_width(&img, exposure, &scene, &lit, &hits, &masks);
+            let wpx = edge_width(&img, exposure, &lit, &hits, &masks);
             eprintln!("{direct:?}, lightmap {size}²: shadow edge width {wpx:.3} px");
             widths.push(wpx);
         }
