@@ -690,6 +690,7 @@ fn shadow_edge_pixels(
                 exposure: 1e6,
                 lights: &[],
                 specular: None,
+                direct: None,
             },
         )
         .unwrap();
@@ -707,6 +708,9 @@ fn reference_frame_matches_stored_png() {
         width: 256,
         height: 128,
         side_by_side: true,
+        // The paper's display (lightmaps), as the stored reference was made.
+        direct: passes::display::DirectLight::Lightmap,
+        ..Default::default()
     };
     let r = renderer(&gpu, &scene, 512, display);
     let rs = r

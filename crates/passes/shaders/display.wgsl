@@ -1,19 +1,41 @@
 // Display pass: the mesh textured with a lightmap, seen by a perspective camera.
-// (lights.wgsl is prepended.) Mirror: src/cpu/display.rs. Host side: src/display.rs.
+// (lights.wgsl and shadow.wgsl, the latter for bind group 2, are prepended.) Mirror:
+// src/cpu/display.rs. Host side: src/display.rs.
 //
-// Radiance L = B/π (B: lightmap radiosity, W/m², bilinear between texel centres) plus an
-// optional unshadowed Blinn-Phong specular term; then exposure, Reinhard L/(1+L) per
-// channel, sRGB encoding, written to an Rgba8Unorm target.
+// Two ways to light a pixel:
+// - lightmap (fs_filtered*, fs_manual*; the paper's display): L = B/π, B the lightmap's
+//   radiosity (W/m²) looked up between texel centres, plus an optional unshadowed
+//   Blinn-Phong specular term;
+// - per-pixel direct (fs_direct_filtered, fs_direct_manual, vertex shader vs_direct):
+//   L = w·ρ·E/π + (1 − w)·B_o/π + T/π (+ shadowed specular), with E the shadowed irradiance
+//   of every light at the pixel's own surface point and normal (shadow.wgsl: the first-order
+//   pass's shadow maps, 2×2 PCF, normal offset), ρ and the diffusion length ℓ from the
+//   `surface` map, B_o the first-order lightmap, T the bound lightmap (the transferred light
+//   final − first order; left out when the instance index is 1: the side-by-side left half
+//   and the first-order view), and w = clamp(1 − ℓ/footprint, 0, 1) the share of per-pixel
+//   direct light (1 on diffuse surfaces, ℓ = 0; 0 on subsurface ones whose diffusion length
+//   exceeds the pixel's footprint on the surface, which keep the lightmap's diffused light;
+//   the direct-only view shows the unscattered first order, so w = 1 there).
+// Then exposure, Reinhard L/(1+L) per channel, sRGB encoding, written to an Rgba8Unorm target.
 //
-// Entry points: lookup fs_filtered* (the sampler's bilinear filter; needs FLOAT32_FILTERABLE
-// for RGBA32F lightmaps) or fs_manual* (four textureLoads); without specular vs_uv +
-// fs_filtered / fs_manual (only the UV is interpolated and there is no light loop), with it
-// vs_main + fs_filtered_specular / fs_manual_specular.
+// Lookups between texel centres: *_filtered entry points use the sampler's bilinear filter
+// (needs FLOAT32_FILTERABLE for RGBA32F maps), *_manual ones textureLoads; the override
+// BICUBIC turns the lightmap lookups (not ρ) into a uniform cubic B-spline (4 bilinear taps,
+// or 16 loads). Without specular the lightmap pipelines use vs_uv (only the UV is
+// interpolated, no light loop); the override SPECULAR switches the direct pipelines' term,
+// SUBSURFACE their diffusion-length split (off: w = 1, no derivatives, no first-order lookup).
 //
 // Bindings (bind-group order = @binding order; must match `DisplayPass` in display.rs):
-//   group 0: 0 = View (uniform), 1 = lights (storage, read)
-//   group 1: 0 = lightmap (float texture), 1 = bilinear clamp-to-edge sampler (fs_filtered
+//   group 0: 0 = View (uniform), 1 = spec_lights (storage, read; lightmap specular only)
+//   group 1: 0 = lightmap (float texture), 1 = bilinear clamp-to-edge sampler (*_filtered
 //            only)
+//   group 2 (per-pixel direct only): shadow.wgsl's 0 = params, 1 = lights, 2 = layer
+//            matrices, 4 = shadow maps, 5 = comparison sampler; 6 = surface (RGBA32F: ρ, ℓ in
+//            metres; dilated), 7 = first-order lightmap (dilated)
+
+override BICUBIC: bool = false;
+override SPECULAR: bool = false;
+override SUBSURFACE: bool = false;
 
 const PI: f32 = 3.14159265358979;
 
@@ -31,9 +53,11 @@ struct View {
 }
 
 @group(0) @binding(0) var<uniform> view: View;
-@group(0) @binding(1) var<storage, read> lights: array<GpuLight>;
+@group(0) @binding(1) var<storage, read> spec_lights: array<GpuLight>;
 @group(1) @binding(0) var lightmap: texture_2d<f32>;
 @group(1) @binding(1) var lightmap_sampler: sampler;
+@group(2) @binding(6) var surface: texture_2d<f32>;
+@group(2) @binding(7) var first_order_map: texture_2d<f32>;
 
 // Vertex layout: must match `Vertex` in first_order.rs (32 bytes).
 struct VertexIn {
@@ -70,27 +94,113 @@ fn vs_uv(v: VertexIn) -> UvOut {
     return UvOut(view.view_proj * vec4<f32>(v.position, 1.0), v.uv);
 }
 
-// Bilinear lookup between texel centres: texel (x, y) has centre u = (x+0.5)/W,
-// v = 1 − (y+0.5)/H; coordinates clamp at the map border.
-fn bilinear(uv: vec2<f32>) -> vec3<f32> {
+// Texel-space coordinates of a UV: texel (x, y) has centre u = (x+0.5)/W, v = 1 − (y+0.5)/H,
+// so texel centres land on integers.
+fn texel_coords(uv: vec2<f32>) -> vec2<f32> {
     let size = vec2<f32>(view.lightmap_size);
-    let st = vec2<f32>(uv.x * size.x, (1.0 - uv.y) * size.y) - 0.5;
+    return vec2<f32>(uv.x * size.x, (1.0 - uv.y) * size.y) - 0.5;
+}
+
+// textureLoad with the coordinates clamped into the map.
+fn load_clamped(t: texture_2d<f32>, i: vec2<i32>) -> vec4<f32> {
+    let hi = vec2<i32>(view.lightmap_size) - 1;
+    return textureLoad(t, clamp(i, vec2<i32>(0), hi), 0);
+}
+
+// Bilinear lookup between texel centres; coordinates clamp at the map border.
+fn bilinear_of(t: texture_2d<f32>, uv: vec2<f32>) -> vec4<f32> {
+    let st = texel_coords(uv);
     let i0 = floor(st);
     let f = st - i0;
-    let hi = vec2<i32>(view.lightmap_size) - 1;
-    let a = clamp(vec2<i32>(i0), vec2<i32>(0), hi);
-    let b = clamp(vec2<i32>(i0) + 1, vec2<i32>(0), hi);
-    let c00 = textureLoad(lightmap, vec2<i32>(a.x, a.y), 0).rgb;
-    let c10 = textureLoad(lightmap, vec2<i32>(b.x, a.y), 0).rgb;
-    let c01 = textureLoad(lightmap, vec2<i32>(a.x, b.y), 0).rgb;
-    let c11 = textureLoad(lightmap, vec2<i32>(b.x, b.y), 0).rgb;
+    let a = vec2<i32>(i0);
+    let c00 = load_clamped(t, a);
+    let c10 = load_clamped(t, a + vec2<i32>(1, 0));
+    let c01 = load_clamped(t, a + vec2<i32>(0, 1));
+    let c11 = load_clamped(t, a + vec2<i32>(1, 1));
     return mix(mix(c00, c10, f.x), mix(c01, c11, f.x), f.y);
 }
 
+// Uniform cubic B-spline weights of the texels at offsets −1, 0, 1, 2 from floor(st), for
+// the fraction f (per axis). They sum to 1 and are ≥ 0: a smoothing (not interpolating)
+// filter that never over- or undershoots, so it cannot ring at chart borders.
+struct BsplineWeights {
+    w0: vec2<f32>,
+    w1: vec2<f32>,
+    w2: vec2<f32>,
+    w3: vec2<f32>,
+}
+
+fn bspline_weights(f: vec2<f32>) -> BsplineWeights {
+    let f2 = f * f;
+    let f3 = f2 * f;
+    let g = 1.0 - f;
+    var w: BsplineWeights;
+    w.w0 = g * g * g / 6.0;
+    w.w1 = (4.0 - 6.0 * f2 + 3.0 * f3) / 6.0;
+    w.w2 = (1.0 + 3.0 * f + 3.0 * f2 - 3.0 * f3) / 6.0;
+    w.w3 = f3 / 6.0;
+    return w;
+}
+
+// Cubic B-spline lookup by 16 clamped loads.
+fn bicubic_of(t: texture_2d<f32>, uv: vec2<f32>) -> vec4<f32> {
+    let st = texel_coords(uv);
+    let i0 = floor(st);
+    let w = bspline_weights(st - i0);
+    let wx = array<f32, 4>(w.w0.x, w.w1.x, w.w2.x, w.w3.x);
+    let wy = array<f32, 4>(w.w0.y, w.w1.y, w.w2.y, w.w3.y);
+    let a = vec2<i32>(i0) - 1;
+    var out = vec4<f32>(0.0);
+    for (var j = 0; j < 4; j++) {
+        var row = vec4<f32>(0.0);
+        for (var i = 0; i < 4; i++) {
+            row += wx[i] * load_clamped(t, a + vec2<i32>(i, j));
+        }
+        out += wy[j] * row;
+    }
+    return out;
+}
+
 // Bilinear lookup by the sampler: texture coordinates (u, 1 − v) put texel (x, y)'s centre
-// where `bilinear` has it; clamp-to-edge clamps like `bilinear`'s index clamping.
-fn filtered(uv: vec2<f32>) -> vec3<f32> {
-    return textureSampleLevel(lightmap, lightmap_sampler, vec2<f32>(uv.x, 1.0 - uv.y), 0.0).rgb;
+// where `bilinear_of` has it; clamp-to-edge clamps like its index clamping.
+fn filtered_of(t: texture_2d<f32>, uv: vec2<f32>) -> vec4<f32> {
+    return textureSampleLevel(t, lightmap_sampler, vec2<f32>(uv.x, 1.0 - uv.y), 0.0);
+}
+
+// Cubic B-spline lookup by four bilinear taps: per axis the weight pairs (w0, w1) and
+// (w2, w3) become one tap each, at the position between the two texels that the bilinear
+// filter weighs in the ratio w1 : w0 (resp. w3 : w2). Clamp-to-edge clamps like the loads.
+fn bicubic_filtered_of(t: texture_2d<f32>, uv: vec2<f32>) -> vec4<f32> {
+    let size = vec2<f32>(view.lightmap_size);
+    let st = texel_coords(uv);
+    let i0 = floor(st);
+    let w = bspline_weights(st - i0);
+    let g0 = w.w0 + w.w1;
+    let g1 = w.w2 + w.w3;
+    // Tap positions in texel space (centres at integers), then texture coordinates.
+    let p0 = (i0 - 1.0 + w.w1 / g0 + 0.5) / size;
+    let p1 = (i0 + 1.0 + w.w3 / g1 + 0.5) / size;
+    let s00 = textureSampleLevel(t, lightmap_sampler, vec2<f32>(p0.x, p0.y), 0.0);
+    let s10 = textureSampleLevel(t, lightmap_sampler, vec2<f32>(p1.x, p0.y), 0.0);
+    let s01 = textureSampleLevel(t, lightmap_sampler, vec2<f32>(p0.x, p1.y), 0.0);
+    let s11 = textureSampleLevel(t, lightmap_sampler, vec2<f32>(p1.x, p1.y), 0.0);
+    return g0.y * (g0.x * s00 + g1.x * s10) + g1.y * (g0.x * s01 + g1.x * s11);
+}
+
+// A lightmap lookup with loads: bilinear, or the B-spline when BICUBIC.
+fn manual_lookup(t: texture_2d<f32>, uv: vec2<f32>) -> vec4<f32> {
+    if (BICUBIC) {
+        return bicubic_of(t, uv);
+    }
+    return bilinear_of(t, uv);
+}
+
+// A lightmap lookup with the sampler: bilinear, or the B-spline when BICUBIC.
+fn filtered_lookup(t: texture_2d<f32>, uv: vec2<f32>) -> vec4<f32> {
+    if (BICUBIC) {
+        return bicubic_filtered_of(t, uv);
+    }
+    return filtered_of(t, uv);
 }
 
 // Linear → sRGB transfer function (IEC 61966-2-1) to within 0.012/255: above the linear
@@ -114,7 +224,7 @@ fn specular(world: vec3<f32>, normal: vec3<f32>) -> vec3<f32> {
     let s = view.specular.y;
     var out = vec3<f32>(0.0);
     for (var i = 0u; i < view.light_count; i++) {
-        let inc = light_incident(lights[i], world);
+        let inc = light_incident(spec_lights[i], world);
         let cos_i = dot(n, inc.to_light);
         if (cos_i > 0.0) {
             let h = normalize(inc.to_light + to_eye);
@@ -133,20 +243,115 @@ fn display(radiance: vec3<f32>) -> vec4<f32> {
 
 @fragment
 fn fs_filtered(in: UvOut) -> @location(0) vec4<f32> {
-    return display(filtered(in.uv) / PI);
+    return display(filtered_lookup(lightmap, in.uv).rgb / PI);
 }
 
 @fragment
 fn fs_manual(in: UvOut) -> @location(0) vec4<f32> {
-    return display(bilinear(in.uv) / PI);
+    return display(manual_lookup(lightmap, in.uv).rgb / PI);
 }
 
 @fragment
 fn fs_filtered_specular(in: VertexOut) -> @location(0) vec4<f32> {
-    return display(filtered(in.uv) / PI + specular(in.world, in.normal));
+    return display(filtered_lookup(lightmap, in.uv).rgb / PI + specular(in.world, in.normal));
 }
 
 @fragment
 fn fs_manual_specular(in: VertexOut) -> @location(0) vec4<f32> {
-    return display(bilinear(in.uv) / PI + specular(in.world, in.normal));
+    return display(manual_lookup(lightmap, in.uv).rgb / PI + specular(in.world, in.normal));
+}
+
+// ---- Per-pixel direct light ----
+
+struct DirectOut {
+    @builtin(position) clip: vec4<f32>,
+    @location(0) world: vec3<f32>,
+    @location(1) normal: vec3<f32>,
+    @location(2) uv: vec2<f32>,
+    // 0: add the bound lightmap (transferred light); 1: direct light only.
+    @location(3) @interpolate(flat) direct_only: u32,
+}
+
+@vertex
+fn vs_direct(v: VertexIn, @builtin(instance_index) instance: u32) -> DirectOut {
+    var out: DirectOut;
+    out.clip = view.view_proj * vec4<f32>(v.position, 1.0);
+    out.world = v.position;
+    out.normal = v.normal;
+    out.uv = v.uv;
+    out.direct_only = instance;
+    return out;
+}
+
+// Per-pixel direct radiance of the lights at p (normal n, interpolated): ρ·E/π with shadowed
+// irradiance E (shadow.wgsl) times the share w, plus (SPECULAR) the normalised Blinn-Phong
+// term k_s·(s+8)/(8π)·(n·h)^s·E, shadowed too. W/(m²·sr).
+fn direct_radiance(p: vec3<f32>, normal: vec3<f32>, rho: vec3<f32>, w: f32) -> vec3<f32> {
+    let n = normalize(normal);
+    if (!SPECULAR) {
+        return (w * rho / PI) * shadowed_irradiance(p, n);
+    }
+    let to_eye = normalize(view.eye_exposure.xyz - p);
+    let s = view.specular.y;
+    var e = vec3<f32>(0.0);
+    var spec = vec3<f32>(0.0);
+    for (var i = 0u; i < params.light_count; i++) {
+        let light = lights[i];
+        let inc = light_incident(light, p);
+        let cos_i = dot(n, inc.to_light);
+        if (cos_i > 0.0 && any(inc.e_normal > vec3<f32>(0.0))) {
+            let e_light = inc.e_normal * cos_i * shadow_visibility(light, p, n);
+            e += e_light;
+            let h = normalize(inc.to_light + to_eye);
+            spec += e_light * (view.specular.x * (s + 8.0) / (8.0 * PI) * pow(max(dot(n, h), 0.0), s));
+        }
+    }
+    return (w * rho / PI) * e + spec;
+}
+
+// The larger side of the pixel's footprint on the surface, metres (screen-space derivatives
+// of the interpolated world position).
+fn pixel_footprint(world: vec3<f32>) -> f32 {
+    return max(length(dpdx(world)), length(dpdy(world)));
+}
+
+// Share of per-pixel direct light for diffusion length ell (m) and footprint (m).
+fn direct_share(ell: f32, footprint: f32) -> f32 {
+    return clamp(1.0 - ell / max(footprint, 1e-12), 0.0, 1.0);
+}
+
+@fragment
+fn fs_direct_filtered(in: DirectOut) -> @location(0) vec4<f32> {
+    let s = filtered_of(surface, in.uv);
+    var w = 1.0;
+    if (SUBSURFACE) {
+        // The direct-only view shows the unscattered first order: per pixel everywhere.
+        w = select(direct_share(s.a, pixel_footprint(in.world)), 1.0, in.direct_only != 0u);
+    }
+    var l = direct_radiance(in.world, in.normal, s.rgb, w);
+    if (SUBSURFACE && w < 1.0) {
+        l += (1.0 - w) * filtered_lookup(first_order_map, in.uv).rgb / PI;
+    }
+    if (in.direct_only == 0u) {
+        l += filtered_lookup(lightmap, in.uv).rgb / PI;
+    }
+    return display(l);
+}
+
+@fragment
+fn fs_direct_manual(in: DirectOut) -> @location(0) vec4<f32> {
+    let s = bilinear_of(surface, in.uv);
+    var w = 1.0;
+    if (SUBSURFACE) {
+        // The direct-only view shows the unscattered first order: per pixel everywhere.
+        w = select(direct_share(s.a, pixel_footprint(in.world)), 1.0, in.direct_only != 0u);
+    }
+    var l = direct_radiance(in.world, in.normal, s.rgb, w);
+    if (SUBSURFACE && w < 1.0) {
+        l += (1.0 - w) * manual_lookup(first_order_map, in.uv).rgb / PI;
+    }
+    if (in.direct_only == 0u) {
+        l += manual_lookup(lightmap, in.uv).rgb / PI;
+    }
+    return display(l);
 }

@@ -1,51 +1,88 @@
-//! Display pass: the mesh textured with a lightmap, seen through a perspective camera,
-//! tonemapped into an offscreen RGBA8 image; optionally the paper's side-by-side layout
-//! (first-order | final, Sec. 5.3). `shaders/display.wgsl` (+ `shaders/lights.wgsl`),
-//! mirror [`crate::cpu::display`].
+//! Display pass: the mesh seen through a perspective camera, lit per pixel by the lights
+//! (with the first-order pass's shadow maps) plus the transferred light from the lightmap,
+//! or textured with a lightmap as the paper displays it; tonemapped into an offscreen RGBA8
+//! image, optionally side by side (first order | final, Sec. 5.3).
+//! `shaders/display.wgsl` (+ `shaders/lights.wgsl`, `shaders/shadow.wgsl`), mirror
+//! [`crate::cpu::display`].
 //!
 //! # Data flow
 //! [`DisplayPass::prepare_mesh`] takes the uploaded mesh ([`GpuMesh`], shared with the
 //! first-order pass) and allocates the colour (`Rgba8Unorm`, linear storage of sRGB-encoded
-//! values) and depth targets. [`DisplayPass::encode`] writes
-//! the [`DisplayView`] uniform and draws the mesh once (or twice, into the left and right
-//! halves, for side-by-side). [`crate::gpu::Gpu::read_rgba8`] reads the image back.
+//! values) and depth targets. [`DisplayPass::encode`] writes the [`DisplayView`] uniform and
+//! draws the mesh once (or twice, into the left and right halves, for side-by-side).
+//! [`crate::gpu::Gpu::read_rgba8`] reads the image back. The frame script
+//! ([`crate::frame::Renderer`]) feeds it: per-pixel direct light ([`DirectInputs`]) binds the
+//! first-order scene's lights, layer matrices and shadow maps of this frame, the
+//! [`surface_map`] (albedo ρ and diffusion length ℓ per texel, dilated once per scene), the
+//! dilated first-order map, and as the lightmap the dilated *transferred* light
+//! `T = final − first order` ([`crate::indirect`]).
 //!
 //! # Shading and units
-//! `B` (W/m², radiosity) is looked up bilinearly between texel centres, turned into
-//! radiance `L = B/π` (W/(m²·sr)); the optional specular adds normalised Blinn-Phong
-//! `k_s·(s+8)/(8π)·(n·h)^s·E` per light, *unshadowed* (the shadow maps belong to the
-//! first-order pass). Then `L·exposure`, Reinhard `x/(1+x)` per channel, sRGB encoding.
+//! - Lightmap display ([`DirectLight::Lightmap`], `--direct lightmap`): `B` (W/m², radiosity)
+//!   is looked up between texel centres and turned into radiance `L = B/π` (W/(m²·sr)); the
+//!   optional specular adds normalised Blinn-Phong `k_s·(s+8)/(8π)·(n·h)^s·E` per light,
+//!   unshadowed.
+//! - Per-pixel direct light ([`DirectLight::PerPixel`], the default):
+//!   `L = w·ρ·E/π + (1 − w)·B_o/π + T/π`, `E` the irradiance of every point, spot and
+//!   directional light at the pixel's interpolated surface point and normal, shadowed by the
+//!   same lookup as the first-order texels (`shadow.wgsl`: 2×2 hardware PCF; normal offset
+//!   of `FirstOrderOptions::normal_offset_texels` shadow texels, 1.5 by default, plus the
+//!   shadow pass's slope-scaled depth bias 2.0 — see `docs/render.md`, *Shadows*); ρ bilinear
+//!   from the surface map. `w = clamp(1 − ℓ/f, 0, 1)` with `f` the larger side of the
+//!   pixel's footprint on the surface (screen derivatives of the world position): 1 on
+//!   diffuse surfaces (ℓ = 0); on subsurface ones the lightmap's diffused first order `B_o`
+//!   (which the subsurface transfer redistributes) takes over where the diffusion length
+//!   exceeds the footprint, so scattering keeps its soft shadow edges and the total stays
+//!   the lightmap solution's. The specular term is shadowed here. The first-order view and
+//!   the left half of side-by-side show the direct light alone (`T` left out), per pixel on
+//!   every surface (`w = 1`: the first order is unscattered light).
+//! - Then `L·exposure`, Reinhard `x/(1+x)` per channel, sRGB encoding.
+//!
+//! # Lightmap filter
+//! [`LightmapSampling::Bilinear`] (default) or [`LightmapSampling::Bicubic`] (uniform cubic
+//! B-spline over 4×4 texels, non-negative weights summing to 1: smoother magnification
+//! without ringing), a pipeline-overridable constant of the shader. Chart borders: every
+//! lookup reads dilated maps (the dilation fills 4 gutter texels, the B-spline needs 2), so
+//! neither filter pulls black or another chart's values into a chart (tested with a
+//! constant lightmap, `apps/ortm/tests/display_direct.rs`). ρ is always bilinear.
 //!
 //! # Cost (see `docs/render.md`, display section, for the measurements)
 //! - The bilinear lookup is the sampler's ([`LightmapFilter::Hardware`]) when the device
 //!   has `FLOAT32_FILTERABLE` (RGBA32F lightmaps), else four `textureLoad`s
 //!   ([`LightmapFilter::Manual`]); both give the texel-centre convention's bilinear value.
-//! - Specular on and off are two pipelines (different entry points): with it off the
-//!   fragment shader has no light loop at all (on SIMD software rasterisers such as
-//!   lavapipe a uniform branch around the loop still costs its masked body), and the
-//!   vertex shader (`vs_uv`) passes on only the lightmap UV.
+//!   The B-spline takes four bilinear samples, or sixteen loads.
+//! - Specular on and off are separate pipelines (entry points for the lightmap display, the
+//!   override `SPECULAR` for the per-pixel one): on SIMD software rasterisers such as
+//!   lavapipe a uniform branch around a loop still costs its masked body. Without specular
+//!   the lightmap display's vertex shader (`vs_uv`) passes on only the lightmap UV.
+//! - The per-pixel light loop reads the lights and matrices from uniform arrays (as the
+//!   first-order pass), one shadow-map comparison sample per lit light.
 //! - The shader encodes sRGB itself with a fit of three square roots instead of `pow`
 //!   (within 0.012/255 of IEC 61966-2-1, [`crate::cpu::display::srgb_encode`]); an
 //!   `Rgba8UnormSrgb` target view measured no faster on lavapipe than `pow`.
 //!
 //! # Conventions
 //! Right-handed world, camera from [`Camera`] (look-at, vertical field of view, depth
-//! `[0, 1]`); image row 0 is the top. Both sides of every triangle are drawn. Use a dilated
-//! lightmap ([`crate::dilate`]) so chart borders do not bleed black.
+//! `[0, 1]`); image row 0 is the top. Both sides of every triangle are drawn (back faces
+//! culled for a closed outward mesh seen from outside). Use dilated lightmaps
+//! ([`crate::dilate`]) so chart borders do not bleed black.
 //!
 //! # Limits
-//! One `encode` per submit (the view uniform is written with `Queue::write_buffer`).
+//! One `encode` per submit (the view uniform is written with `Queue::write_buffer`). The
+//! per-pixel pipelines are built for one `max_shadow_layers`
+//! ([`DisplayPass::with_shadow_layers`]; the frame script passes the first-order pass's).
 
 use bytemuck::{Pod, Zeroable};
 use glam::camera::rh::proj::directx as proj_dx;
 use glam::camera::rh::view::look_at_mat4;
 use glam::{Mat4, Vec3};
 
+use crate::dilate::DilatePlan;
 use crate::error::PassError;
-use crate::first_order::{Bounds, GpuLight, pack_lights, vertex_layout};
+use crate::first_order::{Bounds, FirstOrderScene, GpuLight, pack_lights, vertex_layout};
 use crate::gpu::Gpu;
 use crate::mesh::GpuMesh;
-use crate::types::{LightDesc, MeshData};
+use crate::types::{AlbedoMap, LightDesc, MeshData};
 use crate::util;
 
 /// Background colour of the image (sRGB-encoded RGBA8).
@@ -73,6 +110,30 @@ impl LightmapFilter {
     }
 }
 
+/// Where the displayed direct light comes from.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum DirectLight {
+    /// Evaluated per pixel with the first-order pass's shadow maps; the lightmaps give the
+    /// transferred light (final − first order) and, on subsurface surfaces, the diffused
+    /// light (see the module docs). Needs [`DisplayInputs::direct`].
+    #[default]
+    PerPixel,
+    /// From the lightmaps, as the paper displays them: the shown map's `B/π` (first order |
+    /// final side by side).
+    Lightmap,
+}
+
+/// How lightmaps are filtered between texel centres.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum LightmapSampling {
+    /// Bilinear (2×2 texels).
+    #[default]
+    Bilinear,
+    /// Uniform cubic B-spline (4×4 texels, non-negative weights: smooth, no ringing; needs a
+    /// gutter of 2 dilated texels, the default dilation fills 4).
+    Bicubic,
+}
+
 /// Settings fixed at creation.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct DisplayOptions {
@@ -82,6 +143,12 @@ pub struct DisplayOptions {
     pub height: u32,
     /// Draw first-order (left) and final (right) side by side.
     pub side_by_side: bool,
+    /// Direct light per pixel (default) or from the lightmaps. [`DirectLight::PerPixel`]
+    /// builds the per-pixel pipelines too; a frame without [`DisplayInputs::direct`] is
+    /// still drawn from the lightmaps.
+    pub direct: DirectLight,
+    /// Lightmap filter.
+    pub sampling: LightmapSampling,
 }
 
 impl Default for DisplayOptions {
@@ -90,6 +157,8 @@ impl Default for DisplayOptions {
             width: 1280,
             height: 720,
             side_by_side: false,
+            direct: DirectLight::default(),
+            sampling: LightmapSampling::default(),
         }
     }
 }
@@ -192,8 +261,22 @@ pub struct DisplayPass {
     map_layout: wgpu::BindGroupLayout,
     /// Bilinear, clamp-to-edge sampler ([`LightmapFilter::Hardware`] only).
     sampler: Option<wgpu::Sampler>,
-    /// `[specular off, on][both sides, back faces culled]`.
+    /// Lightmap display: `[specular off, on][both sides, back faces culled]`.
     pipelines: [[wgpu::RenderPipeline; 2]; 2],
+    /// Per-pixel direct light ([`DirectLight::PerPixel`] only).
+    direct: Option<DirectPipelines>,
+}
+
+/// The per-pixel direct light's group 2 layout, comparison sampler and pipelines.
+#[derive(Debug)]
+struct DirectPipelines {
+    layout: wgpu::BindGroupLayout,
+    shadow_sampler: wgpu::Sampler,
+    /// Layers of the uniform arrays the shader was built for (must equal the first-order
+    /// pass's `max_shadow_layers`).
+    shadow_layers: u32,
+    /// `[subsurface split off, on][specular off, on][both sides, back faces culled]`.
+    pipelines: [[[wgpu::RenderPipeline; 2]; 2]; 2],
 }
 
 /// Per-scene GPU data.
@@ -231,10 +314,35 @@ pub struct DisplayInputs<'a> {
     pub camera: Camera,
     /// Multiplies radiance before tonemapping.
     pub exposure: f32,
-    /// Lights for the specular term (ignored without `specular`).
+    /// Lights for the specular term of the lightmap display (ignored without `specular`;
+    /// the per-pixel direct light uses the first-order pass's lights).
     pub lights: &'a [LightDesc],
     /// Optional specular highlight.
     pub specular: Option<Specular>,
+    /// Per-pixel direct light: `Some` draws with it (the pass must have been created with
+    /// [`DirectLight::PerPixel`]), and `final_lightmap` is then the *transferred* light
+    /// (final − first order) added on top; `None` draws from the lightmaps.
+    pub direct: Option<DirectInputs<'a>>,
+}
+
+/// What the per-pixel direct light reads besides the lightmap.
+#[derive(Clone, Copy, Debug)]
+pub struct DirectInputs<'a> {
+    /// The first-order scene whose last `encode` wrote this frame's lights, layer matrices
+    /// and shadow maps.
+    pub first_order: &'a FirstOrderScene,
+    /// RGBA32F map of the lightmap's size: RGB albedo ρ, alpha the diffusion length ℓ in
+    /// metres (0 = diffuse), dilated like the lightmaps ([`surface_map`]).
+    pub surface: &'a wgpu::TextureView,
+    /// The first-order lightmap (dilated): the lightmap's share `1 − w` on subsurface
+    /// surfaces. Not read where ℓ = 0.
+    pub first_order_map: &'a wgpu::TextureView,
+    /// Direct light only (no transferred light) in a single view — the first-order view;
+    /// side by side the left half always is, the right half unless this is set.
+    pub direct_only: bool,
+    /// Some texel of the surface map has a diffusion length > 0: draw with the
+    /// diffusion-length split (otherwise `w = 1` everywhere, without its cost).
+    pub subsurface: bool,
 }
 
 /// Output of the pass.
@@ -242,6 +350,85 @@ pub struct DisplayInputs<'a> {
 pub struct DisplayOutput {
     /// `Rgba8Unorm` image holding sRGB-encoded values; owned by the scene.
     pub color_tex: wgpu::Texture,
+}
+
+/// Texels of the per-pixel direct light's surface map ([`DirectInputs::surface`]): RGB the
+/// albedo, alpha the diffusion length ℓ (metres, `diffusion_m`, 0 = diffuse; `None`: all
+/// diffuse), each texel taken from its dilation source in `plan` (covered texels keep
+/// their own values, gutter texels copy their nearest covered texel, others are 0), so a
+/// lookup at a chart border sees only the chart's own albedo.
+///
+/// # Errors
+/// [`PassError::InvalidInput`] when the sizes of `albedo`, `diffusion_m` and `plan` differ,
+/// or a length is negative or not finite.
+pub fn surface_texels(
+    albedo: &AlbedoMap,
+    diffusion_m: Option<&[f32]>,
+    plan: &DilatePlan,
+) -> Result<Vec<[f32; 4]>, PassError> {
+    let n = albedo.width as usize * albedo.height as usize;
+    let bad = |what: &str, problem: String| PassError::InvalidInput {
+        what: what.into(),
+        problem,
+    };
+    if (plan.width, plan.height) != (albedo.width, albedo.height) || albedo.rgb.len() != n {
+        return Err(bad(
+            "AlbedoMap",
+            format!(
+                "{}×{} with {} texels, the dilation plan is {}×{}; build both for the \
+                 lightmap's size",
+                albedo.width,
+                albedo.height,
+                albedo.rgb.len(),
+                plan.width,
+                plan.height
+            ),
+        ));
+    }
+    plan.check_sources()?;
+    if let Some(d) = diffusion_m {
+        if d.len() != n {
+            return Err(bad(
+                "diffusion lengths",
+                format!("{} values for {n} texels; give one per texel", d.len()),
+            ));
+        }
+        if let Some(i) = d.iter().position(|l| !(l.is_finite() && *l >= 0.0)) {
+            return Err(bad(
+                "diffusion lengths",
+                format!("texel {i}: {} m; lengths must be finite and ≥ 0", d[i]),
+            ));
+        }
+    }
+    Ok(plan
+        .sources
+        .iter()
+        .map(|&src| {
+            if src == crate::dilate::NO_SOURCE {
+                return [0.0; 4];
+            }
+            let i = src as usize;
+            let [r, g, b] = albedo.rgb[i];
+            [r, g, b, diffusion_m.map_or(0.0, |d| d[i])]
+        })
+        .collect())
+}
+
+/// Uploads [`surface_texels`] as the RGBA32F surface map.
+pub fn surface_map(
+    gpu: &Gpu,
+    albedo: &AlbedoMap,
+    diffusion_m: Option<&[f32]>,
+    plan: &DilatePlan,
+) -> Result<wgpu::Texture, PassError> {
+    let texels = surface_texels(albedo, diffusion_m, plan)?;
+    gpu.create_rgba32f_texture(
+        "ortm.display.surface",
+        albedo.width,
+        albedo.height,
+        &texels,
+        wgpu::TextureUsages::TEXTURE_BINDING,
+    )
 }
 
 /// Checks `filter` and the image size against the device.
@@ -318,6 +505,7 @@ fn display_pipeline(
     module: &wgpu::ShaderModule,
     (vs, fs): (&str, &str),
     cull_mode: Option<wgpu::Face>,
+    constants: &[(&str, f64)],
 ) -> wgpu::RenderPipeline {
     device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
         label: Some("ortm.display.pipeline"),
@@ -343,7 +531,10 @@ fn display_pipeline(
         fragment: Some(wgpu::FragmentState {
             module,
             entry_point: Some(fs),
-            compilation_options: Default::default(),
+            compilation_options: wgpu::PipelineCompilationOptions {
+                constants,
+                ..Default::default()
+            },
             targets: &[Some(wgpu::ColorTargetState {
                 format: wgpu::TextureFormat::Rgba8Unorm,
                 blend: None,
@@ -370,6 +561,91 @@ fn cull_back_faces(mesh: &GpuMesh, cam: &Camera, aspect: f32) -> bool {
     mesh.closed_outward && !grown.contains(Vec3::from(cam.eye))
 }
 
+/// The per-pixel direct light's group 2 layout (`display.wgsl`: shadow.wgsl's bindings 0,
+/// 1, 2, 4, 5, then the surface map 6 and the first-order map 7) and its pipelines
+/// (`vs_direct` + `fs_direct_filtered` / `fs_direct_manual`, the overrides `SUBSURFACE` and
+/// `SPECULAR` per row). `(filter, bicubic)`: the lookup and the `BICUBIC` override value.
+fn direct_pipelines(
+    device: &wgpu::Device,
+    module: &wgpu::ShaderModule,
+    [view_layout, map_layout]: [&wgpu::BindGroupLayout; 2],
+    (filter, bicubic): (LightmapFilter, f64),
+    shadow_layers: u32,
+) -> DirectPipelines {
+    let fs = wgpu::ShaderStages::FRAGMENT;
+    let map = |binding| {
+        let mut e = util::texture_entry(binding, fs);
+        e.ty = wgpu::BindingType::Texture {
+            sample_type: wgpu::TextureSampleType::Float {
+                filterable: filter == LightmapFilter::Hardware,
+            },
+            view_dimension: wgpu::TextureViewDimension::D2,
+            multisampled: false,
+        };
+        e
+    };
+    let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: Some("ortm.display.direct_layout"),
+        entries: &[
+            util::uniform_entry(0, fs),
+            util::uniform_entry(1, fs),
+            util::uniform_entry(2, fs),
+            wgpu::BindGroupLayoutEntry {
+                binding: 4,
+                visibility: fs,
+                ty: wgpu::BindingType::Texture {
+                    sample_type: wgpu::TextureSampleType::Depth,
+                    view_dimension: wgpu::TextureViewDimension::D2Array,
+                    multisampled: false,
+                },
+                count: None,
+            },
+            wgpu::BindGroupLayoutEntry {
+                binding: 5,
+                visibility: fs,
+                ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Comparison),
+                count: None,
+            },
+            map(6),
+            map(7),
+        ],
+    });
+    let pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+        label: Some("ortm.display.direct_pipeline_layout"),
+        bind_group_layouts: &[Some(view_layout), Some(map_layout), Some(&layout)],
+        immediate_size: 0,
+    });
+    let fs_name = match filter {
+        LightmapFilter::Hardware => "fs_direct_filtered",
+        LightmapFilter::Manual => "fs_direct_manual",
+    };
+    let pipelines = [0.0, 1.0].map(|subsurface| {
+        [0.0, 1.0].map(|specular| {
+            let constants = [
+                ("BICUBIC", bicubic),
+                ("SPECULAR", specular),
+                ("SUBSURFACE", subsurface),
+            ];
+            [None, Some(wgpu::Face::Back)].map(|cull| {
+                display_pipeline(
+                    device,
+                    &pl,
+                    module,
+                    ("vs_direct", fs_name),
+                    cull,
+                    &constants,
+                )
+            })
+        })
+    });
+    DirectPipelines {
+        layout,
+        shadow_sampler: crate::first_order::shadow_sampler(device),
+        shadow_layers,
+        pipelines,
+    }
+}
+
 impl DisplayPass {
     /// Builds the pipelines with the device's cheaper lightmap filter
     /// ([`LightmapFilter::best_for`]).
@@ -377,7 +653,8 @@ impl DisplayPass {
         Self::with_filter(gpu, options, LightmapFilter::best_for(gpu))
     }
 
-    /// Builds the pipelines with the given lightmap filter.
+    /// Builds the pipelines with the given lightmap filter (per-pixel direct light for a
+    /// first-order pass with the default `max_shadow_layers`).
     ///
     /// Errors: [`PassError::InvalidInput`] for [`LightmapFilter::Hardware`] on a device
     /// without `FLOAT32_FILTERABLE`, or a bad size.
@@ -386,14 +663,28 @@ impl DisplayPass {
         options: &DisplayOptions,
         filter: LightmapFilter,
     ) -> Result<Self, PassError> {
+        let layers = crate::first_order::FirstOrderOptions::default().max_shadow_layers;
+        Self::with_shadow_layers(gpu, options, filter, layers)
+    }
+
+    /// Builds the pipelines; the per-pixel direct light reads a first-order pass created
+    /// with `max_shadow_layers = shadow_layers` (its uniform arrays have that length).
+    pub fn with_shadow_layers(
+        gpu: &Gpu,
+        options: &DisplayOptions,
+        filter: LightmapFilter,
+        shadow_layers: u32,
+    ) -> Result<Self, PassError> {
         check_options(gpu, options, filter)?;
         gpu.scoped("ortm.display.new", || {
             let device = &gpu.device;
-            let source = concat!(
+            let source = format!(
+                "{}{}{}",
                 include_str!("../shaders/lights.wgsl"),
+                crate::first_order::shadow_wgsl(2, shadow_layers.max(1)),
                 include_str!("../shaders/display.wgsl")
             );
-            let module = util::shader(device, "ortm.display.shader", source);
+            let module = util::shader(device, "ortm.display.shader", &source);
             let vf = wgpu::ShaderStages::VERTEX_FRAGMENT;
             // Order = @binding order in display.wgsl.
             let view_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
@@ -413,6 +704,8 @@ impl DisplayPass {
                 bind_group_layouts: &[Some(&view_layout), Some(&map_layout)],
                 immediate_size: 0,
             });
+            let bicubic = f64::from(u8::from(options.sampling == LightmapSampling::Bicubic));
+            let constants = [("BICUBIC", bicubic)];
             // `[specular off, on][both sides, back faces culled]`. Without specular the
             // shaders interpolate only the UV and have no light loop.
             let pipelines = [false, true].map(|specular| {
@@ -423,7 +716,16 @@ impl DisplayPass {
                 };
                 let vs = if specular { "vs_main" } else { "vs_uv" };
                 [None, Some(wgpu::Face::Back)]
-                    .map(|cull| display_pipeline(device, &pl, &module, (vs, &fs), cull))
+                    .map(|cull| display_pipeline(device, &pl, &module, (vs, &fs), cull, &constants))
+            });
+            let direct = (options.direct == DirectLight::PerPixel).then(|| {
+                direct_pipelines(
+                    device,
+                    &module,
+                    [&view_layout, &map_layout],
+                    (filter, bicubic),
+                    shadow_layers,
+                )
             });
             Self {
                 options: *options,
@@ -432,6 +734,7 @@ impl DisplayPass {
                 map_layout,
                 sampler,
                 pipelines,
+                direct,
             }
         })
     }
@@ -523,17 +826,34 @@ impl DisplayPass {
         let half_w = if self.options.side_by_side { w / 2 } else { w };
         self.write_view(gpu, inputs, half_w as f32 / h as f32)?;
         let draws = self.draws(gpu, inputs, half_w)?;
+        let direct_group = inputs
+            .direct
+            .as_ref()
+            .map(|d| self.direct_group(gpu, d))
+            .transpose()?;
         let mut pass = self.begin_pass(encoder, scene);
-        let cull = cull_back_faces(&scene.mesh, &inputs.camera, half_w as f32 / h as f32);
+        let cull = usize::from(cull_back_faces(
+            &scene.mesh,
+            &inputs.camera,
+            half_w as f32 / h as f32,
+        ));
         let specular_on = usize::from(inputs.specular.is_some());
-        pass.set_pipeline(&self.pipelines[specular_on][usize::from(cull)]);
+        match (&direct_group, &self.direct, &inputs.direct) {
+            (Some(group), Some(d), Some(di)) => {
+                pass.set_pipeline(&d.pipelines[usize::from(di.subsurface)][specular_on][cull]);
+                pass.set_bind_group(2, group, &[]);
+            }
+            _ => pass.set_pipeline(&self.pipelines[specular_on][cull]),
+        }
         pass.set_bind_group(0, &scene.view_group, &[]);
         pass.set_vertex_buffer(0, scene.mesh.vertices.slice(..));
         pass.set_index_buffer(scene.mesh.indices.slice(..), wgpu::IndexFormat::Uint32);
-        for (x, group) in &draws {
+        for (x, group, direct_only) in &draws {
             pass.set_viewport(*x as f32, 0.0, half_w as f32, h as f32, 0.0, 1.0);
             pass.set_bind_group(1, group, &[]);
-            pass.draw_indexed(0..scene.mesh.index_count, 0, 0..1);
+            // The instance index tells `vs_direct` whether to add the lightmap.
+            let i = u32::from(*direct_only);
+            pass.draw_indexed(0..scene.mesh.index_count, 0, i..i + 1);
         }
         drop(pass);
         Ok(DisplayOutput {
@@ -584,14 +904,49 @@ impl DisplayPass {
         Ok(())
     }
 
-    /// `(viewport x, lightmap bind group)` per draw: the final map, or the first-order map
-    /// left of it in side-by-side mode.
+    /// The per-pixel direct light's group 2 for `d`.
+    fn direct_group(&self, gpu: &Gpu, d: &DirectInputs<'_>) -> Result<wgpu::BindGroup, PassError> {
+        let pipelines = self
+            .direct
+            .as_ref()
+            .ok_or_else(|| PassError::InvalidInput {
+                what: "DisplayInputs.direct".into(),
+                problem: "the display pass was created with DirectLight::Lightmap; create it \
+                      with DirectLight::PerPixel for per-pixel direct light"
+                    .into(),
+            })?;
+        let [params, lights, matrices, shadow] = d.first_order.shadow_bindings();
+        let entry = |binding, resource| wgpu::BindGroupEntry { binding, resource };
+        Ok(gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("ortm.display.direct_bind_group"),
+            layout: &pipelines.layout,
+            entries: &[
+                entry(0, params),
+                entry(1, lights),
+                entry(2, matrices),
+                entry(4, shadow),
+                entry(5, wgpu::BindingResource::Sampler(&pipelines.shadow_sampler)),
+                entry(6, wgpu::BindingResource::TextureView(d.surface)),
+                entry(7, wgpu::BindingResource::TextureView(d.first_order_map)),
+            ],
+        }))
+    }
+
+    /// The first-order pass's `max_shadow_layers` the per-pixel pipelines were built for
+    /// (`None` without them).
+    pub fn shadow_layers(&self) -> Option<u32> {
+        self.direct.as_ref().map(|d| d.shadow_layers)
+    }
+
+    /// `(viewport x, lightmap bind group, direct light only)` per draw: the final map, or
+    /// the first-order map left of it in side-by-side mode. With per-pixel direct light the
+    /// bound map is the transferred light and the left half shows the direct light only.
     fn draws(
         &self,
         gpu: &Gpu,
         inputs: &DisplayInputs<'_>,
         half_w: u32,
-    ) -> Result<Vec<(u32, wgpu::BindGroup)>, PassError> {
+    ) -> Result<Vec<(u32, wgpu::BindGroup, bool)>, PassError> {
         let map_group = |v: &wgpu::TextureView, label: &str| {
             let mut entries = vec![wgpu::BindGroupEntry {
                 binding: 0,
@@ -610,21 +965,26 @@ impl DisplayPass {
             })
         };
         let mut draws = Vec::new();
+        let direct_only = inputs.direct.is_some_and(|d| d.direct_only);
+        let shown = || map_group(inputs.final_lightmap, "ortm.display.final_bind_group");
         if self.options.side_by_side {
-            let fo = inputs.first_order.ok_or_else(|| PassError::InvalidInput {
-                what: "DisplayInputs.first_order".into(),
-                problem: "side-by-side mode needs the first-order lightmap".into(),
-            })?;
-            draws.push((0, map_group(fo, "ortm.display.first_order_bind_group")));
-            draws.push((
-                half_w,
-                map_group(inputs.final_lightmap, "ortm.display.final_bind_group"),
-            ));
+            if inputs.direct.is_some() {
+                // Left: per-pixel direct light only (the bound map is not read).
+                draws.push((0, shown(), true));
+            } else {
+                let fo = inputs.first_order.ok_or_else(|| PassError::InvalidInput {
+                    what: "DisplayInputs.first_order".into(),
+                    problem: "side-by-side mode needs the first-order lightmap".into(),
+                })?;
+                draws.push((
+                    0,
+                    map_group(fo, "ortm.display.first_order_bind_group"),
+                    false,
+                ));
+            }
+            draws.push((half_w, shown(), direct_only));
         } else {
-            draws.push((
-                0,
-                map_group(inputs.final_lightmap, "ortm.display.final_bind_group"),
-            ));
+            draws.push((0, shown(), direct_only));
         }
         Ok(draws)
     }

@@ -464,6 +464,8 @@ pub struct FirstOrderScene {
     /// Per-frame uniforms: [`FirstOrderParams`], lights, layer matrices.
     uniforms: FrameUniforms,
     shadow_layer_views: Vec<wgpu::TextureView>,
+    /// All shadow layers as one 2D-array view (the lighting pass and the display read it).
+    shadow_array_view: wgpu::TextureView,
     /// Layer matrices the shadow maps were last rendered with (`None`: not valid).
     shadow_cache: std::sync::Mutex<Option<Vec<[f32; 16]>>>,
     bind_group: wgpu::BindGroup,
@@ -524,6 +526,20 @@ impl FirstOrderScene {
     pub fn output(&self) -> &wgpu::Texture {
         &self.output
     }
+
+    /// What the display's per-pixel direct light binds (`shaders/shadow.wgsl`, bindings 0,
+    /// 1, 2 and 4): this frame's params, lights and layer matrices (written by the last
+    /// `encode`) and the shadow-map array. Their uniform arrays hold the pass's
+    /// [`FirstOrderOptions::max_shadow_layers`] entries.
+    pub(crate) fn shadow_bindings(&self) -> [wgpu::BindingResource<'_>; 4] {
+        let u = &self.uniforms;
+        [
+            u.params.as_entire_binding(),
+            u.lights.as_entire_binding(),
+            u.matrices.as_entire_binding(),
+            wgpu::BindingResource::TextureView(&self.shadow_array_view),
+        ]
+    }
 }
 
 /// Per-frame inputs.
@@ -583,19 +599,42 @@ fn check_options(gpu: &Gpu, options: &FirstOrderOptions) -> Result<util::TexelRe
 
 /// The shader module: `lights.wgsl` + `first_order.wgsl` with `MAX_LAYERS` substituted
 /// and the texel-read declarations of bindings 3, 6, 7 prepended.
+/// The shadow maps' comparison sampler: linear (2×2 hardware PCF), clamp to edge,
+/// `LessEqual` (shared by the first-order pass and the display's per-pixel direct light).
+pub(crate) fn shadow_sampler(device: &wgpu::Device) -> wgpu::Sampler {
+    device.create_sampler(&wgpu::SamplerDescriptor {
+        label: Some("ortm.first_order.shadow_sampler"),
+        address_mode_u: wgpu::AddressMode::ClampToEdge,
+        address_mode_v: wgpu::AddressMode::ClampToEdge,
+        mag_filter: wgpu::FilterMode::Linear,
+        min_filter: wgpu::FilterMode::Linear,
+        compare: Some(wgpu::CompareFunction::LessEqual),
+        ..Default::default()
+    })
+}
+
+/// `shaders/shadow.wgsl` (the per-frame uniforms, shadow maps and `shadow_visibility`) for
+/// bind group `group`, with uniform arrays of `max_layers` entries. Fixed-size uniform
+/// arrays: llvmpipe loads uniforms with plain vector loads but storage buffers lane by lane,
+/// which made the lighting pass ~2.5× slower (docs/render.md). Shared by the first-order
+/// pass (group 0) and the display's per-pixel direct light (group 2).
+pub(crate) fn shadow_wgsl(group: u32, max_layers: u32) -> String {
+    include_str!("../shaders/shadow.wgsl")
+        .replace("SHADOW_GROUP", &group.to_string())
+        .replace("MAX_LAYERS", &max_layers.to_string())
+}
+
 fn shader_module(
     device: &wgpu::Device,
     max_layers: u32,
     reads: util::TexelReads,
 ) -> wgpu::ShaderModule {
-    let source = concat!(
+    let source = format!(
+        "{}{}{}",
         include_str!("../shaders/lights.wgsl"),
+        shadow_wgsl(0, max_layers),
         include_str!("../shaders/first_order.wgsl")
     );
-    // Fixed-size uniform arrays (see first_order.wgsl): llvmpipe loads uniforms with
-    // plain vector loads but storage buffers lane by lane, which made the lighting
-    // pass ~2.5× slower (docs/render.md).
-    let source = source.replace("MAX_LAYERS", &max_layers.to_string());
     let f32x4 = wgpu::TextureFormat::Rgba32Float;
     let source = format!(
         "{}{}{}{}{source}",
@@ -815,15 +854,7 @@ impl FirstOrderPass {
                 wgpu::TextureFormat::Rgba32Float,
                 None,
             );
-            let sampler = device.create_sampler(&wgpu::SamplerDescriptor {
-                label: Some("ortm.first_order.shadow_sampler"),
-                address_mode_u: wgpu::AddressMode::ClampToEdge,
-                address_mode_v: wgpu::AddressMode::ClampToEdge,
-                mag_filter: wgpu::FilterMode::Linear,
-                min_filter: wgpu::FilterMode::Linear,
-                compare: Some(wgpu::CompareFunction::LessEqual),
-                ..Default::default()
-            });
+            let sampler = shadow_sampler(device);
             Self {
                 options: *options,
                 reads,
@@ -909,6 +940,7 @@ impl FirstOrderPass {
             mesh: mesh.clone(),
             uniforms,
             shadow_layer_views,
+            shadow_array_view,
             shadow_cache: std::sync::Mutex::new(None),
             bind_group,
             shadow_bind_group,

@@ -29,7 +29,8 @@ use std::sync::OnceLock;
 
 use crate::dilate::{DilateInputs, DilateOptions, DilatePass, DilatePlan, DilateTargets};
 use crate::display::{
-    Camera, DisplayInputs, DisplayOptions, DisplayPass, DisplayScene, LightmapFilter, Specular,
+    Camera, DirectInputs, DirectLight, DisplayInputs, DisplayOptions, DisplayPass, DisplayScene,
+    LightmapFilter, Specular,
 };
 use crate::error::PassError;
 use crate::first_order::{FirstOrderInputs, FirstOrderOptions, FirstOrderPass, FirstOrderScene};
@@ -84,6 +85,13 @@ pub struct RenderScene {
     pub dilate_first_order: DilateTargets,
     /// Display data.
     pub display: DisplayScene,
+    /// The per-pixel direct light's surface map (albedo, diffusion length; dilated).
+    surface: wgpu::Texture,
+    /// The albedo it was made from.
+    albedo: AlbedoMap,
+    /// Whether some texel has a diffusion length > 0 (the display then reads the dilated
+    /// first-order map too).
+    subsurface: bool,
     /// The indirect map, allocated by the first frame that shows it.
     indirect: OnceLock<IndirectTargets>,
 }
@@ -219,7 +227,7 @@ pub struct FrameOutput {
     /// Final lightmap (accumulation format), undilated.
     pub final_lightmap_tex: wgpu::Texture,
     /// The dilated shown lightmap (the final map unless [`FrameOptions::shown`] says
-    /// otherwise).
+    /// otherwise; with per-pixel direct light the transferred light `final − first order`).
     pub dilated_final_tex: wgpu::Texture,
     /// The displayed image (`Rgba8Unorm`, sRGB-encoded values).
     pub color_tex: wgpu::Texture,
@@ -232,7 +240,12 @@ impl Renderer {
             first_order: FirstOrderPass::new(gpu, &options.first_order)?,
             transfer: TransferPass::new(gpu, &options.transfer)?,
             dilate: DilatePass::new(gpu, &options.dilate)?,
-            display: DisplayPass::new(gpu, &options.display)?,
+            display: DisplayPass::with_shadow_layers(
+                gpu,
+                &options.display,
+                LightmapFilter::best_for(gpu),
+                options.first_order.max_shadow_layers,
+            )?,
             indirect: IndirectPass::new(gpu)?,
         })
     }
@@ -268,6 +281,7 @@ impl Renderer {
         let first_order = self.first_order.prepare_mesh(gpu, &mesh, albedo)?;
         let coverage = self.coverage(gpu, &first_order)?;
         let dilate_plan = self.dilate.plan(&coverage)?;
+        let surface = crate::display::surface_map(gpu, albedo, None, &dilate_plan)?;
         Ok(RenderScene {
             lightmap_size: size,
             transfer: self.transfer.prepare(gpu, size, atlases, pieces)?,
@@ -277,6 +291,9 @@ impl Renderer {
             first_order,
             display: self.display.prepare_mesh(gpu, &mesh)?,
             mesh,
+            surface,
+            albedo: albedo.clone(),
+            subsurface: false,
             indirect: OnceLock::new(),
         })
     }
@@ -312,6 +329,21 @@ impl Renderer {
         Ok(())
     }
 
+    /// Sets the diffusion length of every lightmap texel (metres, row-major like the albedo;
+    /// 0 on diffuse surfaces): where it exceeds a pixel's footprint the per-pixel direct
+    /// light gives way to the lightmap's diffused light (see [`crate::display`]).
+    pub fn set_diffusion_lengths(
+        &self,
+        gpu: &Gpu,
+        scene: &mut RenderScene,
+        lengths_m: &[f32],
+    ) -> Result<(), PassError> {
+        scene.surface =
+            crate::display::surface_map(gpu, &scene.albedo, Some(lengths_m), &scene.dilate_plan)?;
+        scene.subsurface = lengths_m.iter().any(|&l| l > 0.0);
+        Ok(())
+    }
+
     /// Rebuilds the display pass and the scene's display targets for `options` (image size,
     /// side-by-side); the mesh is not uploaded again.
     pub fn set_display(
@@ -320,7 +352,12 @@ impl Renderer {
         scene: &mut RenderScene,
         options: &DisplayOptions,
     ) -> Result<(), PassError> {
-        let pass = DisplayPass::new(gpu, options)?;
+        let pass = DisplayPass::with_shadow_layers(
+            gpu,
+            options,
+            self.display.filter(),
+            self.first_order.options().max_shadow_layers,
+        )?;
         scene.display = pass.prepare_mesh(gpu, &scene.mesh)?;
         self.display = pass;
         Ok(())
@@ -362,11 +399,29 @@ impl Renderer {
             self.transfer.encode(gpu, encoder, &inputs);
         }
         stamp(encoder, 2);
-        let source = self.shown_source(gpu, encoder, scene, options, &fo_view)?;
+        // Per-pixel direct light for the final and first-order views; the indirect view and
+        // a caller's map are shown as lightmaps.
+        let per_pixel = self.display.options().direct == DirectLight::PerPixel
+            && matches!(options.shown, Shown::Final | Shown::FirstOrder);
+        let source = if per_pixel {
+            self.transferred_source(gpu, encoder, scene, options, &fo_view)?
+        } else {
+            self.shown_source(gpu, encoder, scene, options, &fo_view)?
+        };
         stamp(encoder, 3);
-        let (shown, left) = self.dilate_shown(gpu, encoder, scene, stages.dilate, source, &fo_view);
+        let record = stages.dilate;
+        let (shown, left) =
+            self.dilate_shown(gpu, encoder, scene, (record, per_pixel), source, &fo_view);
         stamp(encoder, 4);
         if stages.display {
+            let surface = util::view(&scene.surface);
+            let direct = per_pixel.then(|| DirectInputs {
+                first_order: &scene.first_order,
+                surface: &surface,
+                first_order_map: left.as_ref().unwrap_or(&fo_view),
+                direct_only: matches!(options.shown, Shown::FirstOrder),
+                subsurface: scene.subsurface,
+            });
             let inputs = DisplayInputs {
                 scene: &scene.display,
                 final_lightmap: &shown,
@@ -376,6 +431,7 @@ impl Renderer {
                 exposure: params.exposure,
                 lights: params.lights,
                 specular: params.specular,
+                direct,
             };
             self.display.encode(gpu, encoder, &inputs)?;
         }
@@ -402,37 +458,72 @@ impl Renderer {
             Shown::Final => (util::view(scene.transfer.output()), true),
             Shown::FirstOrder => (fo_view.clone(), true),
             Shown::Texture { view, dilate } => (view.clone(), dilate),
-            Shown::Indirect => {
-                let targets = match scene.indirect.get() {
-                    Some(t) => t,
-                    None => {
-                        let t = self.indirect.prepare(gpu, scene.lightmap_size)?;
-                        scene.indirect.get_or_init(|| t)
-                    }
-                };
-                if options.stages.dilate {
-                    let final_view = util::view(scene.transfer.output());
-                    let inputs = IndirectInputs {
-                        targets,
-                        first_order: fo_view,
-                        final_map: &final_view,
-                    };
-                    self.indirect.encode(gpu, encoder, &inputs);
-                }
-                (util::view(targets.output()), true)
-            }
+            Shown::Indirect => (
+                self.indirect_map(gpu, encoder, scene, options, fo_view)?,
+                true,
+            ),
         })
     }
 
-    /// Dilates `source` (when `dilate`) and, in side-by-side mode, the first-order map
+    /// The map the per-pixel direct light adds: the transferred light `final − first
+    /// order` for the final view (dilated), nothing for the first-order view (the
+    /// first-order map is bound, not read, not dilated).
+    fn transferred_source(
+        &self,
+        gpu: &Gpu,
+        encoder: &mut wgpu::CommandEncoder,
+        scene: &RenderScene,
+        options: &FrameOptions<'_>,
+        fo_view: &wgpu::TextureView,
+    ) -> Result<(wgpu::TextureView, bool), PassError> {
+        Ok(match options.shown {
+            Shown::FirstOrder => (fo_view.clone(), false),
+            _ => (
+                self.indirect_map(gpu, encoder, scene, options, fo_view)?,
+                true,
+            ),
+        })
+    }
+
+    /// The indirect map `final − first order` (allocated on first use), recorded when the
+    /// dilate stage runs.
+    fn indirect_map(
+        &self,
+        gpu: &Gpu,
+        encoder: &mut wgpu::CommandEncoder,
+        scene: &RenderScene,
+        options: &FrameOptions<'_>,
+        fo_view: &wgpu::TextureView,
+    ) -> Result<wgpu::TextureView, PassError> {
+        let targets = match scene.indirect.get() {
+            Some(t) => t,
+            None => {
+                let t = self.indirect.prepare(gpu, scene.lightmap_size)?;
+                scene.indirect.get_or_init(|| t)
+            }
+        };
+        if options.stages.dilate {
+            let final_view = util::view(scene.transfer.output());
+            let inputs = IndirectInputs {
+                targets,
+                first_order: fo_view,
+                final_map: &final_view,
+            };
+            self.indirect.encode(gpu, encoder, &inputs);
+        }
+        Ok(util::view(targets.output()))
+    }
+
+    /// Dilates `source` (when `dilate`) and the first-order map — in side-by-side mode from
+    /// lightmaps, or with `per_pixel` direct light on a scene with subsurface texels —
     /// (recording only when `record`); returns the views the display reads: the shown map
-    /// and the left half's map.
+    /// and the dilated first-order map.
     fn dilate_shown(
         &self,
         gpu: &Gpu,
         encoder: &mut wgpu::CommandEncoder,
         scene: &RenderScene,
-        record: bool,
+        (record, per_pixel): (bool, bool),
         (source, dilate): (wgpu::TextureView, bool),
         fo_view: &wgpu::TextureView,
     ) -> (wgpu::TextureView, Option<wgpu::TextureView>) {
@@ -448,11 +539,12 @@ impl Renderer {
         } else {
             source
         };
-        let left = self
-            .display
-            .options()
-            .side_by_side
-            .then(|| dilated(&scene.dilate_first_order, fo_view));
+        let need_first_order = if per_pixel {
+            scene.subsurface
+        } else {
+            self.display.options().side_by_side
+        };
+        let left = need_first_order.then(|| dilated(&scene.dilate_first_order, fo_view));
         (shown, left)
     }
 

@@ -294,7 +294,10 @@ fn frame_plan_is_the_first_order_coverage_and_dilates_like_the_mirror() {
 
     let gpu = gpu();
     let size = 64;
-    let options = common::demo_renderer_options(32, 16);
+    // The lightmap display: the frame dilates the final and the first-order maps (with
+    // per-pixel direct light it dilates the transferred light instead).
+    let mut options = common::demo_renderer_options(32, 16);
+    options.display.direct = passes::display::DirectLight::Lightmap;
     let renderer = Renderer::new(&gpu, &options).unwrap();
     let (scene, _) = prepare_demo(&gpu, &renderer, size);
     let lights = demo_lights();

@@ -142,6 +142,8 @@ fn uniform_side_by_side(
             width: 128,
             height: 64,
             side_by_side: true,
+            direct: passes::display::DirectLight::Lightmap,
+            ..Default::default()
         },
         |scene, draw| {
             draw(&DisplayInputs {
@@ -153,6 +155,7 @@ fn uniform_side_by_side(
                 exposure: 1.5,
                 lights: &[],
                 specular: None,
+                direct: None,
             })
         },
     );
@@ -215,6 +218,8 @@ fn specular_highlight_matches_mirror_at_centre() {
                 width: 33,
                 height: 33,
                 side_by_side: false,
+                direct: passes::display::DirectLight::Lightmap,
+                ..Default::default()
             },
             |scene, draw| {
                 draw(&DisplayInputs {
@@ -233,6 +238,7 @@ fn specular_highlight_matches_mirror_at_centre() {
                     exposure: 1.0,
                     lights: &lights,
                     specular: Some(spec),
+                    direct: None,
                 })
             },
         );
@@ -321,6 +327,8 @@ fn end_to_end_frame_lit_side_is_brighter() {
             width: 96,
             height: 96,
             side_by_side: false,
+            direct: passes::display::DirectLight::Lightmap,
+            ..Default::default()
         },
     )
     .unwrap();
@@ -360,6 +368,7 @@ fn end_to_end_frame_lit_side_is_brighter() {
                 exposure: 4.0,
                 lights: &lights,
                 specular: None,
+                direct: None,
             },
         )
         .unwrap();
@@ -393,6 +402,8 @@ fn back_face_culling_of_closed_mesh_changes_no_pixel() {
         width: 160,
         height: 120,
         side_by_side: false,
+        direct: passes::display::DirectLight::Lightmap,
+        ..Default::default()
     };
     let draw_with = |mesh: &MeshData| {
         render(&gpu, mesh, options, |scene, draw| {
@@ -405,6 +416,7 @@ fn back_face_culling_of_closed_mesh_changes_no_pixel() {
                 exposure: 1.0,
                 lights: &[],
                 specular: None,
+                direct: None,
             })
         })
     };
@@ -519,6 +531,8 @@ fn magnified_lightmap_matches_cpu_bilinear_for_each_filter() {
                 width: size,
                 height: size,
                 side_by_side: false,
+                direct: passes::display::DirectLight::Lightmap,
+                ..Default::default()
             },
             |scene, draw| {
                 draw(&DisplayInputs {
@@ -530,6 +544,7 @@ fn magnified_lightmap_matches_cpu_bilinear_for_each_filter() {
                     exposure,
                     lights: &[],
                     specular: None,
+                    direct: None,
                 })
             },
         );
@@ -587,6 +602,8 @@ fn specular_pipeline_with_zero_strength_matches_diffuse_pipeline() {
                     width: 160,
                     height: 120,
                     side_by_side: false,
+                    direct: passes::display::DirectLight::Lightmap,
+                    ..Default::default()
                 },
                 |scene, draw| {
                     draw(&DisplayInputs {
@@ -598,6 +615,7 @@ fn specular_pipeline_with_zero_strength_matches_diffuse_pipeline() {
                         exposure: 0.7,
                         lights: &lights,
                         specular: spec,
+                        direct: None,
                     })
                 },
             )

@@ -253,6 +253,7 @@ mod tests {
                 width: 64,
                 height: 32,
                 side_by_side: false,
+                ..Default::default()
             },
             ..Default::default()
         };

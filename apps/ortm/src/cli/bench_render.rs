@@ -101,6 +101,10 @@ pub struct Args {
     /// Displayed image size, WIDTHxHEIGHT.
     #[arg(long, default_value = "1280x720")]
     image: String,
+    /// Display: direct light per pixel or from the lightmaps, and the lightmap filter (as
+    /// `ortm render`).
+    #[command(flatten)]
+    display: super::render::DisplayArgs,
     /// Synthetic offsets lie in `|dx|, |dy| < size / N` (a jittered grid there): real
     /// importance-selected offsets crowd near Δt = 0, and with N = 8 the atlas counts come
     /// close to the paper's "# Bins".
@@ -295,6 +299,8 @@ fn renderer_options(
             width: img_w,
             height: img_h,
             side_by_side: false,
+            direct: a.display.direct.direct(),
+            sampling: a.display.filter.sampling(),
         },
         ..Default::default()
     }

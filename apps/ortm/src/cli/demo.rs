@@ -59,6 +59,9 @@ pub struct Args {
     /// Face demo: afterwards, print bake and frame times beside the paper's Table 1.
     #[arg(long)]
     bench: bool,
+    /// Display of the rendered images (`--direct`, `--filter`, as `ortm render`).
+    #[command(flatten)]
+    display: super::render::DisplayArgs,
 }
 
 /// Runs one `ortm` subcommand given as words, echoing it.
@@ -119,7 +122,10 @@ fn cornell(a: &Args) -> Result<()> {
             &out("final.exr"),
             "--first-order-out",
             &out("first_order.exr"),
-        ]),
+        ])
+        .into_iter()
+        .chain(display_words(a))
+        .collect(),
     ];
     for s in steps {
         step(s)?;
@@ -291,7 +297,20 @@ fn render_figure_command(a: &Args, f: &faces::Figure, bake_dir: &str, png: &str)
     if f.side_by_side {
         v.push("--side-by-side".into());
     }
+    v.extend(display_words(a));
     v
+}
+
+/// `--direct` and `--filter` for the demo's `ortm render` steps.
+fn display_words(a: &Args) -> Vec<String> {
+    fn name(v: impl clap::ValueEnum) -> String {
+        v.to_possible_value()
+            .map_or_else(String::new, |p| p.get_name().to_string())
+    }
+    vec![
+        format!("--direct={}", name(a.display.direct)),
+        format!("--filter={}", name(a.display.filter)),
+    ]
 }
 
 /// The `figures.md` section of figure `f` shown in `png`: caption, image, what to look for.

@@ -14,7 +14,7 @@ mod demo;
 mod inspect;
 mod progress;
 mod reference;
-mod render;
+pub(crate) mod render;
 mod render_cpu;
 mod solve;
 mod view;

@@ -13,6 +13,11 @@
 //! - `--camera EX,EY,EZ:TX,TY,TZ[:FOV]`; default: looking along −z at the whole mesh.
 //! - `--exposure auto` (default) maps the 95th percentile of the final radiance to 1 before
 //!   Reinhard tonemapping; a number sets it directly (multiplies `L = B/π`).
+//! - `--direct pixel` (default) evaluates direct light per pixel with the shadow maps and
+//!   takes the transferred light from the lightmap (subsurface materials keep the
+//!   lightmap's diffused light where their diffusion length exceeds a pixel's footprint:
+//!   [`diffusion_lengths`]); `--direct lightmap` displays the lightmaps as the paper does.
+//! - `--filter bilinear|bicubic`: the lightmap filter (bicubic = cubic B-spline).
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -24,7 +29,7 @@ use ortm::render::{
     write_lightmap_exr,
 };
 use ortm::scene::light::{LIGHT_SYNTAX, Light, SpecError, parse_light};
-use passes::display::{Camera, DisplayOptions};
+use passes::display::{Camera, DirectLight, DisplayOptions, LightmapSampling};
 use passes::first_order::FirstOrderOptions;
 use passes::frame::{FrameParams, Renderer, RendererOptions};
 use passes::transfer::{TransferOptions, TransferPath};
@@ -41,6 +46,89 @@ pub enum PathArg {
     Blend,
     /// Compute shader gathering per 8×8 tile (reference / fallback).
     Compute,
+}
+
+/// Where the displayed direct light comes from (`--direct`).
+#[derive(clap::ValueEnum, Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum DirectArg {
+    /// Per pixel, with the first-order pass's shadow maps; the transferred light from the
+    /// lightmap.
+    #[default]
+    Pixel,
+    /// From the lightmaps (the paper's display: first order | final side by side).
+    Lightmap,
+}
+
+impl DirectArg {
+    /// The display option.
+    pub fn direct(self) -> DirectLight {
+        match self {
+            DirectArg::Pixel => DirectLight::PerPixel,
+            DirectArg::Lightmap => DirectLight::Lightmap,
+        }
+    }
+}
+
+/// Lightmap filter (`--filter`).
+#[derive(clap::ValueEnum, Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum FilterArg {
+    /// Bilinear between texel centres.
+    #[default]
+    Bilinear,
+    /// Cubic B-spline (4×4 texels, smoother).
+    Bicubic,
+}
+
+impl FilterArg {
+    /// The display option.
+    pub fn sampling(self) -> LightmapSampling {
+        match self {
+            FilterArg::Bilinear => LightmapSampling::Bilinear,
+            FilterArg::Bicubic => LightmapSampling::Bicubic,
+        }
+    }
+}
+
+/// `--direct` and `--filter`, shared by `ortm render` and `ortm view`.
+#[derive(clap::Args, Clone, Copy, Debug, Default)]
+pub struct DisplayArgs {
+    /// Direct light per pixel (shadow maps at screen resolution) or from the lightmaps.
+    #[arg(long, value_enum, default_value_t = DirectArg::Pixel)]
+    pub direct: DirectArg,
+    /// Lightmap filter.
+    #[arg(long, value_enum, default_value_t = FilterArg::Bilinear)]
+    pub filter: FilterArg,
+}
+
+/// Diffusion length per lightmap texel (metres, row-major, 0 on diffuse materials): for a
+/// subsurface material the longest of its channels' `1/σ_tr`, the distance over which the
+/// dipole profile falls by `e` — the display keeps the lightmap's diffused light where it
+/// exceeds a pixel's footprint (`passes::display`). `None` when no texel is subsurface.
+pub fn diffusion_lengths(scene: &ortm::scene::Scene, grid: &TexelGrid) -> Option<Vec<f32>> {
+    let per_material: Vec<f32> = scene
+        .materials
+        .iter()
+        .map(|m| {
+            m.subsurface.as_ref().map_or(0.0, |s| {
+                let p = ortm::scene::subsurface::Profile::new(s);
+                p.channels
+                    .iter()
+                    .map(|c| (1.0 / c.sigma_tr.max(1e-12)) as f32)
+                    .fold(0.0, f32::max)
+            })
+        })
+        .collect();
+    if per_material.iter().all(|&l| l == 0.0) {
+        return None;
+    }
+    let mut out = vec![0.0; (grid.width * grid.height) as usize];
+    for t in &grid.texels {
+        out[(t.y * grid.width + t.x) as usize] = per_material
+            .get(t.material as usize)
+            .copied()
+            .unwrap_or(0.0);
+    }
+    Some(out)
 }
 
 /// The bake and the lights, the first arguments of `ortm render` and `ortm view`.
@@ -118,6 +206,8 @@ pub struct Args {
     /// First order (left) and final (right) side by side.
     #[arg(long)]
     side_by_side: bool,
+    #[command(flatten)]
+    display: DisplayArgs,
     /// Transfer implementation.
     #[arg(long, value_enum, default_value_t = PathArg::Auto)]
     path: PathArg,
@@ -189,7 +279,11 @@ pub fn run(a: Args) -> Result<()> {
     let options = renderer_options(&a, &gpu, &lights, (img_w, img_h));
     let renderer = Renderer::new(&gpu, &options)?;
     let mesh = render::mesh_data(&scene.mesh);
-    let rscene = renderer.prepare(&gpu, &mesh, &render::albedo_map(&grid), &atlases, &pieces)?;
+    let mut rscene =
+        renderer.prepare(&gpu, &mesh, &render::albedo_map(&grid), &atlases, &pieces)?;
+    if let Some(lengths) = diffusion_lengths(&scene, &grid) {
+        renderer.set_diffusion_lengths(&gpu, &mut rscene, &lengths)?;
+    }
     let t1 = Instant::now();
     let (fo, fin) = renderer.render_lightmaps(&gpu, &rscene, &light_descs)?;
     let exposure =
@@ -270,6 +364,8 @@ fn renderer_options(
             width,
             height,
             side_by_side: a.side_by_side,
+            direct: a.display.direct.direct(),
+            sampling: a.display.filter.sampling(),
         },
         ..Default::default()
     }

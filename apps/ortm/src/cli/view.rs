@@ -62,6 +62,8 @@ pub struct Args {
     /// lights; also the file the viewer's save/load buttons use.
     #[arg(long = "lights", value_name = "FILE")]
     lights_file: Option<PathBuf>,
+    #[command(flatten)]
+    display: super::render::DisplayArgs,
     /// Window size in pixels, WIDTHxHEIGHT.
     #[arg(long, default_value = "1280x800")]
     size: String,
@@ -237,6 +239,7 @@ fn load_input(a: &Args) -> Result<ViewerInput> {
         shadow_size: a.shadow_size,
         note,
         effects,
+        display: a.display,
     })
 }
 

@@ -104,6 +104,14 @@ impl ViewRenderer {
         })
     }
 
+    /// Sets the diffusion length of every lightmap texel (m; see
+    /// `passes::frame::Renderer::set_diffusion_lengths`).
+    pub fn set_diffusion_lengths(&mut self, lengths_m: &[f32]) -> Result<()> {
+        self.renderer
+            .set_diffusion_lengths(&self.gpu, &mut self.scene, lengths_m)?;
+        Ok(())
+    }
+
     /// Replaces the transfer work with `pieces` (e.g. those of the first K maps).
     pub fn set_pieces(&mut self, pieces: &[TransferPiece]) -> Result<()> {
         self.renderer
@@ -211,6 +219,7 @@ impl ViewRenderer {
             width: size[0],
             height: size[1],
             side_by_side,
+            ..self.renderer.options().display
         };
         self.renderer
             .set_display(&self.gpu, &mut self.scene, &options)?;

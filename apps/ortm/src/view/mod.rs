@@ -65,6 +65,9 @@ pub struct ViewerInput {
     pub note: String,
     /// The bake's effects (from its settings), which the reference includes.
     pub effects: Effects,
+    /// Display: direct light per pixel or from the lightmaps (`--direct`), lightmap
+    /// filter (`--filter`).
+    pub display: crate::cli::render::DisplayArgs,
 }
 
 /// Options of a viewer run.

@@ -865,17 +865,26 @@ fn view_renderer(gpu: Gpu, data: &ViewerInput) -> Result<ViewRenderer> {
             ..Default::default()
         },
         transfer: passes::transfer::TransferOptions::best_for(&gpu),
+        display: passes::display::DisplayOptions {
+            direct: data.display.direct.direct(),
+            sampling: data.display.filter.sampling(),
+            ..Default::default()
+        },
         ..Default::default()
     };
     let all_pieces = data.pieces_of_first(data.map_order.len());
-    ViewRenderer::new(
+    let mut r = ViewRenderer::new(
         gpu,
         &options,
         ortm::render::mesh_data(&data.scene.mesh),
         &ortm::render::albedo_map(&data.grid),
         data.atlases.clone(),
         &all_pieces,
-    )
+    )?;
+    if let Some(lengths) = crate::cli::render::diffusion_lengths(&data.scene, &data.grid) {
+        r.set_diffusion_lengths(&lengths)?;
+    }
+    Ok(r)
 }
 
 /// The UI state at start: the bake's lights, camera and stats, and the options of the run.

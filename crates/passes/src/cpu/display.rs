@@ -1,13 +1,151 @@
-//! CPU mirror of the display pass's shading (`shaders/display.wgsl`): bilinear lightmap
-//! lookup, `L = B/π` (+ optional Blinn-Phong specular), exposure, Reinhard, sRGB (the
+//! CPU mirror of the display pass's shading (`shaders/display.wgsl`): bilinear or cubic
+//! B-spline lightmap lookup, `L = B/π` (+ optional Blinn-Phong specular), the per-pixel
+//! direct light ([`pixel_radiance`]: shadowed `ρ·E/π` at the pixel's own surface point, the
+//! subsurface share, the transferred light from the lightmap), exposure, Reinhard, sRGB (the
 //! shader's fitted encoding, [`srgb_encode`]), 8-bit.
-//! The rasterisation of the mesh itself is not mirrored.
+//! The rasterisation of the mesh itself is not mirrored: callers give the surface point of a
+//! pixel (e.g. from a ray cast through its centre), and the shadow test as a function (e.g.
+//! exact ray-cast visibility, [`crate::cpu::first_order::occluded`]).
 
 use glam::Vec3;
 
 use crate::cpu::first_order::light_incident;
+use crate::display::LightmapSampling;
 use crate::first_order::GpuLight;
 use crate::types::TexelImage;
+
+/// Uniform cubic B-spline weights of the texels at offsets −1, 0, 1, 2 from `floor(s)`
+/// for the fraction `f` (`bspline_weights` in display.wgsl).
+pub fn bspline_weights(f: f32) -> [f32; 4] {
+    let (f2, f3, g) = (f * f, f * f * f, 1.0 - f);
+    [
+        g * g * g / 6.0,
+        (4.0 - 6.0 * f2 + 3.0 * f3) / 6.0,
+        (1.0 + 3.0 * f + 3.0 * f2 - 3.0 * f3) / 6.0,
+        f3 / 6.0,
+    ]
+}
+
+/// Cubic B-spline lookup of RGBA between texel centres, indices clamped at the border
+/// (`bicubic_of` in display.wgsl; the hardware path `bicubic_filtered_of` takes four
+/// bilinear samples, the same function up to the sampler's weight precision).
+pub fn bicubic_rgba(map: &TexelImage, uv: [f32; 2]) -> [f32; 4] {
+    let s = uv[0] * map.width as f32 - 0.5;
+    let t = (1.0 - uv[1]) * map.height as f32 - 0.5;
+    let (i0, j0) = (s.floor(), t.floor());
+    let (wx, wy) = (bspline_weights(s - i0), bspline_weights(t - j0));
+    let cx = |i: i32| i.clamp(0, map.width as i32 - 1) as u32;
+    let cy = |j: i32| j.clamp(0, map.height as i32 - 1) as u32;
+    let mut out = [0.0; 4];
+    for (j, wj) in wy.iter().enumerate() {
+        for (i, wi) in wx.iter().enumerate() {
+            let texel = map.get(cx(i0 as i32 - 1 + i as i32), cy(j0 as i32 - 1 + j as i32));
+            for c in 0..4 {
+                out[c] += wj * wi * texel[c];
+            }
+        }
+    }
+    out
+}
+
+/// Bilinear lookup of RGBA (see [`bilinear`]).
+pub fn bilinear_rgba(map: &TexelImage, uv: [f32; 2]) -> [f32; 4] {
+    let (w, h) = (map.width as f32, map.height as f32);
+    let s = uv[0] * w - 0.5;
+    let t = (1.0 - uv[1]) * h - 0.5;
+    let (i0, j0) = (s.floor(), t.floor());
+    let (fx, fy) = (s - i0, t - j0);
+    let cx = |i: f32| (i as i32).clamp(0, map.width as i32 - 1) as u32;
+    let cy = |j: f32| (j as i32).clamp(0, map.height as i32 - 1) as u32;
+    let (ax, ay, bx, by) = (cx(i0), cy(j0), cx(i0 + 1.0), cy(j0 + 1.0));
+    let mut out = [0.0; 4];
+    for (c, o) in out.iter_mut().enumerate() {
+        let lerp = |a: f32, b: f32, f: f32| a + (b - a) * f;
+        let top = lerp(map.get(ax, ay)[c], map.get(bx, ay)[c], fx);
+        let bot = lerp(map.get(ax, by)[c], map.get(bx, by)[c], fx);
+        *o = lerp(top, bot, fy);
+    }
+    out
+}
+
+/// A lightmap lookup with `sampling` (RGB).
+pub fn lookup(map: &TexelImage, uv: [f32; 2], sampling: LightmapSampling) -> [f32; 3] {
+    let v = match sampling {
+        LightmapSampling::Bilinear => bilinear_rgba(map, uv),
+        LightmapSampling::Bicubic => bicubic_rgba(map, uv),
+    };
+    [v[0], v[1], v[2]]
+}
+
+/// Share `w` of per-pixel direct light for a diffusion length `ell_m` and a pixel footprint
+/// `footprint_m` (`direct_share` in display.wgsl): `clamp(1 − ℓ/footprint, 0, 1)`.
+pub fn direct_share(ell_m: f32, footprint_m: f32) -> f32 {
+    (1.0 - ell_m / footprint_m.max(1e-12)).clamp(0.0, 1.0)
+}
+
+/// The surface point a pixel sees.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PixelSurface {
+    /// World position (m).
+    pub position: Vec3,
+    /// Interpolated normal (normalised here).
+    pub normal: Vec3,
+    /// Lightmap UV.
+    pub uv: [f32; 2],
+    /// The larger side of the pixel's footprint on the surface (m).
+    pub footprint_m: f32,
+}
+
+/// The maps the per-pixel direct light reads (all of the lightmap's size, dilated).
+#[derive(Clone, Copy, Debug)]
+pub struct PixelMaps<'a> {
+    /// RGB albedo, alpha diffusion length (m) ([`crate::display::surface_texels`]).
+    pub surface: &'a TexelImage,
+    /// First-order lightmap (read where the diffusion length is > 0).
+    pub first_order: &'a TexelImage,
+    /// Transferred light `final − first order`; `None`: direct light only.
+    pub transferred: Option<&'a TexelImage>,
+    /// Lightmap filter.
+    pub sampling: LightmapSampling,
+}
+
+/// Radiance (W/(m²·sr)) a pixel shows with per-pixel direct light (`fs_direct_*` in
+/// display.wgsl, without specular): `w·ρ·E/π + (1 − w)·B_o/π + T/π`, with `E` the irradiance
+/// of `lights` at the pixel's surface point scaled by `visibility(light index)` (1 lit, 0
+/// shadowed), ρ bilinear from the surface map, `w` = [`direct_share`] (1 without the
+/// transferred map: the direct-only view).
+pub fn pixel_radiance(
+    lights: &[GpuLight],
+    px: &PixelSurface,
+    maps: &PixelMaps<'_>,
+    visibility: impl Fn(usize) -> f32,
+) -> Vec3 {
+    let pi = std::f32::consts::PI;
+    let n = px.normal.normalize();
+    let s = bilinear_rgba(maps.surface, px.uv);
+    // The direct-only view is the unscattered first order: per pixel everywhere.
+    let w = if maps.transferred.is_some() {
+        direct_share(s[3], px.footprint_m)
+    } else {
+        1.0
+    };
+    let mut e = Vec3::ZERO;
+    for (i, l) in lights.iter().enumerate() {
+        let (to_light, e_n) = light_incident(l, px.position);
+        let cos_i = n.dot(to_light);
+        if cos_i > 0.0 && e_n.max_element() > 0.0 {
+            e += e_n * cos_i * visibility(i);
+        }
+    }
+    let mut out = Vec3::new(s[0], s[1], s[2]) * e * (w / pi);
+    if w < 1.0 {
+        out += Vec3::from(lookup(maps.first_order, px.uv, maps.sampling)) * ((1.0 - w) / pi);
+    }
+    if let Some(t) = maps.transferred {
+        out += Vec3::from(lookup(t, px.uv, maps.sampling)) / pi;
+    }
+    out
+}
 
 /// Bilinear lookup between texel centres with clamping (`bilinear` in display.wgsl; the
 /// hardware path `filtered` samples `(u, 1 − v)` with a clamp-to-edge linear sampler, the

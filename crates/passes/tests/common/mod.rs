@@ -194,6 +194,7 @@ pub fn demo_renderer_options(width: u32, height: u32) -> passes::RendererOptions
             width,
             height,
             side_by_side: true,
+            ..Default::default()
         },
         ..Default::default()
     }
