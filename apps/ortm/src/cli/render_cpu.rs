@@ -185,7 +185,8 @@ pub struct CpuRender<'a> {
 pub fn run(r: &CpuRender, why: &passes::PassError) -> Result<()> {
     eprintln!(
         "note: {why}\nnote: rendering on the CPU mirrors of the passes instead (ray-cast \
-         shadows; slower than a GPU); --path blend or --path compute requires a GPU"
+         shadows, all light from the lightmaps as with --direct lightmap; slower than a GPU); \
+         --path blend or --path compute requires a GPU"
     );
     let t = std::time::Instant::now();
     let maps = lightmaps(r.grid, r.mesh, r.set, r.lights)?;
