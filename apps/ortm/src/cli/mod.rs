@@ -15,6 +15,7 @@ mod inspect;
 mod reference;
 mod render;
 mod solve;
+mod unwrap;
 mod view;
 
 use std::path::PathBuf;
@@ -57,6 +58,8 @@ enum Command {
     Render(render::Args),
     /// Interactive viewer: move lights and watch the relit bake (egui window).
     View(view::Args),
+    /// Generate lightmap UVs for an OBJ or glTF mesh and write it with them.
+    Unwrap(unwrap::Args),
 }
 
 /// `ortm bench render …` (a subcommand with its own options) or `ortm bench transport|bake`.
@@ -102,6 +105,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Bin(a) => bin::run(a),
         Command::Render(a) => render::run(a),
         Command::View(a) => view::run(a),
+        Command::Unwrap(a) => unwrap::run(a),
     }
 }
 
