@@ -67,7 +67,12 @@ fn face_normal_spread(dir: &Path, obj: &str, extra: &str) -> [f32; 6] {
     let mut seen = [0usize; 6];
     for t in &grid.texels {
         let face = t.triangle as usize / 2; // each quad is two triangles, in file order
-        let angle = t.normal.dot(t.face_normal).clamp(-1.0, 1.0).acos().to_degrees();
+        let angle = t
+            .normal
+            .dot(t.face_normal)
+            .clamp(-1.0, 1.0)
+            .acos()
+            .to_degrees();
         spread[face] = spread[face].max(angle);
         seen[face] += 1;
     }
@@ -131,13 +136,22 @@ fn the_head_scene_files_keep_the_built_in_heads_normals() {
         .zip(&mesh.triangles)
         .filter(|(i, t)| **i != t.position)
         .count();
-    assert!(split > 0, "the default crease would change the head's normals");
+    assert!(
+        split > 0,
+        "the default crease would change the head's normals"
+    );
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-    for file in ["../../crates/faces/head.toml", "tests/data/render/head.toml"] {
+    for file in [
+        "../../crates/faces/head.toml",
+        "tests/data/render/head.toml",
+    ] {
         let (scene, _) = load_scene_with_warnings(&root.join(file)).unwrap();
         let m = &scene.mesh;
         let plain = smooth_normals(&m.positions_m, &m.triangles);
-        assert!(m.normals == plain, "{file}: normals differ from the plain rule");
+        assert!(
+            m.normals == plain,
+            "{file}: normals differ from the plain rule"
+        );
         assert!(m.triangles.iter().all(|t| t.normal == t.position), "{file}");
         assert_eq!(m.triangles.len(), mesh.triangles.len(), "{file}");
     }

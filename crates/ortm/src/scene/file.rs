@@ -415,8 +415,19 @@ impl LoadedMesh {
                 });
             }
             let mut unmatched = Vec::new();
-            let out = if warn_unmatched { &mut *warnings } else { &mut unmatched };
-            assign_materials(scene_path, mesh_path, &mut mesh, &names, &scene.materials, out);
+            let out = if warn_unmatched {
+                &mut *warnings
+            } else {
+                &mut unmatched
+            };
+            assign_materials(
+                scene_path,
+                mesh_path,
+                &mut mesh,
+                &names,
+                &scene.materials,
+                out,
+            );
         }
         if scene.lights.is_empty() {
             scene.lights = if lights.is_empty() {

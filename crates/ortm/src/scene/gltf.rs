@@ -132,7 +132,10 @@ pub fn load_gltf(
             "keep the .bin files named by the .gltf beside it, or export a .glb",
         )
     })?;
-    let Some(scene) = document.default_scene().or_else(|| document.scenes().next()) else {
+    let Some(scene) = document
+        .default_scene()
+        .or_else(|| document.scenes().next())
+    else {
         return Err(gltf_err(path, "has no scene", "export a scene with meshes"));
     };
     let mut warnings = Vec::new();
@@ -176,7 +179,15 @@ pub fn load_gltf(
     for (t, m) in mesh.triangles.iter_mut().zip(&tri_material) {
         t.material = *m;
     }
-    let textures = textures(path, &document, &buffers, &soup, &kept, &materials, &mut warnings)?;
+    let textures = textures(
+        path,
+        &document,
+        &buffers,
+        &soup,
+        &kept,
+        &materials,
+        &mut warnings,
+    )?;
     Ok(GltfScene {
         mesh,
         materials,
@@ -361,10 +372,12 @@ fn build_mesh(
         .positions
         .iter()
         .map(|p| {
-            *weld.entry(p.to_array().map(f32::to_bits)).or_insert_with(|| {
-                positions_m.push(*p);
-                (positions_m.len() - 1) as u32
-            })
+            *weld
+                .entry(p.to_array().map(f32::to_bits))
+                .or_insert_with(|| {
+                    positions_m.push(*p);
+                    (positions_m.len() - 1) as u32
+                })
         })
         .collect();
     let (lo, hi) = super::aabb(&positions_m);
@@ -428,7 +441,9 @@ fn materials(document: &gltf::Document, soup: &Soup, kept: &[usize]) -> (Vec<Mat
         index_of.insert(Some(*m), out.len() as u32);
         out.push(Material {
             name,
-            albedo: Albedo::Constant(Vec3::new(factor[0], factor[1], factor[2]).clamp(Vec3::ZERO, Vec3::ONE)),
+            albedo: Albedo::Constant(
+                Vec3::new(factor[0], factor[1], factor[2]).clamp(Vec3::ZERO, Vec3::ONE),
+            ),
             subsurface: None,
         });
     }
@@ -440,7 +455,10 @@ fn materials(document: &gltf::Document, soup: &Soup, kept: &[usize]) -> (Vec<Mat
             subsurface: None,
         });
     }
-    let per_tri = kept.iter().map(|&t| index_of[&soup.triangles[t].1]).collect();
+    let per_tri = kept
+        .iter()
+        .map(|&t| index_of[&soup.triangles[t].1])
+        .collect();
     (out, per_tri)
 }
 
@@ -459,7 +477,10 @@ fn textures(
     let dir = path.parent().unwrap_or(Path::new(""));
     for (mi, gm) in document.materials().enumerate() {
         let Some(ours) = materials.iter().position(|m| {
-            m.name == gm.name().map_or_else(|| format!("material{mi}"), str::to_string)
+            m.name
+                == gm
+                    .name()
+                    .map_or_else(|| format!("material{mi}"), str::to_string)
         }) else {
             continue;
         };
@@ -478,7 +499,9 @@ fn textures(
                 if uri.starts_with("data:") {
                     match gltf::image::Data::from_source(source.source(), Some(dir), buffers) {
                         Ok(d) => decoded_to_image(d),
-                        Err(e) => Err(image::ImageError::IoError(std::io::Error::other(e.to_string()))),
+                        Err(e) => Err(image::ImageError::IoError(std::io::Error::other(
+                            e.to_string(),
+                        ))),
                     }
                 } else {
                     image::open(dir.join(uri))
@@ -521,7 +544,11 @@ fn textures(
         };
         let corner_uvs = kept
             .iter()
-            .map(|&t| soup.triangles[t].0.map(|v| soup.sets[v as usize][set].unwrap_or(Vec2::ZERO)))
+            .map(|&t| {
+                soup.triangles[t]
+                    .0
+                    .map(|v| soup.sets[v as usize][set].unwrap_or(Vec2::ZERO))
+            })
             .collect();
         out.push(PendingTexture {
             material: ours as u32,
@@ -538,8 +565,12 @@ fn decoded_to_image(d: gltf::image::Data) -> image::ImageResult<image::DynamicIm
     let bad = || image::ImageError::IoError(std::io::Error::other("unsupported pixel format"));
     let (w, h, px) = (d.width, d.height, d.pixels);
     Ok(match d.format {
-        F::R8 => image::DynamicImage::ImageLuma8(image::GrayImage::from_raw(w, h, px).ok_or_else(bad)?),
-        F::R8G8B8 => image::DynamicImage::ImageRgb8(image::RgbImage::from_raw(w, h, px).ok_or_else(bad)?),
+        F::R8 => {
+            image::DynamicImage::ImageLuma8(image::GrayImage::from_raw(w, h, px).ok_or_else(bad)?)
+        }
+        F::R8G8B8 => {
+            image::DynamicImage::ImageRgb8(image::RgbImage::from_raw(w, h, px).ok_or_else(bad)?)
+        }
         F::R8G8B8A8 => {
             image::DynamicImage::ImageRgba8(image::RgbaImage::from_raw(w, h, px).ok_or_else(bad)?)
         }

@@ -103,7 +103,14 @@ fn document(w: &GltfWrite) -> (Value, Vec<u8>) {
                 uv.extend([u.x, 1.0 - u.y]);
             }
         }
-        let pa = accessor(&mut bin, &mut views, &mut accessors, &p, "VEC3", Some((lo, hi)));
+        let pa = accessor(
+            &mut bin,
+            &mut views,
+            &mut accessors,
+            &p,
+            "VEC3",
+            Some((lo, hi)),
+        );
         let na = accessor(&mut bin, &mut views, &mut accessors, &n, "VEC3", None);
         let ua = accessor(&mut bin, &mut views, &mut accessors, &uv, "VEC2", None);
         let mut prim = json!({
@@ -222,7 +229,9 @@ fn base64(bytes: &[u8]) -> String {
     const A: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
     let mut out = String::with_capacity(bytes.len().div_ceil(3) * 4);
     for c in bytes.chunks(3) {
-        let n = (c[0] as u32) << 16 | (*c.get(1).unwrap_or(&0) as u32) << 8 | *c.get(2).unwrap_or(&0) as u32;
+        let n = (c[0] as u32) << 16
+            | (*c.get(1).unwrap_or(&0) as u32) << 8
+            | *c.get(2).unwrap_or(&0) as u32;
         for k in 0..4 {
             if k <= c.len() {
                 out.push(A[(n >> (18 - 6 * k) & 63) as usize] as char);
@@ -273,8 +282,10 @@ pub fn write_gltf(path: &Path, w: &GltfWrite) -> std::io::Result<()> {
             std::fs::write(&bin_path, &bin)?;
         }
         BufferMode::Embedded => {
-            doc["buffers"][0]["uri"] =
-                json!(format!("data:application/octet-stream;base64,{}", base64(&bin)));
+            doc["buffers"][0]["uri"] = json!(format!(
+                "data:application/octet-stream;base64,{}",
+                base64(&bin)
+            ));
         }
     }
     std::fs::write(path, serde_json::to_vec_pretty(&doc)?)

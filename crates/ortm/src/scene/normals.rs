@@ -101,10 +101,7 @@ pub fn crease_normals(
                 ((b, a), (k + 1) % 3, k)
             };
             let c = |k: usize| (3 * t + k) as u32;
-            edges
-                .entry(key)
-                .or_default()
-                .push((t as u32, c(ca), c(cb)));
+            edges.entry(key).or_default().push((t as u32, c(ca), c(cb)));
         }
     }
     let joined = |s: u32, t: u32| -> bool {

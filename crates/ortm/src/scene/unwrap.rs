@@ -66,7 +66,10 @@ fn adjacency(mesh: &Mesh) -> (Vec<Vec3>, Vec<Vec<u32>>) {
     for (t, tri) in mesh.triangles.iter().enumerate() {
         for k in 0..3 {
             let (a, b) = (tri.position[k], tri.position[(k + 1) % 3]);
-            edges.entry((a.min(b), a.max(b))).or_default().push(t as u32);
+            edges
+                .entry((a.min(b), a.max(b)))
+                .or_default()
+                .push(t as u32);
         }
     }
     let mut neighbours = vec![Vec::new(); mesh.triangles.len()];
@@ -146,7 +149,11 @@ fn project(mesh: &Mesh, chart: &[u32], seeds: &[Vec3]) -> (Vec<[Vec2; 3]>, Vec<(
             *p -= lo[c as usize];
         }
     }
-    let sides = lo.iter().zip(&hi).map(|(l, h)| (h.x - l.x, h.y - l.y)).collect();
+    let sides = lo
+        .iter()
+        .zip(&hi)
+        .map(|(l, h)| (h.x - l.x, h.y - l.y))
+        .collect();
     (corners, sides)
 }
 
@@ -187,7 +194,11 @@ fn place(
             let (w, h) = sides[c as usize];
             q.map(|p| {
                 // Turning by 90° counter-clockwise keeps the frame unmirrored.
-                let (a, b, hh) = if turned { (h - p.y, p.x, w) } else { (p.x, p.y, h) };
+                let (a, b, hh) = if turned {
+                    (h - p.y, p.x, w)
+                } else {
+                    (p.x, p.y, h)
+                };
                 let d = density as f32;
                 Vec2::new(r.x as f32 + a * d, r.y as f32 + (hh - b) * d)
             })
@@ -205,7 +216,11 @@ fn folded_charts(texel: &[[Vec2; 3]], chart: &[u32], size: u32) -> Vec<u32> {
             continue;
         }
         let lo = p[0].min(p[1]).min(p[2]).floor().max(Vec2::ZERO);
-        let hi = p[0].max(p[1]).max(p[2]).ceil().min(Vec2::splat(size as f32));
+        let hi = p[0]
+            .max(p[1])
+            .max(p[2])
+            .ceil()
+            .min(Vec2::splat(size as f32));
         for y in lo.y as u32..hi.y as u32 {
             for x in lo.x as u32..hi.x as u32 {
                 let c = Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
@@ -228,7 +243,11 @@ fn folded_charts(texel: &[[Vec2; 3]], chart: &[u32], size: u32) -> Vec<u32> {
 
 /// Replaces `mesh`'s UVs with generated lightmap UVs for a `width × height` lightmap (see the
 /// module docs). `path` names the mesh in errors.
-pub fn unwrap(mesh: &mut Mesh, (width, height): (u32, u32), path: &Path) -> Result<UnwrapReport, SceneError> {
+pub fn unwrap(
+    mesh: &mut Mesh,
+    (width, height): (u32, u32),
+    path: &Path,
+) -> Result<UnwrapReport, SceneError> {
     let size = width.min(height);
     let (normals, neighbours) = adjacency(mesh);
     let mut single = vec![false; mesh.triangles.len()];
