@@ -493,16 +493,22 @@ fn mesh_scene(path: &Path, kind: MeshKind) -> Result<(Scene, Vec<String>), Scene
             subsurface: None,
         }];
         warnings.push(format!(
-            "{}: an OBJ given as the scene: 1 unit = 1 metre, every face grey (albedo              {DEFAULT_ALBEDO}), a {DEFAULT_LIGHTMAP_SIZE}² lightmap and a default light. For              other units, materials or lights write a scene file (docs/scene-format.md), e.g.\n               mesh = \"{}\"\n  metres_per_unit = 0.01\n  [[material]]\n  name = \"default\"\n               albedo = [0.8, 0.8, 0.8]",
+            "{}: an OBJ given as the scene: 1 unit = 1 metre, every face grey (albedo \
+             {DEFAULT_ALBEDO}), a {DEFAULT_LIGHTMAP_SIZE}² lightmap and a default light. For \
+             other units, materials or lights write a scene file (docs/scene-format.md), e.g.\n  \
+             mesh = \"{}\"\n  metres_per_unit = 0.01\n  [[material]]\n  name = \"default\"\n  \
+             albedo = [0.8, 0.8, 0.8]",
             path.display(),
-            path.file_name().map_or_else(String::new, |f| f.to_string_lossy().into_owned())
+            path.file_name()
+                .map_or_else(String::new, |f| f.to_string_lossy().into_owned())
         ));
     }
     let had_lights = !loaded.lights.is_empty();
     loaded.into_scene(path, path, &mut scene, false, &mut warnings)?;
     if kind == MeshKind::Gltf && !had_lights {
         warnings.push(format!(
-            "{}: the glTF has no KHR_lights_punctual light; a default point light is used              (lights do not change a bake)",
+            "{}: the glTF has no KHR_lights_punctual light; a default point light is used \
+             (lights do not change a bake)",
             path.display()
         ));
     }
