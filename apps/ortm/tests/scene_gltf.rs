@@ -424,3 +424,75 @@ fn gltf_scenes_bake_to_the_same_maps_as_obj_and_toml() {
         "the glTF bake's maps differ from the OBJ + TOML bake's"
     );
 }
+
+#[test]
+fn base_colour_textures_are_linearised_times_the_factor() {
+    let dir = tempfile::tempdir().unwrap();
+    let floor = Face::oriented(Vec3::ZERO, Vec3::X, Vec3::Z, Vec3::Y, 0);
+    let mesh = charted_mesh(&[floor], 16);
+    let materials = [Material {
+        name: "tiles".into(),
+        albedo: Albedo::Constant(Vec3::new(1.0, 0.5, 1.0)),
+        subsurface: None,
+    }];
+    let path = dir.path().join("tiles.gltf");
+    let w = GltfWrite {
+        mesh: &mesh,
+        materials: &materials,
+        lights: &[],
+        node_chain: Vec::new(),
+        buffer: BufferMode::External,
+    };
+    write_gltf(&path, &w).unwrap();
+    // A 2×2 sRGB texture: top row red, green; bottom row blue, sRGB grey 128.
+    let px = [[255, 0, 0], [0, 255, 0], [0, 0, 255], [128, 128, 128]];
+    let img = image::RgbImage::from_fn(2, 2, |x, y| image::Rgb(px[(2 * y + x) as usize]));
+    img.save(dir.path().join("tiles.png")).unwrap();
+    let mut doc: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&path).unwrap()).unwrap();
+    doc["images"] = serde_json::json!([{"uri": "tiles.png"}]);
+    doc["textures"] = serde_json::json!([{"source": 0}]);
+    doc["materials"][0]["pbrMetallicRoughness"]["baseColorTexture"] =
+        serde_json::json!({"index": 0});
+    std::fs::write(&path, serde_json::to_vec(&doc).unwrap()).unwrap();
+
+    let (scene, warnings) = load_scene_with_warnings(&path).unwrap();
+    assert!(
+        warnings.iter().all(|w| !w.contains("texture")),
+        "{warnings:?}"
+    );
+    let grid = TexelGrid::build(&scene).unwrap();
+    let (w, h) = (grid.width as f32, grid.height as f32);
+    // sRGB 128/255 decodes to 0.215861; each texel is the factor × its texture quadrant.
+    let grey = 0.215_861;
+    let mut seen = [0usize; 4];
+    for t in &grid.texels {
+        let (u, v) = ((t.x as f32 + 0.5) / w, 1.0 - (t.y as f32 + 0.5) / h);
+        // Inside a quadrant's inner half the bilinear sample is that texel alone.
+        let q = match (u, v) {
+            (u, v) if u < 0.25 && v > 0.75 => 0,
+            (u, v) if u > 0.75 && v > 0.75 => 1,
+            (u, v) if u < 0.25 && v < 0.25 => 2,
+            (u, v) if u > 0.75 && v < 0.25 => 3,
+            _ => continue,
+        };
+        let want = [
+            Vec3::new(1.0, 0.0, 0.0),
+            Vec3::new(0.0, 0.5, 0.0),
+            Vec3::new(0.0, 0.0, 1.0),
+            Vec3::new(grey, 0.5 * grey, grey),
+        ][q];
+        // The lightmap-space image is sampled at its own texel centres: exact up to float
+        // rounding of the centre (measured: 1.5e-5 at a chart's border texel, whose uncovered
+        // neighbour is black).
+        assert!(
+            (t.albedo - want).length() < 1e-4,
+            "texel ({}, {}): {} vs {want}",
+            t.x,
+            t.y,
+            t.albedo
+        );
+        seen[q] += 1;
+    }
+    assert!(seen.iter().all(|&n| n > 100), "{seen:?}");
+}
