@@ -145,10 +145,13 @@ fn load(path: &Path) -> (Scene, Vec<String>) {
     (s, w)
 }
 
+/// Nodes from the root inwards: (translation, uniform scale).
+type NodeChain = Vec<(Vec3, f32)>;
+
 /// The room's glTF variants: (file name, node chain, buffer placement). The node chains
 /// compose to the identity (2 · (t2 + 0.5 · p) + t1 = p for t1 = −2 t2), so world positions
 /// are the OBJ's exactly.
-fn variants() -> Vec<(&'static str, Vec<(Vec3, f32)>, BufferMode)> {
+fn variants() -> Vec<(&'static str, NodeChain, BufferMode)> {
     let t2 = Vec3::new(0.25, -0.5, 1.0);
     let chain = vec![(-2.0 * t2, 2.0), (t2, 0.5)];
     vec![
@@ -495,4 +498,62 @@ fn base_colour_textures_are_linearised_times_the_factor() {
         seen[q] += 1;
     }
     assert!(seen.iter().all(|&n| n > 100), "{seen:?}");
+}
+
+#[test]
+fn bad_gltf_files_are_errors_naming_the_file_and_the_fix() {
+    let dir = tempfile::tempdir().unwrap();
+    let (mesh, materials, _) = room();
+    let err = |p: &Path| load_scene_with_warnings(p).unwrap_err().to_string();
+    // Not glTF at all.
+    let junk = dir.path().join("junk.glb");
+    std::fs::write(&junk, b"glTF\x02\0\0\0 not really").unwrap();
+    let e = err(&junk);
+    assert!(
+        e.contains("junk.glb") && e.contains("glTF 2.0") && e.contains("Fix"),
+        "{e}"
+    );
+    // A .gltf whose .bin is missing.
+    let w = GltfWrite {
+        mesh: &mesh,
+        materials: &materials,
+        lights: &[],
+        node_chain: Vec::new(),
+        buffer: BufferMode::External,
+    };
+    let lost = dir.path().join("lost.gltf");
+    write_gltf(&lost, &w).unwrap();
+    std::fs::remove_file(dir.path().join("lost.bin")).unwrap();
+    let e = err(&lost);
+    assert!(
+        e.contains("lost.gltf") && e.contains("buffer") && e.contains(".bin"),
+        "{e}"
+    );
+    // Nodes that are each other's child: refused, not walked for ever.
+    let cyclic = dir.path().join("cyclic.gltf");
+    write_gltf(
+        &cyclic,
+        &GltfWrite {
+            buffer: BufferMode::Embedded,
+            ..w.clone()
+        },
+    )
+    .unwrap();
+    let mut doc: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&cyclic).unwrap()).unwrap();
+    doc["nodes"] = serde_json::json!([{"children": [1]}, {"children": [0], "mesh": 0}]);
+    std::fs::write(&cyclic, serde_json::to_vec(&doc).unwrap()).unwrap();
+    let e = err(&cyclic);
+    assert!(e.contains("cyclic.gltf"), "{e}");
+    // `ortm unwrap` names what it reads and writes.
+    let text = common::fails(ortm(&["unwrap", "room.txt", "-o", "out.obj"], dir.path()));
+    assert!(
+        text.contains("room.txt") && text.contains(".obj, .gltf or .glb"),
+        "{text}"
+    );
+    let text = common::fails(ortm(&["unwrap", "junk.glb", "-o", "out.png"], dir.path()));
+    assert!(
+        text.contains("out.png") && text.contains("output"),
+        "{text}"
+    );
 }

@@ -138,26 +138,8 @@ pub fn load_gltf(
     else {
         return Err(gltf_err(path, "has no scene", "export a scene with meshes"));
     };
-    let mut warnings = Vec::new();
-    let mut soup = Soup {
-        all_normals: true,
-        ..Soup::default()
-    };
-    let mut lights = Vec::new();
-    let scale = Mat4::from_scale(Vec3::splat(metres_per_unit as f32));
-    let mut stack: Vec<(gltf::Node, Mat4)> = scene.nodes().map(|n| (n, scale)).collect();
-    stack.reverse();
-    while let Some((node, parent)) = stack.pop() {
-        let world = parent * Mat4::from_cols_array_2d(&node.transform().matrix());
-        if let Some(mesh) = node.mesh() {
-            add_mesh(path, &mesh, world, &buffers, &mut soup, &mut warnings)?;
-        }
-        if let Some(light) = node.light() {
-            lights.push(convert_light(path, &light, world, &mut warnings));
-        }
-        let children: Vec<_> = node.children().map(|c| (c, world)).collect();
-        stack.extend(children.into_iter().rev());
-    }
+    let (mut soup, lights, mut warnings) =
+        walk(path, &document, &scene, metres_per_unit, &buffers)?;
     if soup.triangles.is_empty() {
         return Err(gltf_err(
             path,
@@ -196,6 +178,48 @@ pub fn load_gltf(
         uvs_missing,
         warnings,
     })
+}
+
+/// Walks `scene`'s node trees (each node's world matrix = its parent's × its own, after the
+/// `metres_per_unit` scale), collecting every triangle primitive and light. A node hierarchy
+/// that visits more nodes than the document has (a cycle, which glTF forbids) is an error.
+fn walk(
+    path: &Path,
+    document: &gltf::Document,
+    scene: &gltf::Scene,
+    metres_per_unit: f64,
+    buffers: &[gltf::buffer::Data],
+) -> Result<(Soup, Vec<Light>, Vec<String>), SceneError> {
+    let mut warnings = Vec::new();
+    let mut soup = Soup {
+        all_normals: true,
+        ..Soup::default()
+    };
+    let mut lights = Vec::new();
+    let scale = Mat4::from_scale(Vec3::splat(metres_per_unit as f32));
+    let mut stack: Vec<(gltf::Node, Mat4)> = scene.nodes().map(|n| (n, scale)).collect();
+    stack.reverse();
+    let mut visits = 0usize;
+    while let Some((node, parent)) = stack.pop() {
+        visits += 1;
+        if visits > document.nodes().len() {
+            return Err(gltf_err(
+                path,
+                "has a node hierarchy with a cycle or a node with two parents",
+                "export the scene again (glTF nodes form trees)",
+            ));
+        }
+        let world = parent * Mat4::from_cols_array_2d(&node.transform().matrix());
+        if let Some(mesh) = node.mesh() {
+            add_mesh(path, &mesh, world, buffers, &mut soup, &mut warnings)?;
+        }
+        if let Some(light) = node.light() {
+            lights.push(convert_light(path, &light, world, &mut warnings));
+        }
+        let children: Vec<_> = node.children().map(|c| (c, world)).collect();
+        stack.extend(children.into_iter().rev());
+    }
+    Ok((soup, lights, warnings))
 }
 
 /// Appends every triangle primitive of `mesh` under the world matrix `world` to `soup`.
@@ -489,25 +513,7 @@ fn textures(
             continue;
         };
         let set = info.tex_coord() as usize;
-        let source = info.texture().source();
-        let data = match source.source() {
-            gltf::image::Source::View { view, .. } => {
-                let buf = &buffers[view.buffer().index()].0;
-                image::load_from_memory(&buf[view.offset()..view.offset() + view.length()])
-            }
-            gltf::image::Source::Uri { uri, .. } => {
-                if uri.starts_with("data:") {
-                    match gltf::image::Data::from_source(source.source(), Some(dir), buffers) {
-                        Ok(d) => decoded_to_image(d),
-                        Err(e) => Err(image::ImageError::IoError(std::io::Error::other(
-                            e.to_string(),
-                        ))),
-                    }
-                } else {
-                    image::open(dir.join(uri))
-                }
-            }
-        };
+        let data = decode_image(&info.texture().source(), dir, buffers);
         let img = match data {
             Ok(i) => i.to_rgb32f(),
             Err(e) => {
@@ -557,6 +563,30 @@ fn textures(
         });
     }
     Ok(out)
+}
+
+/// Decodes a glTF image: from a buffer view, a `data:` URI, or a file beside the glTF.
+fn decode_image(
+    source: &gltf::Image,
+    dir: &Path,
+    buffers: &[gltf::buffer::Data],
+) -> image::ImageResult<image::DynamicImage> {
+    let other = |e: String| image::ImageError::IoError(std::io::Error::other(e));
+    match source.source() {
+        gltf::image::Source::View { view, .. } => {
+            let bytes = buffers
+                .get(view.buffer().index())
+                .and_then(|b| b.0.get(view.offset()..view.offset() + view.length()))
+                .ok_or_else(|| other("the image's buffer view lies outside its buffer".into()))?;
+            image::load_from_memory(bytes)
+        }
+        gltf::image::Source::Uri { uri, .. } if uri.starts_with("data:") => {
+            gltf::image::Data::from_source(source.source(), Some(dir), buffers)
+                .map_err(|e| other(e.to_string()))
+                .and_then(decoded_to_image)
+        }
+        gltf::image::Source::Uri { uri, .. } => image::open(dir.join(uri)),
+    }
 }
 
 /// A `gltf` decoded image as an `image` image (8-bit grey, grey-alpha, RGB or RGBA).

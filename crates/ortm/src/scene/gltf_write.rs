@@ -57,7 +57,7 @@ fn accessor(
     kind: &str,
     min_max: Option<(Vec3, Vec3)>,
 ) -> usize {
-    while bin.len() % 4 != 0 {
+    while !bin.len().is_multiple_of(4) {
         bin.push(0);
     }
     let offset = bin.len();
@@ -80,10 +80,15 @@ fn accessor(
     accessors.len() - 1
 }
 
-/// The document's JSON and binary buffer.
-fn document(w: &GltfWrite) -> (Value, Vec<u8>) {
+/// One triangle-list primitive per material with triangles, its attributes appended to `bin`,
+/// `views` and `accessors`.
+fn primitives(
+    w: &GltfWrite,
+    bin: &mut Vec<u8>,
+    views: &mut Vec<Value>,
+    accessors: &mut Vec<Value>,
+) -> Vec<Value> {
     let m = w.mesh;
-    let (mut bin, mut views, mut accessors) = (Vec::new(), Vec::new(), Vec::new());
     let mut primitives = Vec::new();
     for mat in 0..w.materials.len().max(1) as u32 {
         let tris: Vec<_> = m.triangles.iter().filter(|t| t.material == mat).collect();
@@ -103,16 +108,9 @@ fn document(w: &GltfWrite) -> (Value, Vec<u8>) {
                 uv.extend([u.x, 1.0 - u.y]);
             }
         }
-        let pa = accessor(
-            &mut bin,
-            &mut views,
-            &mut accessors,
-            &p,
-            "VEC3",
-            Some((lo, hi)),
-        );
-        let na = accessor(&mut bin, &mut views, &mut accessors, &n, "VEC3", None);
-        let ua = accessor(&mut bin, &mut views, &mut accessors, &uv, "VEC2", None);
+        let pa = accessor(bin, views, accessors, &p, "VEC3", Some((lo, hi)));
+        let na = accessor(bin, views, accessors, &n, "VEC3", None);
+        let ua = accessor(bin, views, accessors, &uv, "VEC2", None);
         let mut prim = json!({
             "attributes": {"POSITION": pa, "NORMAL": na, "TEXCOORD_0": ua, "TEXCOORD_1": ua},
             "mode": 4,
@@ -122,6 +120,13 @@ fn document(w: &GltfWrite) -> (Value, Vec<u8>) {
         }
         primitives.push(prim);
     }
+    primitives
+}
+
+/// The document's JSON and binary buffer.
+fn document(w: &GltfWrite) -> (Value, Vec<u8>) {
+    let (mut bin, mut views, mut accessors) = (Vec::new(), Vec::new(), Vec::new());
+    let primitives = primitives(w, &mut bin, &mut views, &mut accessors);
     let materials: Vec<Value> = w
         .materials
         .iter()
@@ -252,11 +257,11 @@ pub fn write_gltf(path: &Path, w: &GltfWrite) -> std::io::Result<()> {
         .is_some_and(|e| e.eq_ignore_ascii_case("glb"));
     if is_glb {
         let mut json = serde_json::to_vec(&doc)?;
-        while json.len() % 4 != 0 {
+        while !json.len().is_multiple_of(4) {
             json.push(b' ');
         }
         let mut bin = bin;
-        while bin.len() % 4 != 0 {
+        while !bin.len().is_multiple_of(4) {
             bin.push(0);
         }
         let total = 12 + 8 + json.len() + 8 + bin.len();

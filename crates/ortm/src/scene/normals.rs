@@ -44,6 +44,10 @@ impl Default for NormalRule {
     }
 }
 
+/// One triangle's use of an edge: (triangle, corner at the edge's lower position index,
+/// corner at its higher one); corners are numbered `3·t + k`.
+type EdgeUse = (u32, u32, u32);
+
 /// Union-find over triangle corners (`3·t + k`).
 struct Corners(Vec<u32>);
 
@@ -65,33 +69,17 @@ impl Corners {
     }
 }
 
-/// Normals for `triangles` over `positions` (metres) by `rule`, with per-triangle smoothing
-/// groups `groups` (OBJ `s`; `None` when the file has none). Returns the normals and, per
-/// triangle, its three normal indices. See the module docs.
-pub fn crease_normals(
-    positions: &[Vec3],
+/// Joins the corners of triangles smoothed together across a shared edge (the rule of the
+/// module docs): `face` are the triangles' unnormalised normals, `groups` the smoothing
+/// groups, `cos_limit` the cosine of the crease angle.
+fn join_corners(
     triangles: &[MeshTriangle],
+    face: &[DVec3],
     groups: Option<&[u32]>,
-    rule: NormalRule,
-) -> (Vec<Vec3>, Vec<[u32; 3]>) {
-    let smooth = super::obj::smooth_normals(positions, triangles);
-    let plain: Vec<[u32; 3]> = triangles.iter().map(|t| t.position).collect();
-    let cos_limit = match rule {
-        NormalRule::SmoothAll => return (smooth, plain),
-        // 180° joins every pair of faces: exactly the plain rule (also at bow-tie positions,
-        // whose fans share no edge).
-        NormalRule::Crease(deg) if deg >= 180.0 && groups.is_none() => return (smooth, plain),
-        NormalRule::Crease(deg) => (deg.clamp(0.0, 180.0) as f64).to_radians().cos(),
-    };
-    let face: Vec<DVec3> = triangles
-        .iter()
-        .map(|t| {
-            let [a, b, c] = t.position.map(|i| positions[i as usize].as_dvec3());
-            (b - a).cross(c - a)
-        })
-        .collect();
+    cos_limit: f64,
+) -> Corners {
     // Edges → the (triangle, corner of the edge's first end, corner of its second end).
-    let mut edges: HashMap<(u32, u32), Vec<(u32, u32, u32)>> = HashMap::new();
+    let mut edges: HashMap<(u32, u32), Vec<EdgeUse>> = HashMap::new();
     for (t, tri) in triangles.iter().enumerate() {
         for k in 0..3 {
             let (a, b) = (tri.position[k], tri.position[(k + 1) % 3]);
@@ -127,6 +115,35 @@ pub fn crease_normals(
             }
         }
     }
+    uf
+}
+
+/// Normals for `triangles` over `positions` (metres) by `rule`, with per-triangle smoothing
+/// groups `groups` (OBJ `s`; `None` when the file has none). Returns the normals and, per
+/// triangle, its three normal indices. See the module docs.
+pub fn crease_normals(
+    positions: &[Vec3],
+    triangles: &[MeshTriangle],
+    groups: Option<&[u32]>,
+    rule: NormalRule,
+) -> (Vec<Vec3>, Vec<[u32; 3]>) {
+    let smooth = super::obj::smooth_normals(positions, triangles);
+    let plain: Vec<[u32; 3]> = triangles.iter().map(|t| t.position).collect();
+    let cos_limit = match rule {
+        NormalRule::SmoothAll => return (smooth, plain),
+        // 180° joins every pair of faces: exactly the plain rule (also at bow-tie positions,
+        // whose fans share no edge).
+        NormalRule::Crease(deg) if deg >= 180.0 && groups.is_none() => return (smooth, plain),
+        NormalRule::Crease(deg) => (deg.clamp(0.0, 180.0) as f64).to_radians().cos(),
+    };
+    let face: Vec<DVec3> = triangles
+        .iter()
+        .map(|t| {
+            let [a, b, c] = t.position.map(|i| positions[i as usize].as_dvec3());
+            (b - a).cross(c - a)
+        })
+        .collect();
+    let mut uf = join_corners(triangles, &face, groups, cos_limit);
     // Fans per position: root corner → fan slot.
     let mut fans_of: Vec<Vec<u32>> = vec![Vec::new(); positions.len()];
     for (t, tri) in triangles.iter().enumerate() {
@@ -145,10 +162,9 @@ pub fn crease_normals(
     let mut slot_of_root: HashMap<u32, u32> = HashMap::new();
     let mut sums: Vec<DVec3> = Vec::new();
     let mut indices = plain;
-    for (t, tri) in triangles.iter().enumerate() {
-        for k in 0..3 {
-            let p = tri.position[k] as usize;
-            if fans_of[p].len() <= 1 {
+    for (t, (tri, idx)) in triangles.iter().zip(indices.iter_mut()).enumerate() {
+        for (k, (&p, slot_out)) in tri.position.iter().zip(idx.iter_mut()).enumerate() {
+            if fans_of[p as usize].len() <= 1 {
                 continue;
             }
             let root = uf.find((3 * t + k) as u32);
@@ -157,7 +173,7 @@ pub fn crease_normals(
                 (sums.len() - 1) as u32
             });
             sums[slot as usize] += face[t];
-            indices[t][k] = positions.len() as u32 + slot;
+            *slot_out = positions.len() as u32 + slot;
         }
     }
     // A fan whose sum cancels (or is of zero-area triangles) keeps the position's normal.

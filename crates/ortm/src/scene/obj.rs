@@ -8,9 +8,9 @@
 //!    ignored). A syntax error is reported with the line the parser stopped on.
 //! 3. A light line scan of the same text finds what `tobj` does not report: NaN/infinite
 //!    numbers in `v`/`vt`/`vn` (with the line), face corners without a UV, indices out of
-//!    range (with the line), `usemtl` names and `mtllib` files. Every face of n corners
-//!    becomes n − 2 triangles in file order, so the scan also knows each triangle's OBJ face,
-//!    line and `usemtl` name.
+//!    range (with the line), `usemtl` names, smoothing groups (`s`) and `mtllib` files. Every
+//!    face of n corners becomes n − 2 triangles in file order, so the scan also knows each
+//!    triangle's OBJ face, line, `usemtl` name and smoothing group.
 //! 4. The `tobj` models (one per `o`/`g`/`usemtl` run) are merged into one [`Mesh`]:
 //!    positions are welded by bit-identical coordinates (this undoes `tobj`'s per-group
 //!    duplication, so the head's 8,844 positions stay 8,844 and smooth normals do not break
@@ -32,7 +32,12 @@
 //!    kept with a warning: they still occlude light, but cover no texel centre, so the
 //!    lightmap holds nothing for them.
 //! 6. Normals: the file's `vn` normals (normalised) when every face corner has one; otherwise
-//!    smooth area-weighted normals per (welded) position, computed from the triangles.
+//!    computed by [`MeshOptions::normals`]: [`load_obj`] smooths every (welded) position
+//!    (area-weighted), the scene loader keeps hard edges ([`super::normals`]: smoothing groups
+//!    `s` when the file has them, else the crease angle).
+//!
+//! A file without any `vt` is refused, unless [`MeshOptions::allow_missing_uvs`] (the scene
+//! loader, which then generates lightmap UVs): every corner gets UV (0, 0).
 //!
 //! # Conventions and units
 //! Positions are multiplied by `metres_per_unit` (→ metres). Faces are counter-clockwise

@@ -289,10 +289,9 @@ fn write_uvs(mesh: &mut Mesh, texel: &[[Vec2; 3]], chart: &[u32], (width, height
     let mut index: HashMap<(u32, u32), u32> = HashMap::new();
     let mut uvs = Vec::new();
     for (t, tri) in mesh.triangles.iter_mut().enumerate() {
-        for k in 0..3 {
+        for (k, &p) in texel[t].iter().enumerate() {
             let key = (chart[t], tri.position[k]);
             tri.uv[k] = *index.entry(key).or_insert_with(|| {
-                let p = texel[t][k];
                 uvs.push(Vec2::new(p.x / width as f32, 1.0 - p.y / height as f32));
                 (uvs.len() - 1) as u32
             });
@@ -363,28 +362,16 @@ pub struct UnwrapSummary {
     pub warnings: Vec<String>,
 }
 
-/// Reads a mesh (`.obj`, `.gltf`, `.glb`), generates lightmap UVs for a `size × size`
-/// lightmap and writes the mesh with them to `output` (`.obj`: positions in the input's
-/// units, `vt` = the lightmap UVs, `vn` = the normals used; `.gltf`/`.glb`: see
-/// [`super::gltf_write`], the lightmap UVs as `TEXCOORD_1`). A glTF is written flattened to
-/// world space with its materials' base colour factors and its lights; its textures are not
-/// carried over (a warning says so).
-pub fn unwrap_file(input: &Path, output: &Path, size: u32) -> Result<UnwrapSummary, SceneError> {
-    use super::gltf_write::{BufferMode, GltfWrite, write_gltf};
+/// A mesh file read for [`unwrap_file`]: the mesh (in its file's units), its materials, lights
+/// and warnings.
+type ReadMesh = (Mesh, Vec<super::Material>, Vec<super::Light>, Vec<String>);
+
+/// Reads `input` (`.obj`, `.gltf` or `.glb`) for [`unwrap_file`] (`output` is named in the
+/// warning about textures a glTF loses).
+fn read_mesh_file(input: &Path, output: &Path) -> Result<ReadMesh, SceneError> {
     use super::normals::NormalRule;
-    use super::obj::{MeshOptions, ObjOptions, load_obj_mesh, write_obj};
-    let ext = |p: &Path| {
-        p.extension()
-            .and_then(|e| e.to_str())
-            .map(str::to_ascii_lowercase)
-            .unwrap_or_default()
-    };
-    let bad_ext = |p: &Path, role: &str| SceneError::Unwrap {
-        path: p.to_path_buf(),
-        problem: format!("the {role} must end in .obj, .gltf or .glb"),
-        fix: "name an OBJ or glTF file".into(),
-    };
-    let (mut mesh, materials, lights, mut warnings) = match ext(input).as_str() {
+    use super::obj::{MeshOptions, ObjOptions, load_obj_mesh};
+    Ok(match extension(input).as_str() {
         "obj" => {
             let options = MeshOptions {
                 normals: NormalRule::default(),
@@ -415,32 +402,61 @@ pub fn unwrap_file(input: &Path, output: &Path, size: u32) -> Result<UnwrapSumma
             }
             (g.mesh, g.materials, g.lights, w)
         }
-        _ => return Err(bad_ext(input, "input")),
-    };
+        _ => return Err(bad_extension(input, "input")),
+    })
+}
+
+/// The lower-case extension of `p` (empty when none).
+fn extension(p: &Path) -> String {
+    p.extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase)
+        .unwrap_or_default()
+}
+
+/// The error for an `ortm unwrap` file (`role`: input or output) of another kind.
+fn bad_extension(p: &Path, role: &str) -> SceneError {
+    SceneError::Unwrap {
+        path: p.to_path_buf(),
+        problem: format!("the {role} must end in .obj, .gltf or .glb"),
+        fix: "name an OBJ or glTF file".into(),
+    }
+}
+
+/// Reads a mesh (`.obj`, `.gltf`, `.glb`), generates lightmap UVs for a `size × size`
+/// lightmap and writes the mesh with them to `output` (`.obj`: positions in the input's
+/// units, `vt` = the lightmap UVs, `vn` = the normals used; `.gltf`/`.glb`: see
+/// [`super::gltf_write`], the lightmap UVs as `TEXCOORD_1`). A glTF is written flattened to
+/// world space with its materials' base colour factors and its lights; its textures are not
+/// carried over (a warning says so).
+pub fn unwrap_file(input: &Path, output: &Path, size: u32) -> Result<UnwrapSummary, SceneError> {
+    use super::gltf_write::{BufferMode, GltfWrite, write_gltf};
+    use super::obj::write_obj;
+    let out_ext = extension(output);
+    if !matches!(out_ext.as_str(), "obj" | "gltf" | "glb") {
+        return Err(bad_extension(output, "output"));
+    }
+    let (mut mesh, materials, lights, mut warnings) = read_mesh_file(input, output)?;
     let report = unwrap(&mut mesh, (size, size), input)?;
     let io = |source| SceneError::Io {
         what: "unwrapped mesh",
         path: output.to_path_buf(),
         source,
     };
-    match ext(output).as_str() {
-        "obj" => {
-            let names: Vec<String> = materials.iter().map(|m| m.name.clone()).collect();
-            write_obj(output, &mesh, &names).map_err(io)?;
-        }
-        "gltf" | "glb" => {
-            let w = GltfWrite {
-                mesh: &mesh,
-                materials: &materials,
-                lights: &lights,
-                node_chain: Vec::new(),
-                buffer: BufferMode::External,
-            };
-            write_gltf(output, &w).map_err(io)?;
-        }
-        _ => return Err(bad_ext(output, "output")),
+    if out_ext == "obj" {
+        let names: Vec<String> = materials.iter().map(|m| m.name.clone()).collect();
+        write_obj(output, &mesh, &names).map_err(io)?;
+    } else {
+        let w = GltfWrite {
+            mesh: &mesh,
+            materials: &materials,
+            lights: &lights,
+            node_chain: Vec::new(),
+            buffer: BufferMode::External,
+        };
+        write_gltf(output, &w).map_err(io)?;
     }
-    if ext(input) == "obj" && ext(output) != "obj" {
+    if extension(input) == "obj" && out_ext != "obj" {
         warnings.push(format!(
             "{}: OBJ coordinates are written as metres to {} (glTF's unit)",
             input.display(),
