@@ -230,6 +230,18 @@ fn a_bare_obj_without_uvs_is_a_scene_and_ortm_unwrap_writes_its_uvs() {
         text.contains("has no lightmap UVs") && text.contains("scene file"),
         "{text}"
     );
+    // The UVs were made for the bake's size (2-texel gutters at 32²), and `ortm view` /
+    // `ortm render`, which load the scene at the bake's size, make the same ones.
+    let obj = dir.path().join("room.obj");
+    let scene = ortm::scene::file::load_scene_sized(&obj, Some(32)).unwrap();
+    check_layout(&scene, true);
+    let index: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.path().join("bake/index.json")).unwrap())
+            .unwrap();
+    assert_eq!(
+        index["scene_hash"],
+        ortm::scene::scene_hash(&scene).as_str()
+    );
     // `ortm unwrap` writes them: the OBJ and the glTF read back as scenes whose UVs are used
     // as they are (no warning about generated UVs) and cover the same texels.
     for out in ["room_uv.obj", "room_uv.glb"] {

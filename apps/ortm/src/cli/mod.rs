@@ -140,7 +140,7 @@ pub fn load_scene(arg: &str, size: Option<u32>) -> Result<Scene> {
                     faces::head_obj_path().display()
                 )
             })?,
-        path => ortm::scene::file::load_scene(&PathBuf::from(path))
+        path => ortm::scene::file::load_scene_sized(&PathBuf::from(path), size)
             .with_context(|| format!("loading scene '{path}'"))?,
     };
     if let Some(s) = size {

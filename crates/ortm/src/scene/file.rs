@@ -243,8 +243,30 @@ pub fn load_scene(path: &Path) -> Result<Scene, SceneError> {
 /// a glTF (`.gltf`, `.glb`: its materials and lights) or an OBJ (`.obj`: metres, one grey
 /// material, a default light), see [`mesh_scene`].
 pub fn load_scene_with_warnings(path: &Path) -> Result<(Scene, Vec<String>), SceneError> {
+    load_scene_sized_with_warnings(path, None)
+}
+
+/// [`load_scene`] with the lightmap made `size × size` (as `--size` does) before lightmap UVs
+/// are generated and glTF textures resampled, so generated UVs have their 2-texel gutters at
+/// that size. A size outside `1..=MAX_LIGHTMAP_SIZE` is ignored (the caller refuses it).
+pub fn load_scene_sized(path: &Path, size: Option<u32>) -> Result<Scene, SceneError> {
+    let (scene, warnings) = load_scene_sized_with_warnings(path, size)?;
+    for w in warnings {
+        eprintln!("warning: {w}");
+    }
+    Ok(scene)
+}
+
+/// [`load_scene_sized`] returning the warnings.
+pub fn load_scene_sized_with_warnings(
+    path: &Path,
+    size: Option<u32>,
+) -> Result<(Scene, Vec<String>), SceneError> {
+    let size = size
+        .filter(|s| (1..=MAX_LIGHTMAP_SIZE).contains(s))
+        .map(|s| (s, s));
     if let Some(kind) = MeshKind::of(path) {
-        return mesh_scene(path, kind);
+        return mesh_scene(path, kind, size);
     }
     let text = read_text_bounded(path, "scene file", MAX_SCENE_BYTES)?;
     let raw: RawScene = toml::from_str(&text).map_err(|e| SceneError::SceneSyntax {
@@ -259,6 +281,7 @@ pub fn load_scene_with_warnings(path: &Path) -> Result<(Scene, Vec<String>), Sce
     let mpu = ctx.metres_per_unit(raw.metres_per_unit.as_ref(), kind)?;
     let rule = ctx.crease_rule(raw.crease_angle_deg.as_ref())?;
     let lightmap_size = ctx.lightmap_size(raw.lightmap.as_ref())?;
+    let lightmap_size = size.unwrap_or(lightmap_size);
     let materials = if raw.material.is_empty() && kind == MeshKind::Gltf {
         Vec::new()
     } else {
@@ -475,7 +498,11 @@ fn stem(path: &Path) -> String {
 /// it has none), or an OBJ in metres with one grey material ([`DEFAULT_ALBEDO`]) and the
 /// default light, a 256² lightmap, normals by the crease rule, lightmap UVs generated when
 /// missing or overlapping. Warnings say what was assumed and how to write a scene file.
-fn mesh_scene(path: &Path, kind: MeshKind) -> Result<(Scene, Vec<String>), SceneError> {
+fn mesh_scene(
+    path: &Path,
+    kind: MeshKind,
+    size: Option<(u32, u32)>,
+) -> Result<(Scene, Vec<String>), SceneError> {
     let loaded = LoadedMesh::read(path, kind, 1.0, NormalRule::default(), false)?;
     let mut warnings = loaded.warnings.clone();
     let mut scene = Scene {
@@ -483,7 +510,7 @@ fn mesh_scene(path: &Path, kind: MeshKind) -> Result<(Scene, Vec<String>), Scene
         mesh: Mesh::default(),
         materials: Vec::new(),
         lights: Vec::new(),
-        lightmap_size: (DEFAULT_LIGHTMAP_SIZE, DEFAULT_LIGHTMAP_SIZE),
+        lightmap_size: size.unwrap_or((DEFAULT_LIGHTMAP_SIZE, DEFAULT_LIGHTMAP_SIZE)),
         allow_uv_overlap: false,
     };
     if kind == MeshKind::Obj {
@@ -494,13 +521,14 @@ fn mesh_scene(path: &Path, kind: MeshKind) -> Result<(Scene, Vec<String>), Scene
         }];
         warnings.push(format!(
             "{}: an OBJ given as the scene: 1 unit = 1 metre, every face grey (albedo \
-             {DEFAULT_ALBEDO}), a {DEFAULT_LIGHTMAP_SIZE}² lightmap and a default light. For \
+             {DEFAULT_ALBEDO}), a {side}² lightmap and a default light. For \
              other units, materials or lights write a scene file (docs/scene-format.md), e.g.\n  \
              mesh = \"{}\"\n  metres_per_unit = 0.01\n  [[material]]\n  name = \"default\"\n  \
              albedo = [0.8, 0.8, 0.8]",
             path.display(),
             path.file_name()
-                .map_or_else(String::new, |f| f.to_string_lossy().into_owned())
+                .map_or_else(String::new, |f| f.to_string_lossy().into_owned()),
+            side = scene.lightmap_size.0,
         ));
     }
     let had_lights = !loaded.lights.is_empty();
