@@ -307,7 +307,9 @@ pub fn unusable_uvs(scene: &mut Scene, uvs_missing: bool) -> Option<String> {
     if uvs_missing {
         return Some("it has no lightmap UVs".into());
     }
-    if scene.allow_uv_overlap {
+    let (w, h) = scene.lightmap_size;
+    if scene.allow_uv_overlap || crate::io::limits::check_lightmap_memory(w, h).is_err() {
+        // Too large to rasterize here: the caller refuses the size with its own message.
         return None;
     }
     scene.allow_uv_overlap = true;
