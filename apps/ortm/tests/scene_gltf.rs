@@ -465,12 +465,29 @@ fn base_colour_textures_are_linearised_times_the_factor() {
         "{warnings:?}"
     );
     let grid = TexelGrid::build(&scene).unwrap();
-    let (w, h) = (grid.width as f32, grid.height as f32);
     // sRGB 128/255 decodes to 0.215861; each texel is the factor × its texture quadrant.
     let grey = 0.215_861;
     let mut seen = [0usize; 4];
+    // The UV the test wrote at a surface point (x, 0, z) of the floor, from the mesh itself:
+    // the texture is checked against where the surface is, not where the loader put it.
+    let written_uv = |p: Vec3| {
+        mesh.triangles.iter().find_map(|tri| {
+            let [a, b, c] = tri.position.map(|i| {
+                let p = mesh.positions_m[i as usize];
+                glam::Vec2::new(p.x, p.z)
+            });
+            let q = glam::Vec2::new(p.x, p.z);
+            let d = (b - a).perp_dot(c - a);
+            let l1 = (q - a).perp_dot(c - a) / d;
+            let l2 = (b - a).perp_dot(q - a) / d;
+            let uv = tri.uv.map(|i| mesh.uvs[i as usize]);
+            (l1 >= -1e-4 && l2 >= -1e-4 && l1 + l2 <= 1.0 + 1e-4)
+                .then(|| uv[0] * (1.0 - l1 - l2) + uv[1] * l1 + uv[2] * l2)
+        })
+    };
     for t in &grid.texels {
-        let (u, v) = ((t.x as f32 + 0.5) / w, 1.0 - (t.y as f32 + 0.5) / h);
+        let uv = written_uv(t.position_m).expect("texel on the floor");
+        let (u, v) = (uv.x, uv.y);
         // Inside a quadrant's inner half the bilinear sample is that texel alone.
         let q = match (u, v) {
             (u, v) if u < 0.25 && v > 0.75 => 0,
