@@ -17,6 +17,7 @@ mod reference;
 pub(crate) mod render;
 mod render_cpu;
 mod solve;
+mod unwrap;
 mod view;
 
 use std::path::PathBuf;
@@ -59,6 +60,8 @@ enum Command {
     Render(render::Args),
     /// Interactive viewer: move lights and watch the relit bake (egui window).
     View(view::Args),
+    /// Generate lightmap UVs for an OBJ or glTF mesh and write it with them.
+    Unwrap(unwrap::Args),
 }
 
 /// `ortm bench render …` (a subcommand with its own options) or `ortm bench transport|bake`.
@@ -104,6 +107,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Bin(a) => bin::run(a),
         Command::Render(a) => render::run(a),
         Command::View(a) => view::run(a),
+        Command::Unwrap(a) => unwrap::run(a),
     }
 }
 
@@ -145,7 +149,7 @@ pub fn load_scene(arg: &str, size: Option<u32>) -> Result<Scene> {
                 .with_context(|| format!("loading the head scan {}", head_obj_location()))?
         }
         name if looks_like_a_name(name) => bail_unknown_scene(name)?,
-        path => ortm::scene::file::load_scene(&PathBuf::from(path))
+        path => ortm::scene::file::load_scene_sized(&PathBuf::from(path), size)
             .with_context(|| format!("loading scene '{path}'"))?,
     };
     if let Some(s) = size {

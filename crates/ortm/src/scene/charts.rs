@@ -79,7 +79,7 @@ pub struct ChartRect {
 
 /// Chart sizes in texels at `texels_per_m`: each side rounded up, at least
 /// [`MIN_CHART_TEXELS`]. `(e1 side, e2 side)` → `(width, height)` before any turning.
-fn chart_sizes(sides_m: &[(f32, f32)], texels_per_m: f64) -> Vec<(u32, u32)> {
+pub(crate) fn chart_sizes(sides_m: &[(f32, f32)], texels_per_m: f64) -> Vec<(u32, u32)> {
     let texels = |len: f32| {
         let t = (len as f64 * texels_per_m - 1e-6).ceil().max(0.0) as u32;
         t.max(MIN_CHART_TEXELS)
@@ -98,7 +98,7 @@ fn chart_sizes(sides_m: &[(f32, f32)], texels_per_m: f64) -> Vec<(u32, u32)> {
 /// Gutters: every chart is inflated by the gutter on its right and bottom and the inflated
 /// rectangles are packed without overlap into `[g, size)²`; then two charts are at least `g`
 /// apart and every chart is at least `g` from each border.
-fn skyline_pack(sizes: &[(u32, u32)], size: u32) -> Option<Vec<(ChartRect, bool)>> {
+pub(crate) fn skyline_pack(sizes: &[(u32, u32)], size: u32) -> Option<Vec<(ChartRect, bool)>> {
     let g = GUTTER_TEXELS;
     let extent = size.checked_sub(g)?; // packing area [g, size) has extent size − g
     let mut order: Vec<usize> = (0..sizes.len()).collect();

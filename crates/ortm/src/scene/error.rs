@@ -232,6 +232,28 @@ pub enum SceneError {
         path: PathBuf,
     },
 
+    /// A glTF file is not valid or cannot be used.
+    #[error("{path}: the glTF file {problem}. Fix: {fix}")]
+    Gltf {
+        /// The glTF file.
+        path: PathBuf,
+        /// What is wrong.
+        problem: String,
+        /// How to fix it.
+        fix: String,
+    },
+
+    /// Lightmap UVs could not be generated.
+    #[error("{path}: cannot generate lightmap UVs: {problem}. Fix: {fix}")]
+    Unwrap {
+        /// The mesh file.
+        path: PathBuf,
+        /// What went wrong.
+        problem: String,
+        /// How to fix it.
+        fix: String,
+    },
+
     /// An albedo texture could not be decoded.
     #[error(
         "{path}: cannot decode the albedo texture: {source}. Fix: use an 8- or 16-bit sRGB PNG"

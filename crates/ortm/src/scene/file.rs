@@ -48,7 +48,9 @@ use glam::Vec3;
 use serde::Deserialize;
 use toml::Spanned;
 
-use super::obj::{ObjOptions, load_obj_with};
+use super::gltf::load_gltf;
+use super::normals::{DEFAULT_CREASE_DEG, NormalRule};
+use super::obj::{MeshOptions, ObjOptions, load_obj_mesh};
 use super::presets::{PRESET_NAMES, subsurface_preset};
 use super::{
     Albedo, AlbedoTexture, Light, Material, Mesh, Scene, SceneError, Subsurface, SubsurfaceModel,
@@ -70,7 +72,8 @@ pub const ETA_RANGE: (f32, f32) = (1.0, 3.0);
 struct RawScene {
     name: Option<String>,
     mesh: Spanned<String>,
-    metres_per_unit: Spanned<f64>,
+    metres_per_unit: Option<Spanned<f64>>,
+    crease_angle_deg: Option<Spanned<f32>>,
     #[serde(default)]
     allow_uv_overlap: bool,
     #[serde(default)]
@@ -235,9 +238,36 @@ pub fn load_scene(path: &Path) -> Result<Scene, SceneError> {
     Ok(scene)
 }
 
-/// Reads, validates and loads a scene file and its mesh and textures, returning the scene
-/// and the non-fatal warnings.
+/// Reads, validates and loads a scene and its mesh and textures, returning the scene and the
+/// non-fatal warnings. `path` is a TOML scene file, or a mesh that is a scene by itself:
+/// a glTF (`.gltf`, `.glb`: its materials and lights) or an OBJ (`.obj`: metres, one grey
+/// material, a default light), see [`mesh_scene`].
 pub fn load_scene_with_warnings(path: &Path) -> Result<(Scene, Vec<String>), SceneError> {
+    load_scene_sized_with_warnings(path, None)
+}
+
+/// [`load_scene`] with the lightmap made `size × size` (as `--size` does) before lightmap UVs
+/// are generated and glTF textures resampled, so generated UVs have their 2-texel gutters at
+/// that size. A size outside `1..=MAX_LIGHTMAP_SIZE` is ignored (the caller refuses it).
+pub fn load_scene_sized(path: &Path, size: Option<u32>) -> Result<Scene, SceneError> {
+    let (scene, warnings) = load_scene_sized_with_warnings(path, size)?;
+    for w in warnings {
+        eprintln!("warning: {w}");
+    }
+    Ok(scene)
+}
+
+/// [`load_scene_sized`] returning the warnings.
+pub fn load_scene_sized_with_warnings(
+    path: &Path,
+    size: Option<u32>,
+) -> Result<(Scene, Vec<String>), SceneError> {
+    let size = size
+        .filter(|s| (1..=MAX_LIGHTMAP_SIZE).contains(s))
+        .map(|s| (s, s));
+    if let Some(kind) = MeshKind::of(path) {
+        return mesh_scene(path, kind, size);
+    }
     let text = read_text_bounded(path, "scene file", MAX_SCENE_BYTES)?;
     let raw: RawScene = toml::from_str(&text).map_err(|e| SceneError::SceneSyntax {
         path: path.to_path_buf(),
@@ -246,51 +276,270 @@ pub fn load_scene_with_warnings(path: &Path) -> Result<(Scene, Vec<String>), Sce
     })?;
     let ctx = Ctx { path, text: &text };
     let dir = path.parent().unwrap_or(Path::new(""));
-
-    let mpu = *raw.metres_per_unit.get_ref();
-    if !(mpu.is_finite() && mpu > 0.0) {
-        return Err(ctx.err(
-            Some(raw.metres_per_unit.span()),
-            "metres_per_unit",
-            format!("is {mpu}, but must be a finite number > 0"),
-            "give the size of one model unit in metres, e.g. 0.01 for centimetres",
-        ));
-    }
+    let mesh_path = ctx.mesh_path(&raw.mesh, dir)?;
+    let kind = MeshKind::of(&mesh_path).unwrap_or(MeshKind::Obj);
+    let mpu = ctx.metres_per_unit(raw.metres_per_unit.as_ref(), kind)?;
+    let rule = ctx.crease_rule(raw.crease_angle_deg.as_ref())?;
     let lightmap_size = ctx.lightmap_size(raw.lightmap.as_ref())?;
-    let materials = ctx.materials(&raw.material, dir)?;
+    let lightmap_size = size.unwrap_or(lightmap_size);
+    let materials = if raw.material.is_empty() && kind == MeshKind::Gltf {
+        Vec::new()
+    } else {
+        ctx.materials(&raw.material, dir)?
+    };
     let lights = raw
         .light
         .iter()
         .enumerate()
         .map(|(i, l)| ctx.light(i, l))
         .collect::<Result<Vec<_>, _>>()?;
-    let mesh_path = ctx.mesh_path(&raw.mesh, dir)?;
-    let options = ObjOptions {
-        skip_degenerate_faces: raw.skip_degenerate_faces,
-    };
-    let (mut mesh, obj_names, mut warnings) = load_obj_with(&mesh_path, mpu, &options)?;
-    assign_materials(
-        path,
-        &mesh_path,
-        &mut mesh,
-        &obj_names,
-        &materials,
-        &mut warnings,
-    );
-
-    let name = raw.name.unwrap_or_else(|| {
-        path.file_stem()
-            .map(|s| s.to_string_lossy().into_owned())
-            .unwrap_or_else(|| "scene".into())
-    });
-    let scene = Scene {
+    let name = raw.name.unwrap_or_else(|| stem(path));
+    let mut scene = Scene {
         name,
-        mesh,
+        mesh: Mesh::default(),
         materials,
         lights,
         lightmap_size,
         allow_uv_overlap: raw.allow_uv_overlap,
     };
+    let loaded = LoadedMesh::read(&mesh_path, kind, mpu, rule, raw.skip_degenerate_faces)?;
+    let mut warnings = loaded.warnings.clone();
+    loaded.into_scene(path, &mesh_path, &mut scene, true, &mut warnings)?;
+    Ok((scene, warnings))
+}
+
+/// The kinds of mesh file, by extension.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum MeshKind {
+    /// Wavefront OBJ (`.obj`).
+    Obj,
+    /// glTF 2.0 (`.gltf`, `.glb`).
+    Gltf,
+}
+
+impl MeshKind {
+    /// The kind of `path` by its extension (case-insensitive); `None` for anything else.
+    fn of(path: &Path) -> Option<Self> {
+        let ext = path.extension()?.to_str()?.to_ascii_lowercase();
+        match ext.as_str() {
+            "obj" => Some(MeshKind::Obj),
+            "gltf" | "glb" => Some(MeshKind::Gltf),
+            _ => None,
+        }
+    }
+}
+
+/// Default albedo of a mesh given without a scene file (and of OBJ faces without material).
+pub const DEFAULT_ALBEDO: f32 = 0.8;
+
+/// A mesh read from OBJ or glTF, with what the file brought beside it.
+struct LoadedMesh {
+    mesh: Mesh,
+    /// Material names (OBJ `usemtl`) or materials (glTF), indexed by the triangles.
+    materials: Vec<Material>,
+    lights: Vec<Light>,
+    textures: Vec<super::gltf::PendingTexture>,
+    uvs_missing: bool,
+    is_gltf: bool,
+    warnings: Vec<String>,
+}
+
+impl LoadedMesh {
+    /// Reads `path` as `kind` (OBJ files may lack UVs: they are generated later).
+    fn read(
+        path: &Path,
+        kind: MeshKind,
+        mpu: f64,
+        normals: NormalRule,
+        skip_degenerate_faces: bool,
+    ) -> Result<Self, SceneError> {
+        Ok(match kind {
+            MeshKind::Obj => {
+                let options = ObjOptions {
+                    skip_degenerate_faces,
+                };
+                let mesh_options = MeshOptions {
+                    normals,
+                    allow_missing_uvs: true,
+                };
+                let m = load_obj_mesh(path, mpu, &options, &mesh_options)?;
+                LoadedMesh {
+                    mesh: m.mesh,
+                    materials: m
+                        .material_names
+                        .into_iter()
+                        .map(|name| Material {
+                            name,
+                            albedo: Albedo::Constant(Vec3::splat(DEFAULT_ALBEDO)),
+                            subsurface: None,
+                        })
+                        .collect(),
+                    lights: Vec::new(),
+                    textures: Vec::new(),
+                    uvs_missing: m.uvs_missing,
+                    is_gltf: false,
+                    warnings: m.warnings,
+                }
+            }
+            MeshKind::Gltf => {
+                let g = load_gltf(path, mpu, normals)?;
+                LoadedMesh {
+                    mesh: g.mesh,
+                    materials: g.materials,
+                    lights: g.lights,
+                    textures: g.textures,
+                    uvs_missing: g.uvs_missing,
+                    is_gltf: true,
+                    warnings: g.warnings,
+                }
+            }
+        })
+    }
+
+    /// Completes `scene` (whose materials and lights come from the scene file, if any) with
+    /// this mesh: materials matched by name (the scene file's win; with none, the file's own
+    /// are used), lights (the file's when the scene file has none), lightmap UVs generated
+    /// when unusable, glTF textures resampled into lightmap space.
+    fn into_scene(
+        self,
+        scene_path: &Path,
+        mesh_path: &Path,
+        scene: &mut Scene,
+        warn_unmatched: bool,
+        warnings: &mut Vec<String>,
+    ) -> Result<(), SceneError> {
+        let LoadedMesh {
+            mut mesh,
+            materials: file_materials,
+            lights,
+            textures,
+            uvs_missing,
+            is_gltf,
+            ..
+        } = self;
+        let names: Vec<String> = file_materials.iter().map(|m| m.name.clone()).collect();
+        let mut textures = textures;
+        if scene.materials.is_empty() {
+            scene.materials = file_materials;
+        } else {
+            if is_gltf {
+                // glTF materials the scene file does not name keep their own albedo.
+                let mut new_index = vec![u32::MAX; file_materials.len()];
+                for (i, m) in file_materials.into_iter().enumerate() {
+                    if !scene.materials.iter().any(|s| s.name == m.name) {
+                        new_index[i] = scene.materials.len() as u32;
+                        scene.materials.push(m);
+                    }
+                }
+                // A texture of a material the scene file overrides is not used.
+                textures.retain_mut(|t| {
+                    t.material = new_index[t.material as usize];
+                    t.material != u32::MAX
+                });
+            }
+            let mut unmatched = Vec::new();
+            let out = if warn_unmatched {
+                &mut *warnings
+            } else {
+                &mut unmatched
+            };
+            assign_materials(
+                scene_path,
+                mesh_path,
+                &mut mesh,
+                &names,
+                &scene.materials,
+                out,
+            );
+        }
+        if scene.lights.is_empty() {
+            scene.lights = if lights.is_empty() {
+                default_lights(&mesh)
+            } else {
+                lights
+            };
+        }
+        scene.mesh = mesh;
+        super::unwrap::ensure_lightmap_uvs(scene, mesh_path, uvs_missing, warnings)?;
+        super::gltf::resample_textures(
+            &scene.mesh,
+            &mut scene.materials,
+            &textures,
+            scene.lightmap_size,
+        );
+        Ok(())
+    }
+}
+
+/// The default light of a scene without lights: a point light a quarter of the bounding
+/// box's height above its centre, bright enough for 1 W/m² at the bounding sphere's radius
+/// (`I = r²` W/sr). Lights do not change a bake; they light previews and renders.
+pub fn default_lights(mesh: &Mesh) -> Vec<Light> {
+    let (lo, hi) = mesh.bounds();
+    let Some((centre, r)) = mesh.bounding_sphere() else {
+        return Vec::new();
+    };
+    let up = Vec3::new(0.0, 0.25 * (hi.y - lo.y), 0.0);
+    vec![Light::Point {
+        position_m: centre + up,
+        color: Vec3::ONE,
+        intensity_w_sr: (r * r).max(f32::MIN_POSITIVE),
+    }]
+}
+
+/// The file stem of `path` (or `scene`).
+fn stem(path: &Path) -> String {
+    path.file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "scene".into())
+}
+
+/// A mesh given as the scene: a glTF with its own materials and lights (a default light when
+/// it has none), or an OBJ in metres with one grey material ([`DEFAULT_ALBEDO`]) and the
+/// default light, a 256² lightmap, normals by the crease rule, lightmap UVs generated when
+/// missing or overlapping. Warnings say what was assumed and how to write a scene file.
+fn mesh_scene(
+    path: &Path,
+    kind: MeshKind,
+    size: Option<(u32, u32)>,
+) -> Result<(Scene, Vec<String>), SceneError> {
+    let loaded = LoadedMesh::read(path, kind, 1.0, NormalRule::default(), false)?;
+    let mut warnings = loaded.warnings.clone();
+    let mut scene = Scene {
+        name: stem(path),
+        mesh: Mesh::default(),
+        materials: Vec::new(),
+        lights: Vec::new(),
+        lightmap_size: size.unwrap_or((DEFAULT_LIGHTMAP_SIZE, DEFAULT_LIGHTMAP_SIZE)),
+        allow_uv_overlap: false,
+    };
+    if kind == MeshKind::Obj {
+        scene.materials = vec![Material {
+            name: "default".into(),
+            albedo: Albedo::Constant(Vec3::splat(DEFAULT_ALBEDO)),
+            subsurface: None,
+        }];
+        warnings.push(format!(
+            "{}: an OBJ given as the scene: 1 unit = 1 metre, every face grey (albedo \
+             {DEFAULT_ALBEDO}), a {side}² lightmap and a default light. For \
+             other units, materials or lights write a scene file (docs/scene-format.md), e.g.\n  \
+             mesh = \"{}\"\n  metres_per_unit = 0.01\n  [[material]]\n  name = \"default\"\n  \
+             albedo = [0.8, 0.8, 0.8]",
+            path.display(),
+            path.file_name()
+                .map_or_else(String::new, |f| f.to_string_lossy().into_owned()),
+            side = scene.lightmap_size.0,
+        ));
+    }
+    let had_lights = !loaded.lights.is_empty();
+    loaded.into_scene(path, path, &mut scene, false, &mut warnings)?;
+    if kind == MeshKind::Gltf && !had_lights {
+        warnings.push(format!(
+            "{}: the glTF has no KHR_lights_punctual light; a default point light is used \
+             (lights do not change a bake)",
+            path.display()
+        ));
+    }
     Ok((scene, warnings))
 }
 
@@ -380,6 +629,55 @@ impl Ctx<'_> {
             problem,
             fix: fix.to_string(),
         }
+    }
+
+    /// `metres_per_unit`: required for an OBJ mesh, 1 (glTF's metre) by default for glTF;
+    /// a finite number > 0.
+    fn metres_per_unit(
+        &self,
+        raw: Option<&Spanned<f64>>,
+        kind: MeshKind,
+    ) -> Result<f64, SceneError> {
+        let Some(raw) = raw else {
+            if kind == MeshKind::Gltf {
+                return Ok(1.0);
+            }
+            return Err(SceneError::SceneSyntax {
+                path: self.path.to_path_buf(),
+                line: None,
+                message: "missing field `metres_per_unit` (required with an OBJ mesh: the size \
+                          of one model unit in metres, e.g. 0.01 for centimetres)"
+                    .into(),
+            });
+        };
+        let mpu = *raw.get_ref();
+        if !(mpu.is_finite() && mpu > 0.0) {
+            return Err(self.err(
+                Some(raw.span()),
+                "metres_per_unit",
+                format!("is {mpu}, but must be a finite number > 0"),
+                "give the size of one model unit in metres, e.g. 0.01 for centimetres",
+            ));
+        }
+        Ok(mpu)
+    }
+
+    /// `crease_angle_deg` (default [`DEFAULT_CREASE_DEG`]): a number in `[0, 180]`.
+    fn crease_rule(&self, raw: Option<&Spanned<f32>>) -> Result<NormalRule, SceneError> {
+        let Some(raw) = raw else {
+            return Ok(NormalRule::Crease(DEFAULT_CREASE_DEG));
+        };
+        let deg = *raw.get_ref();
+        if !(deg.is_finite() && (0.0..=180.0).contains(&deg)) {
+            return Err(self.err(
+                Some(raw.span()),
+                "crease_angle_deg",
+                format!("is {deg}, outside [0, 180]"),
+                "give the largest angle between faces that is still shaded smooth, in degrees \
+                 (60 by default; 180 smooths every shared position)",
+            ));
+        }
+        Ok(NormalRule::Crease(deg))
     }
 
     /// `[lightmap]`: each side defaults to [`DEFAULT_LIGHTMAP_SIZE`] and must lie in

@@ -8,9 +8,9 @@
 //!    ignored). A syntax error is reported with the line the parser stopped on.
 //! 3. A light line scan of the same text finds what `tobj` does not report: NaN/infinite
 //!    numbers in `v`/`vt`/`vn` (with the line), face corners without a UV, indices out of
-//!    range (with the line), `usemtl` names and `mtllib` files. Every face of n corners
-//!    becomes n − 2 triangles in file order, so the scan also knows each triangle's OBJ face,
-//!    line and `usemtl` name.
+//!    range (with the line), `usemtl` names, smoothing groups (`s`) and `mtllib` files. Every
+//!    face of n corners becomes n − 2 triangles in file order, so the scan also knows each
+//!    triangle's OBJ face, line, `usemtl` name and smoothing group.
 //! 4. The `tobj` models (one per `o`/`g`/`usemtl` run) are merged into one [`Mesh`]:
 //!    positions are welded by bit-identical coordinates (this undoes `tobj`'s per-group
 //!    duplication, so the head's 8,844 positions stay 8,844 and smooth normals do not break
@@ -32,7 +32,12 @@
 //!    kept with a warning: they still occlude light, but cover no texel centre, so the
 //!    lightmap holds nothing for them.
 //! 6. Normals: the file's `vn` normals (normalised) when every face corner has one; otherwise
-//!    smooth area-weighted normals per (welded) position, computed from the triangles.
+//!    computed by [`MeshOptions::normals`]: [`load_obj`] smooths every (welded) position
+//!    (area-weighted), the scene loader keeps hard edges ([`super::normals`]: smoothing groups
+//!    `s` when the file has them, else the crease angle).
+//!
+//! A file without any `vt` is refused, unless [`MeshOptions::allow_missing_uvs`] (the scene
+//! loader, which then generates lightmap UVs): every corner gets UV (0, 0).
 //!
 //! # Conventions and units
 //! Positions are multiplied by `metres_per_unit` (→ metres). Faces are counter-clockwise
@@ -52,6 +57,7 @@ use std::path::Path;
 
 use glam::{DVec2, DVec3, Vec2, Vec3};
 
+use super::normals::NormalRule;
 use super::{Mesh, MeshTriangle, SceneError, read_text_bounded};
 
 /// Largest OBJ file accepted, in bytes, checked before reading ([`crate::io::limits::MAX_OBJ_BYTES`]).
@@ -74,6 +80,39 @@ pub struct ObjOptions {
     pub skip_degenerate_faces: bool,
 }
 
+/// What the scene loader asks of an OBJ beyond [`ObjOptions`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MeshOptions {
+    /// How normals are computed when the file has none ([`load_obj`] smooths every shared
+    /// position; scene files use the crease rule of [`super::normals`]).
+    pub normals: NormalRule,
+    /// Accept a file without any `vt` (every corner gets UV (0, 0) and
+    /// [`ObjMesh::uvs_missing`] is set: the caller generates lightmap UVs).
+    pub allow_missing_uvs: bool,
+}
+
+impl Default for MeshOptions {
+    fn default() -> Self {
+        Self {
+            normals: NormalRule::SmoothAll,
+            allow_missing_uvs: false,
+        }
+    }
+}
+
+/// A loaded OBJ: the mesh and what the loader learnt.
+#[derive(Clone, Debug)]
+pub struct ObjMesh {
+    /// The mesh, metres.
+    pub mesh: Mesh,
+    /// `usemtl` names, indexed by [`MeshTriangle::material`].
+    pub material_names: Vec<String>,
+    /// Non-fatal findings.
+    pub warnings: Vec<String>,
+    /// The file has no `vt` (only with [`MeshOptions::allow_missing_uvs`]).
+    pub uvs_missing: bool,
+}
+
 /// Loads and validates an OBJ mesh with default [`ObjOptions`] (degenerate faces are errors).
 ///
 /// Returns the mesh in metres, the `usemtl` names indexed by [`MeshTriangle::material`], and
@@ -91,6 +130,18 @@ pub fn load_obj_with(
     metres_per_unit: f64,
     options: &ObjOptions,
 ) -> Result<(Mesh, Vec<String>, Vec<String>), SceneError> {
+    let m = load_obj_mesh(path, metres_per_unit, options, &MeshOptions::default())?;
+    Ok((m.mesh, m.material_names, m.warnings))
+}
+
+/// Loads and validates an OBJ mesh with explicit normal and UV options (the scene loader's
+/// entry point).
+pub fn load_obj_mesh(
+    path: &Path,
+    metres_per_unit: f64,
+    options: &ObjOptions,
+    mesh_options: &MeshOptions,
+) -> Result<ObjMesh, SceneError> {
     if !(metres_per_unit.is_finite() && metres_per_unit > 0.0) {
         return Err(SceneError::InvalidField {
             path: path.to_path_buf(),
@@ -102,7 +153,7 @@ pub fn load_obj_with(
     }
     let text = read_text_bounded(path, "OBJ mesh", MAX_OBJ_BYTES)?;
     let models = parse_with_tobj(path, &text)?;
-    let scan = scan(path, &text)?;
+    let scan = scan(path, &text, mesh_options.allow_missing_uvs)?;
     let mut warnings = Vec::new();
     for lib in &scan.mtllibs {
         let mtl = path.parent().unwrap_or(Path::new("")).join(lib);
@@ -126,7 +177,14 @@ pub fn load_obj_with(
             }
         ));
     }
-    build_mesh(path, metres_per_unit, options, &models, &scan, warnings)
+    build_mesh(
+        path,
+        metres_per_unit,
+        (options, mesh_options),
+        &models,
+        &scan,
+        warnings,
+    )
 }
 
 /// A `BufRead` over a byte slice that knows how far the consumer has read, so a parser
@@ -200,7 +258,7 @@ fn parse_with_tobj(path: &Path, text: &str) -> Result<Vec<tobj::Model>, SceneErr
             );
             if deferred {
                 // Reported when a group ends, not at the face: find the face.
-                scan(path, text)?;
+                scan(path, text, true)?;
             }
             let problem = match e {
                 E::PositionParseError => "a `v` statement needs three numbers `v x y z`".into(),
@@ -236,6 +294,8 @@ struct FaceRecord {
     triangles: usize,
     /// Index into [`Scan::material_names`].
     material: u32,
+    /// Smoothing group (`s N`; 0 = `s off` or before any `s`).
+    group: u32,
 }
 
 /// What the line scan learns about the file.
@@ -253,6 +313,10 @@ struct Scan {
     mtllibs: Vec<String>,
     /// `(line, corners)` of the faces with one or two corners, which make no triangle.
     short_faces: Vec<(usize, usize)>,
+    /// Whether the file has any `s` statement.
+    has_groups: bool,
+    /// The smoothing group of the faces being read.
+    group: u32,
 }
 
 /// Shortens a line for a message.
@@ -271,8 +335,9 @@ fn resolve_index(index: i64, count: usize) -> Option<usize> {
     (index != 0 && (0..count).contains(&zero_based)).then_some(zero_based as usize)
 }
 
-/// Scans the text for non-finite numbers, bad indices, missing UVs, materials and faces.
-fn scan(path: &Path, text: &str) -> Result<Scan, SceneError> {
+/// Scans the text for non-finite numbers, bad indices, missing UVs (a file without any `vt`
+/// is accepted when `uvs_optional`), materials, smoothing groups and faces.
+fn scan(path: &Path, text: &str, uvs_optional: bool) -> Result<Scan, SceneError> {
     let mut s = Scan {
         all_corners_have_normals: true,
         ..Scan::default()
@@ -322,6 +387,11 @@ fn scan(path: &Path, text: &str) -> Result<Scan, SceneError> {
                     .map(|x| x.1.trim());
                 current_material = name.map(str::to_string);
             }
+            "s" => {
+                s.has_groups = true;
+                // `s off`, `s 0` and anything unreadable are "no group" (flat).
+                s.group = words.next().and_then(|w| w.parse().ok()).unwrap_or(0);
+            }
             "mtllib" => {
                 if let Some((_, lib)) = line.trim().split_once(char::is_whitespace) {
                     s.mtllibs.push(lib.trim().to_string());
@@ -329,6 +399,9 @@ fn scan(path: &Path, text: &str) -> Result<Scan, SceneError> {
             }
             _ => {}
         }
+    }
+    if s.vt_count == 0 && uvs_optional {
+        return Ok(s);
     }
     if s.vt_count == 0 && !s.faces.is_empty() {
         return Err(SceneError::ObjNoUvs {
@@ -468,6 +541,7 @@ impl Scan {
             face: at.face,
             triangles: corners.len() - 2,
             material: material as u32,
+            group: self.group,
         });
         Ok(())
     }
@@ -516,11 +590,12 @@ struct Merged {
 fn build_mesh(
     path: &Path,
     metres_per_unit: f64,
-    options: &ObjOptions,
+    (options, mesh_options): (&ObjOptions, &MeshOptions),
     models: &[tobj::Model],
     scan: &Scan,
     mut warnings: Vec<String>,
-) -> Result<(Mesh, Vec<String>, Vec<String>), SceneError> {
+) -> Result<ObjMesh, SceneError> {
+    let uvs_missing = scan.vt_count == 0;
     let Merged {
         positions,
         mut uvs,
@@ -537,13 +612,14 @@ fn build_mesh(
         &faces,
         &tris,
         &positions_m,
-        &uvs,
+        (&uvs, uvs_missing),
         &mut warnings,
     )?;
     let use_file_normals =
         file_normals_usable(path, use_file_normals, &tris, &file_normals, &mut warnings)?;
 
     let mut triangles: Vec<MeshTriangle> = Vec::with_capacity(tris.len());
+    let mut groups: Vec<u32> = Vec::with_capacity(tris.len());
     for (t, tri) in tris.iter().enumerate() {
         if !keep[t] {
             continue;
@@ -554,6 +630,7 @@ fn build_mesh(
             normal: if use_file_normals { tri[2] } else { tri[0] },
             material: faces.of(t).material,
         });
+        groups.push(faces.of(t).group);
     }
     if triangles.is_empty() {
         return Err(SceneError::ObjNoTriangles {
@@ -563,7 +640,13 @@ fn build_mesh(
     let normals = if use_file_normals {
         file_normals.iter().map(|n| n.normalize()).collect()
     } else {
-        smooth_normals(&positions_m, &triangles)
+        let groups = scan.has_groups.then_some(groups.as_slice());
+        let (normals, index) =
+            super::normals::crease_normals(&positions_m, &triangles, groups, mesh_options.normals);
+        for (t, idx) in triangles.iter_mut().zip(index) {
+            t.normal = idx;
+        }
+        normals
     };
     let mesh = Mesh {
         positions_m,
@@ -571,7 +654,12 @@ fn build_mesh(
         normals,
         triangles,
     };
-    Ok((mesh, scan.material_names.clone(), warnings))
+    Ok(ObjMesh {
+        mesh,
+        material_names: scan.material_names.clone(),
+        warnings,
+        uvs_missing,
+    })
 }
 
 /// Merges the `tobj` models: positions welded by bit-identical coordinates, UVs and normals
@@ -615,7 +703,12 @@ fn merge_models(
                 .chunks_exact(3)
                 .map(|n| Vec3::new(n[0], n[1], n[2])),
         );
-        if m.texcoord_indices.len() != m.indices.len() {
+        if m.texcoord_indices.is_empty() && scan.vt_count == 0 {
+            // No UVs in the file (accepted by the scan only when asked): one placeholder UV.
+            if out.uvs.is_empty() {
+                out.uvs.push(Vec2::ZERO);
+            }
+        } else if m.texcoord_indices.len() != m.indices.len() {
             return Err(internal(path, "face corners without UV indices"));
         }
         if m.normal_indices.len() != m.indices.len() {
@@ -647,7 +740,7 @@ fn merge_models(
             }
             let uv: Vec<u32> = corners
                 .clone()
-                .map(|c| uv_offset + m.texcoord_indices[c])
+                .map(|c| m.texcoord_indices.get(c).map_or(0, |&i| uv_offset + i))
                 .collect();
             if uv.iter().any(|&i| i as usize >= out.uvs.len()) {
                 return Err(internal(path, "UV index"));
@@ -907,7 +1000,7 @@ fn degenerate_triangles(
     faces: &TriangleFaces,
     tris: &[[[u32; 3]; 3]],
     positions_m: &[Vec3],
-    uvs: &[Vec2],
+    (uvs, uvs_missing): (&[Vec2], bool),
     warnings: &mut Vec<String>,
 ) -> Result<Vec<bool>, SceneError> {
     let (lo, hi) = super::aabb(positions_m);
@@ -952,7 +1045,7 @@ fn degenerate_triangles(
             list_faces(&zero_world)
         ));
     }
-    if !zero_uv.is_empty() {
+    if !zero_uv.is_empty() && !uvs_missing {
         warnings.push(format!(
             "{}: {} triangles have zero UV area ({}); they are kept (they still cast shadows) \
              but receive no lightmap texels",
@@ -1046,6 +1139,47 @@ fn file_normals_usable(
         ));
     }
     Ok(usable)
+}
+
+/// Writes `mesh` as OBJ: `v` (positions as stored), `vt`, `vn`, and `f v/vt/vn` faces under
+/// `usemtl` runs named by `material_names` (indexed by the triangles' material; an empty name
+/// writes no `usemtl`).
+pub fn write_obj(path: &Path, mesh: &Mesh, material_names: &[String]) -> std::io::Result<()> {
+    use std::fmt::Write as _;
+    let mut out = String::from("# written by ortm\n");
+    for p in &mesh.positions_m {
+        let _ = writeln!(out, "v {} {} {}", p.x, p.y, p.z);
+    }
+    for t in &mesh.uvs {
+        let _ = writeln!(out, "vt {} {}", t.x, t.y);
+    }
+    for n in &mesh.normals {
+        let _ = writeln!(out, "vn {} {} {}", n.x, n.y, n.z);
+    }
+    let mut current: Option<u32> = None;
+    for t in &mesh.triangles {
+        if current != Some(t.material) {
+            current = Some(t.material);
+            match material_names.get(t.material as usize) {
+                Some(name) if !name.is_empty() => {
+                    let _ = writeln!(out, "usemtl {name}");
+                }
+                _ => {}
+            }
+        }
+        out.push('f');
+        for k in 0..3 {
+            let _ = write!(
+                out,
+                " {}/{}/{}",
+                t.position[k] + 1,
+                t.uv[k] + 1,
+                t.normal[k] + 1
+            );
+        }
+        out.push('\n');
+    }
+    std::fs::write(path, out)
 }
 
 /// Smooth area-weighted vertex normals, one per position (indexed like positions).
