@@ -110,7 +110,14 @@ fn without_a_gpu_adapter_render_runs_on_the_cpu_mirrors() {
     // from the lightmaps: shadow maps and rasterisation against ray casting differ only
     // along shadow edges and silhouettes.
     let mut gpu = args[..5].to_vec();
-    gpu.extend(["--direct", "lightmap", "--shadow-size", "2048", "-o", "gpu.png"]);
+    gpu.extend([
+        "--direct",
+        "lightmap",
+        "--shadow-size",
+        "2048",
+        "-o",
+        "gpu.png",
+    ]);
     ok(ortm(&gpu, dir));
     let a = image::open(dir.join("cpu.png")).unwrap().to_rgb8();
     let b = image::open(dir.join("gpu.png")).unwrap().to_rgb8();
@@ -334,7 +341,10 @@ fn inspect_reports_overlapping_uvs_and_draws_them_red() {
     .unwrap();
     // As they are, the UVs are replaced by generated ones (docs/scene-format.md): the bake
     // runs and says so, and inspect shows the layout the bake uses.
-    let baked = ok(ortm(&["bake", "overlap.toml", "-o", "b", "--offsets", "4"], dir));
+    let baked = ok(ortm(
+        &["bake", "overlap.toml", "-o", "b", "--offsets", "4"],
+        dir,
+    ));
     assert!(baked.contains("its UVs overlap (32 of 32"), "{baked}");
     assert!(baked.contains("generated lightmap UVs"), "{baked}");
     let text = ok(ortm(&["inspect", "overlap.toml", "-o", "gen.png"], dir));
