@@ -151,22 +151,8 @@ pub fn pixel_radiance(
 /// hardware path `filtered` samples `(u, 1 − v)` with a clamp-to-edge linear sampler, the
 /// same function up to the sampler's weight precision).
 pub fn bilinear(map: &TexelImage, uv: [f32; 2]) -> [f32; 3] {
-    let (w, h) = (map.width as f32, map.height as f32);
-    let s = uv[0] * w - 0.5;
-    let t = (1.0 - uv[1]) * h - 0.5;
-    let (i0, j0) = (s.floor(), t.floor());
-    let (fx, fy) = (s - i0, t - j0);
-    let cx = |i: f32| (i as i32).clamp(0, map.width as i32 - 1) as u32;
-    let cy = |j: f32| (j as i32).clamp(0, map.height as i32 - 1) as u32;
-    let (ax, ay, bx, by) = (cx(i0), cy(j0), cx(i0 + 1.0), cy(j0 + 1.0));
-    let mut out = [0.0; 3];
-    for (c, o) in out.iter_mut().enumerate() {
-        let lerp = |a: f32, b: f32, f: f32| a + (b - a) * f;
-        let top = lerp(map.get(ax, ay)[c], map.get(bx, ay)[c], fx);
-        let bot = lerp(map.get(ax, by)[c], map.get(bx, by)[c], fx);
-        *o = lerp(top, bot, fy);
-    }
-    out
+    let v = bilinear_rgba(map, uv);
+    [v[0], v[1], v[2]]
 }
 
 /// Normalised Blinn-Phong specular radiance `k_s·(s+8)/(8π)·(n·h)^s·E` summed over lights
