@@ -94,6 +94,37 @@ impl TexelReads {
     }
 }
 
+/// The shadow maps' layout entry (`shadow_maps` in shaders/shadow.wgsl: a depth 2D array),
+/// shared by the first-order pass and the per-pixel direct light of the display.
+pub fn shadow_maps_entry(
+    binding: u32,
+    visibility: wgpu::ShaderStages,
+) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility,
+        ty: wgpu::BindingType::Texture {
+            sample_type: wgpu::TextureSampleType::Depth,
+            view_dimension: wgpu::TextureViewDimension::D2Array,
+            multisampled: false,
+        },
+        count: None,
+    }
+}
+
+/// The shadow maps' comparison sampler entry (`shadow_sampler` in shaders/shadow.wgsl).
+pub fn shadow_sampler_entry(
+    binding: u32,
+    visibility: wgpu::ShaderStages,
+) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility,
+        ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Comparison),
+        count: None,
+    }
+}
+
 /// A uniform buffer.
 pub fn uniform_entry(binding: u32, visibility: wgpu::ShaderStages) -> wgpu::BindGroupLayoutEntry {
     wgpu::BindGroupLayoutEntry {
