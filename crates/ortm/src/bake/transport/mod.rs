@@ -62,6 +62,7 @@ pub mod coarse;
 pub mod dense;
 pub mod dipole;
 pub mod form_factor;
+pub mod hier;
 
 use std::collections::HashMap;
 use std::sync::Arc;
@@ -330,18 +331,7 @@ impl Kernels {
             return Ok(vec![[0.0; 3]; patches.len()]);
         }
         progress.phase("transport: subsurface weights", patches.len() as u64);
-        // Uniform grid of cells one support radius wide: every pair within the support lies
-        // in neighbouring cells.
-        let key = |p: Vec3| {
-            let q = (p.as_dvec3() / cell).floor();
-            (q.x as i64, q.y as i64, q.z as i64)
-        };
-        let mut grid: HashMap<(i64, i64, i64), Vec<u32>> = HashMap::new();
-        for (i, p) in patches.iter().enumerate() {
-            if self.is_translucent(p.material) {
-                grid.entry(key(p.position_m)).or_default().push(i as u32);
-            }
-        }
+        let grid = SupportGrid::new(patches, self);
         let q: Vec<[f64; 3]> = patches
             .par_iter()
             .enumerate()
@@ -353,26 +343,16 @@ impl Kernels {
                 if !self.is_translucent(b.material) || progress.check().is_err() {
                     return q;
                 }
-                let (x, y, z) = key(b.position_m);
                 let inv_area = 1.0 / b.area_m2 as f64;
-                for dz in -1..=1 {
-                    for dy in -1..=1 {
-                        for dx in -1..=1 {
-                            let Some(list) = grid.get(&(x + dx, y + dy, z + dz)) else {
-                                continue;
-                            };
-                            for &i in list {
-                                let a = &patches[i as usize];
-                                if let Some(s) = self.subsurface_raw(a, b, i as usize == j) {
-                                    let w = a.area_m2 as f64 * inv_area;
-                                    for c in 0..3 {
-                                        q[c] += s[c] * w;
-                                    }
-                                }
-                            }
+                grid.for_each_near(b.position_m, |i| {
+                    let a = &patches[i as usize];
+                    if let Some(s) = self.subsurface_raw(a, b, i as usize == j) {
+                        let w = a.area_m2 as f64 * inv_area;
+                        for c in 0..3 {
+                            q[c] += s[c] * w;
                         }
                     }
-                }
+                });
                 q
             })
             .collect();
@@ -460,6 +440,58 @@ impl Kernels {
             }
         }
         out
+    }
+}
+
+/// The translucent patches in a uniform grid of cells one support radius wide (the largest
+/// of the materials' supports): every pair within the support lies in neighbouring cells.
+pub struct SupportGrid {
+    cell_m: f64,
+    cells: HashMap<(i64, i64, i64), Vec<u32>>,
+}
+
+impl SupportGrid {
+    /// The grid of the translucent patches of `patches` (empty when no material scatters).
+    pub fn new(patches: &[Patch], kernels: &Kernels) -> Self {
+        let cell_m = kernels.support_m.iter().copied().fold(0.0f64, f64::max);
+        let mut grid = Self {
+            cell_m,
+            cells: HashMap::new(),
+        };
+        if cell_m > 0.0 {
+            for (i, p) in patches.iter().enumerate() {
+                if kernels.is_translucent(p.material) {
+                    grid.cells
+                        .entry(grid.key(p.position_m))
+                        .or_default()
+                        .push(i as u32);
+                }
+            }
+        }
+        grid
+    }
+
+    fn key(&self, p: Vec3) -> (i64, i64, i64) {
+        let q = (p.as_dvec3() / self.cell_m).floor();
+        (q.x as i64, q.y as i64, q.z as i64)
+    }
+
+    /// Calls `f` with every translucent patch in the 27 cells around `p` (a superset of those
+    /// within the support).
+    pub fn for_each_near(&self, p: Vec3, mut f: impl FnMut(u32)) {
+        if self.cells.is_empty() {
+            return;
+        }
+        let (x, y, z) = self.key(p);
+        for dz in -1..=1 {
+            for dy in -1..=1 {
+                for dx in -1..=1 {
+                    if let Some(list) = self.cells.get(&(x + dx, y + dy, z + dz)) {
+                        list.iter().for_each(|&i| f(i));
+                    }
+                }
+            }
+        }
     }
 }
 

@@ -1,0 +1,529 @@
+//! Hierarchical transport: the first-bounce operator `F` (form factors with visibility) as
+//! links between clusters of a [`tree::Tree`], refined down to single texels only where a
+//! block-level link would be inaccurate, and the multi-bounce solution
+//! `B = X (E_d + F B)` (see the [module docs](super) for the notation) by iterating on it.
+//! Memory and time grow about as `n log n` in the number of patches `n`, instead of the dense
+//! solve's `n²` and `n³` ([`super::dense`]).
+//!
+//! # Links and error control
+//! Refinement starts from the pair (root, root) and splits the larger cluster of a pair until
+//! the pair is *admissible* — both clusters flat (`|Σ A n| / A ≥` [`MIN_FLATNESS`]), apart
+//! (`r_I + r_J < d`), and with an estimated error `F_IJ · (r_I + r_J) / d ≤ ε` — or both are
+//! single texels. `F_IJ` is the unoccluded block form factor
+//! `cos⁺θ_I cos⁺θ_J A_J / (π d²)` between the centroids, with the clusters' mean cosines
+//! (from `Σ A n`), and `(r_I + r_J)/d` the relative variation of the kernel across the blocks.
+//! Visibility is the fraction of [`Settings::visibility_rays`] rays between member texels
+//! that arrive; a partly visible pair whose form factor exceeds `ε` is refined (shadow
+//! boundaries resolve down to texels where they carry light). Texel pairs use the exact
+//! kernel of the dense solve ([`super::Kernels::form_factor_c`]: near pairs integrated over
+//! their squares, one visibility ray). `ε` is [`Settings::tolerance`].
+//!
+//! # Receivers
+//! A link into a cluster stores the direction `ω` to the sender and
+//! `g = cos⁺θ_J A_J V / (π d²)`; gathering adds `g B_J ω` to the cluster's *irradiance
+//! vector* `Φ_I` (W/m² per channel, a 3-vector), which is pushed down to the texels, where
+//! `E_i = max(0, n_i · Φ)`: every texel gets its own cosine to every link's direction. A link
+//! into a single texel stores the scalar `cos⁺θ_i g` (or the exact kernel).
+//!
+//! # Solve
+//! Jacobi iteration `B ← X (E_d + F B)` from `B = B_o`, with `E_d = B_o / ρ̄` on translucent
+//! texels and `B_i = B_o,i + ρ_i (F B)_i` on opaque ones; the subsurface operator `X` is kept
+//! sparse (every pair within the profile's support, the dense solve's weights). Each sweep
+//! pulls `B` up the tree (area-weighted means), gathers over the links and pushes `Φ` down.
+//! It stops when the largest relative change of a channel's total radiosity power is below
+//! [`Settings::convergence`]; the error after `k` sweeps falls like `ρ^k`.
+//!
+//! # Limits
+//! The sparse subsurface operator holds every pair within the support (fine at texel sizes
+//! comparable to the diffusion length; a translucent material with a support of many texels
+//! grows it as `n × support²`). Block links assume the clusters see each other as wholes
+//! (`Φ` is clamped per texel, not per link), which the flatness and distance tests bound.
+
+pub mod tree;
+
+use glam::Vec3;
+use rayon::prelude::*;
+
+use super::{Cancelled, Kernels, Patch, SetupProgress, SupportGrid};
+use tree::Tree;
+
+/// Smallest `|Σ A n| / A` of a cluster that may be linked as a whole (~25° of spread).
+pub const MIN_FLATNESS: f32 = 0.9;
+
+/// Settings of the hierarchical operator and its solve.
+#[derive(Clone, Copy, Debug)]
+pub struct Settings {
+    /// `ε`: the largest estimated error of one link, as a form factor (module docs).
+    pub tolerance: f32,
+    /// Rays that estimate a block link's visibility.
+    pub visibility_rays: u32,
+    /// Stop when the relative change of every channel's power in a sweep is below this.
+    pub convergence: f64,
+    /// At most this many sweeps.
+    pub max_iterations: u32,
+}
+
+impl Default for Settings {
+    fn default() -> Self {
+        Self {
+            tolerance: 1e-3,
+            visibility_rays: 8,
+            convergence: 1e-6,
+            max_iterations: 1000,
+        }
+    }
+}
+
+/// One link into a receiver node.
+#[derive(Clone, Copy, Debug)]
+struct Link {
+    /// Sender node.
+    send: u32,
+    /// `g` (block receiver) or the scalar form factor (texel receiver).
+    coef: f32,
+    /// Unit direction to the sender (block receiver), or zero (texel receiver: scalar).
+    dir: Vec3,
+}
+
+/// The result of refining one node pair.
+enum Refined {
+    /// Nothing travels between them.
+    None,
+    /// A link into the receiver node.
+    Link(u32, Link),
+    /// Pairs to refine further.
+    Split(Vec<(u32, u32)>),
+}
+
+/// The sparse subsurface operator: per translucent receiver, `(sender, S_ij per channel)`.
+struct Subsurface {
+    start: Vec<u32>,
+    entries: Vec<(u32, [f32; 3])>,
+}
+
+/// The hierarchical first-bounce operator over a set of patches, and its solve.
+pub struct Operator {
+    patches: Vec<Patch>,
+    tree: Tree,
+    /// Links grouped by receiver node: those of node `r` are `links[start[r]..start[r + 1]]`.
+    start: Vec<u32>,
+    links: Vec<Link>,
+    translucent: Vec<bool>,
+    subsurface: Option<Subsurface>,
+}
+
+/// A solution and how it was reached.
+pub struct Solution {
+    /// Final radiosity per patch, W/m².
+    pub b: Vec<Vec3>,
+    /// Sweeps made.
+    pub iterations: u32,
+    /// Relative change of the last sweep (largest over channels).
+    pub change: f64,
+}
+
+impl Operator {
+    /// Builds the operator over `patches` (subsurface weights normalised here, as
+    /// [`super::dense::DenseTransport::new`] does). Reports "transport: links" (one step per
+    /// refinement round) and "transport: subsurface weights" to `progress`.
+    pub fn build(
+        patches: &[Patch],
+        kernels: &Kernels,
+        settings: &Settings,
+        progress: &SetupProgress,
+    ) -> Result<Self, Cancelled> {
+        let mut patches = patches.to_vec();
+        kernels.normalise_subsurface_with(&mut patches, progress)?;
+        let tree = Tree::build(&patches);
+        let (start, links) = if kernels.effects.radiosity {
+            refine_all(&patches, &tree, kernels, settings, progress)?
+        } else {
+            (vec![0; tree.nodes.len() + 1], Vec::new())
+        };
+        let translucent: Vec<bool> = patches
+            .iter()
+            .map(|p| kernels.is_translucent(p.material))
+            .collect();
+        let subsurface = translucent
+            .iter()
+            .any(|&t| t)
+            .then(|| subsurface_rows(&patches, &translucent, kernels));
+        progress.check()?;
+        Ok(Self {
+            patches,
+            tree,
+            start,
+            links,
+            translucent,
+            subsurface,
+        })
+    }
+
+    /// Number of links.
+    pub fn link_count(&self) -> usize {
+        self.links.len()
+    }
+
+    /// Links between single texels (the refined near field).
+    pub fn texel_link_count(&self) -> usize {
+        (0..self.tree.nodes.len())
+            .filter(|&r| self.tree.nodes[r].is_leaf())
+            .map(|r| {
+                self.links[self.start[r] as usize..self.start[r + 1] as usize]
+                    .iter()
+                    .filter(|l| self.tree.nodes[l.send as usize].is_leaf())
+                    .count()
+            })
+            .sum()
+    }
+
+    /// Bytes held by the tree, the links and the subsurface operator.
+    pub fn memory_bytes(&self) -> usize {
+        use std::mem::size_of;
+        self.tree.nodes.len() * size_of::<tree::Node>()
+            + (self.tree.order.len() + self.tree.leaf_of.len() + self.start.len()) * 4
+            + self.links.len() * size_of::<Link>()
+            + self.patches.len() * size_of::<Patch>()
+            + self.subsurface.as_ref().map_or(0, |s| {
+                s.start.len() * 4 + s.entries.len() * size_of::<(u32, [f32; 3])>()
+            })
+    }
+
+    /// The irradiance `F B` (W/m²) that radiosity `b` (W/m², per patch) sends to every patch.
+    pub fn gather(&self, b: &[Vec3]) -> Vec<Vec3> {
+        let nodes = &self.tree.nodes;
+        // Pull: area-weighted mean radiosity of every node, children before parents.
+        let mut b_node = vec![Vec3::ZERO; nodes.len()];
+        for id in (0..nodes.len()).rev() {
+            let n = &nodes[id];
+            b_node[id] = if n.is_leaf() {
+                b[self.tree.order[n.first as usize] as usize]
+            } else {
+                let [c0, c1] = n.children.map(|c| c as usize);
+                let (a0, a1) = (nodes[c0].area_m2, nodes[c1].area_m2);
+                let a = a0 + a1;
+                if a > 0.0 {
+                    (b_node[c0] * a0 + b_node[c1] * a1) / a
+                } else {
+                    Vec3::ZERO
+                }
+            };
+        }
+        // Gather per receiver node: Φ (3 channels × vector) and the scalar part.
+        let gathered: Vec<([Vec3; 3], Vec3)> = (0..nodes.len())
+            .into_par_iter()
+            .map(|r| {
+                let mut phi = [Vec3::ZERO; 3];
+                let mut e = Vec3::ZERO;
+                for l in &self.links[self.start[r] as usize..self.start[r + 1] as usize] {
+                    let flux = b_node[l.send as usize] * l.coef;
+                    if l.dir == Vec3::ZERO {
+                        e += flux;
+                    } else {
+                        for (c, p) in phi.iter_mut().enumerate() {
+                            *p += l.dir * flux[c];
+                        }
+                    }
+                }
+                (phi, e)
+            })
+            .collect();
+        // Push Φ down (parents before children), then every texel takes its cosine.
+        let mut phi: Vec<[Vec3; 3]> = gathered.iter().map(|g| g.0).collect();
+        for id in 0..nodes.len() {
+            let n = &nodes[id];
+            if !n.is_leaf() {
+                let p = phi[id];
+                for c in n.children {
+                    for (ch, v) in phi[c as usize].iter_mut().enumerate() {
+                        *v += p[ch];
+                    }
+                }
+            }
+        }
+        let mut e = vec![Vec3::ZERO; b.len()];
+        for (i, out) in e.iter_mut().enumerate() {
+            let leaf = self.tree.leaf_of[i] as usize;
+            let n = self.patches[i].normal;
+            let v = &phi[leaf];
+            *out =
+                gathered[leaf].1 + Vec3::new(n.dot(v[0]), n.dot(v[1]), n.dot(v[2])).max(Vec3::ZERO);
+        }
+        e
+    }
+
+    /// Final radiosity for the first-order lightmap `b_o` (W/m², per patch): Jacobi sweeps
+    /// `B ← X (E_d + F B)` (module docs). Reports "transport: solve" (one step per sweep).
+    pub fn solve(
+        &self,
+        b_o: &[Vec3],
+        settings: &Settings,
+        progress: &SetupProgress,
+    ) -> Result<Solution, Cancelled> {
+        assert_eq!(
+            b_o.len(),
+            self.patches.len(),
+            "one first-order value per patch"
+        );
+        let e_d: Vec<Vec3> = b_o
+            .iter()
+            .zip(&self.patches)
+            .map(|(b, p)| {
+                Vec3::select(
+                    p.rho.cmpgt(Vec3::ZERO),
+                    *b / p.rho.max(Vec3::splat(1e-30)),
+                    Vec3::ZERO,
+                )
+            })
+            .collect();
+        let power = |b: &[Vec3]| -> [f64; 3] {
+            let mut s = [0.0f64; 3];
+            for (v, p) in b.iter().zip(&self.patches) {
+                for (c, x) in s.iter_mut().enumerate() {
+                    *x += v[c] as f64 * p.area_m2 as f64;
+                }
+            }
+            s
+        };
+        progress.phase("transport: solve", settings.max_iterations as u64);
+        let mut b = b_o.to_vec();
+        let mut last = power(&b);
+        let (mut iterations, mut change) = (0u32, f64::INFINITY);
+        while iterations < settings.max_iterations {
+            progress.check()?;
+            let e = self.gather(&b);
+            b = self.exitance(b_o, &e_d, &e);
+            iterations += 1;
+            progress.advance(1);
+            let now = power(&b);
+            change = (0..3)
+                .map(|c| (now[c] - last[c]).abs() / now[c].abs().max(1e-300))
+                .fold(0.0, f64::max);
+            last = now;
+            if change < settings.convergence {
+                break;
+            }
+        }
+        Ok(Solution {
+            b,
+            iterations,
+            change,
+        })
+    }
+
+    /// `B = X (E_d + E)`: `B_o + ρ E` on opaque patches, `Σ_j S_ij (E_d,j + E_j)` on
+    /// translucent ones.
+    fn exitance(&self, b_o: &[Vec3], e_d: &[Vec3], e: &[Vec3]) -> Vec<Vec3> {
+        (0..self.patches.len())
+            .into_par_iter()
+            .map(|i| {
+                if !self.translucent[i] {
+                    return b_o[i] + self.patches[i].rho * e[i];
+                }
+                let s = self
+                    .subsurface
+                    .as_ref()
+                    .expect("translucent patches have rows");
+                let mut out = Vec3::ZERO;
+                for &(j, w) in &s.entries[s.start[i] as usize..s.start[i + 1] as usize] {
+                    let j = j as usize;
+                    out += Vec3::from(w) * (e_d[j] + e[j]);
+                }
+                out
+            })
+            .collect()
+    }
+}
+
+/// Refines from (root, root) in rounds (all pairs of a round in parallel) and returns the
+/// links grouped by receiver node (`start`, `links`).
+fn refine_all(
+    patches: &[Patch],
+    tree: &Tree,
+    kernels: &Kernels,
+    settings: &Settings,
+    progress: &SetupProgress,
+) -> Result<(Vec<u32>, Vec<Link>), Cancelled> {
+    // The tree's depth bounds the rounds: each splits one node of every pair.
+    let depth = (patches.len() as f64).log2().ceil() as u64 + 1;
+    progress.phase("transport: links", 2 * depth);
+    let mut frontier = vec![(0u32, 0u32)];
+    let mut found: Vec<(u32, Link)> = Vec::new();
+    while !frontier.is_empty() {
+        progress.check()?;
+        let results: Vec<Refined> = frontier
+            .par_iter()
+            .map(|&(r, s)| refine(patches, tree, kernels, settings, r, s))
+            .collect();
+        let mut next = Vec::new();
+        for res in results {
+            match res {
+                Refined::None => {}
+                Refined::Link(r, l) => found.push((r, l)),
+                Refined::Split(pairs) => next.extend(pairs),
+            }
+        }
+        frontier = next;
+        progress.advance(1);
+    }
+    found.par_sort_unstable_by_key(|&(r, l)| (r, l.send));
+    let mut start = vec![0u32; tree.nodes.len() + 1];
+    for &(r, _) in &found {
+        start[r as usize + 1] += 1;
+    }
+    for i in 0..tree.nodes.len() {
+        start[i + 1] += start[i];
+    }
+    Ok((start, found.into_iter().map(|(_, l)| l).collect()))
+}
+
+/// One step of the refinement of the pair (receiver `r`, sender `s`).
+fn refine(
+    patches: &[Patch],
+    tree: &Tree,
+    kernels: &Kernels,
+    settings: &Settings,
+    r: u32,
+    s: u32,
+) -> Refined {
+    let (nr, ns) = (&tree.nodes[r as usize], &tree.nodes[s as usize]);
+    if r == s {
+        if nr.is_leaf() {
+            return Refined::None;
+        }
+        let [a, b] = nr.children;
+        return Refined::Split(vec![(a, a), (a, b), (b, a), (b, b)]);
+    }
+    if nr.is_leaf() && ns.is_leaf() {
+        let (i, j) = (tree.members(r)[0] as usize, tree.members(s)[0] as usize);
+        let f = kernels.form_factor_c(&patches[i], &patches[j]) * patches[j].area_m2;
+        return if f > 0.0 {
+            Refined::Link(
+                r,
+                Link {
+                    send: s,
+                    coef: f,
+                    dir: Vec3::ZERO,
+                },
+            )
+        } else {
+            Refined::None
+        };
+    }
+    let split = |r: u32, s: u32| -> Refined {
+        let (nr, ns) = (&tree.nodes[r as usize], &tree.nodes[s as usize]);
+        if !ns.is_leaf() && (nr.is_leaf() || ns.radius_m >= nr.radius_m) {
+            Refined::Split(ns.children.iter().map(|&c| (r, c)).collect())
+        } else {
+            Refined::Split(nr.children.iter().map(|&c| (c, s)).collect())
+        }
+    };
+    let d = ns.centroid - nr.centroid;
+    let dist = d.length();
+    let size = nr.radius_m + ns.radius_m;
+    if dist <= size || nr.flatness() < MIN_FLATNESS || ns.flatness() < MIN_FLATNESS {
+        return split(r, s);
+    }
+    let w = d / dist;
+    let cos_r = nr.normal_sum.dot(w) / nr.area_m2;
+    let cos_s = -ns.normal_sum.dot(w) / ns.area_m2;
+    if cos_r <= 0.0 || cos_s <= 0.0 {
+        // Facing away as wholes; members may still face each other when the pair is close
+        // for its size.
+        return if size > 0.5 * dist {
+            split(r, s)
+        } else {
+            Refined::None
+        };
+    }
+    let g = cos_s * ns.area_m2 / (std::f32::consts::PI * dist * dist);
+    let f = cos_r * g;
+    if f * size / dist > settings.tolerance {
+        return split(r, s);
+    }
+    let v = block_visibility(patches, tree, kernels, r, s, settings.visibility_rays);
+    if v <= 0.0 {
+        return Refined::None;
+    }
+    if v < 1.0 && f > settings.tolerance {
+        return split(r, s);
+    }
+    let link = if nr.is_leaf() {
+        Link {
+            send: s,
+            coef: f * v,
+            dir: Vec3::ZERO,
+        }
+    } else {
+        Link {
+            send: s,
+            coef: g * v,
+            dir: w,
+        }
+    };
+    Refined::Link(r, link)
+}
+
+/// Fraction of `rays` rays between member texels of nodes `r` and `s` that arrive (members
+/// picked by a hash of the pair, so the result is deterministic).
+fn block_visibility(
+    patches: &[Patch],
+    tree: &Tree,
+    kernels: &Kernels,
+    r: u32,
+    s: u32,
+    rays: u32,
+) -> f32 {
+    let (mr, ms) = (tree.members(r), tree.members(s));
+    let mut state = ((r as u64) << 32 | s as u64) ^ 0x9e37_79b9_7f4a_7c15;
+    let mut next = || {
+        state = state.wrapping_add(0x9e37_79b9_7f4a_7c15);
+        let mut z = state;
+        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        z ^ (z >> 31)
+    };
+    let rays = rays.max(1);
+    let mut seen = 0u32;
+    for _ in 0..rays {
+        let a = &patches[mr[(next() % mr.len() as u64) as usize] as usize];
+        let b = &patches[ms[(next() % ms.len() as u64) as usize] as usize];
+        let eps = 1e-3 * a.area_m2.max(b.area_m2).sqrt();
+        let pa = a.position_m + a.lift_normal * eps;
+        let pb = b.position_m + b.lift_normal * eps;
+        seen += u32::from(kernels.visibility.visible(pa, pb, eps));
+    }
+    seen as f32 / rays as f32
+}
+
+/// The subsurface rows `S_ij` of every translucent receiver (every sender within the
+/// profile's support, self term included).
+fn subsurface_rows(patches: &[Patch], translucent: &[bool], kernels: &Kernels) -> Subsurface {
+    let grid = SupportGrid::new(patches, kernels);
+    let rows: Vec<Vec<(u32, [f32; 3])>> = (0..patches.len())
+        .into_par_iter()
+        .map(|i| {
+            let mut row = Vec::new();
+            if !translucent[i] {
+                return row;
+            }
+            let a = &patches[i];
+            grid.for_each_near(a.position_m, |j| {
+                if let Some(s) = kernels.subsurface(a, &patches[j as usize], i == j as usize)
+                    && s.iter().any(|&x| x != 0.0)
+                {
+                    row.push((j, s.map(|x| x as f32)));
+                }
+            });
+            row
+        })
+        .collect();
+    let mut start = Vec::with_capacity(rows.len() + 1);
+    start.push(0u32);
+    let mut entries = Vec::new();
+    for row in rows {
+        entries.extend(row);
+        start.push(entries.len() as u32);
+    }
+    Subsurface { start, entries }
+}
