@@ -1,22 +1,33 @@
-//! `ortm solve SCENE -o DIR`: the exact dense solve `B = B_o + R·B_o` of a small lightmap with
+//! `ortm solve SCENE -o DIR`: the global-illumination solve `B = B_o + R·B_o` of a lightmap with
 //! the scene's lights (or `--light` ones, as `ortm render` takes them); writes the first-order,
 //! final and indirect lightmaps as linear OpenEXR (W/m², the inputs of `ortm compare`) and as
 //! tone-mapped PNGs, and prints energy figures.
+//!
+//! `--method dense` is the exact dense solve (up to [`MAX_DENSE_TEXELS`] covered texels: memory
+//! n², time n³); `--method hierarchical` the hierarchical operator
+//! ([`ortm::bake::transport::hier`], error tolerance `--tolerance`) at any size; `auto` (the
+//! default) takes the dense solve where it fits. Progress bars for every phase; Ctrl-C stops
+//! between steps and writes nothing.
 
 use std::path::PathBuf;
-use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
 use ortm::accuracy::compare::power_w;
+use ortm::bake::BakeEvent;
 use ortm::bake::lighting;
 use ortm::bake::raycast::Visibility;
 use ortm::bake::report::save_solution_pngs;
 use ortm::bake::texels::TexelGrid;
 use ortm::bake::transport::dense::DenseTransport;
-use ortm::bake::transport::{Effects, Kernels, texel_patches};
+use ortm::bake::transport::hier::{Operator, Settings};
+use ortm::bake::transport::{Effects, Kernels, SetupProgress, texel_patches};
 use ortm::render::lightmap_exr::write_lightmap_exr;
 use ortm::scene::light::{LIGHT_SYNTAX, parse_light};
+
+use super::progress::Progress;
 
 use ortm::bake::transport::dense::MAX_TEXELS as MAX_DENSE_TEXELS;
 
@@ -35,6 +46,22 @@ pub struct Args {
     /// A light replacing the scene's lights (repeatable).
     #[arg(long = "light", value_name = "SPEC", allow_hyphen_values = true, help = format!("A light replacing the scene's lights (repeatable): {LIGHT_SYNTAX}"))]
     lights: Vec<String>,
+    /// Solver: `auto` (dense up to the dense limit, else hierarchical), `dense` or
+    /// `hierarchical`.
+    #[arg(long, value_enum, default_value_t = Method::Auto)]
+    method: Method,
+    /// Error tolerance ε of the hierarchical solve (a form factor per link; smaller is more
+    /// accurate and larger).
+    #[arg(long, default_value_t = 1e-4)]
+    tolerance: f32,
+}
+
+/// `--method`.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+enum Method {
+    Auto,
+    Dense,
+    Hierarchical,
 }
 
 /// Runs `ortm solve`.
@@ -49,22 +76,84 @@ pub fn run(a: Args) -> Result<()> {
     }
     let grid = TexelGrid::build(&scene)
         .with_context(|| format!("rasterizing the lightmap UVs of '{}'", a.scene))?;
-    if grid.texels.len() > MAX_DENSE_TEXELS {
+    let dense = match a.method {
+        Method::Dense => true,
+        Method::Hierarchical => false,
+        Method::Auto => grid.texels.len() <= MAX_DENSE_TEXELS,
+    };
+    if dense && grid.texels.len() > MAX_DENSE_TEXELS {
         bail!(
             "{} covered texels: the exact dense solve is limited to {MAX_DENSE_TEXELS} \
-             (memory and time grow as n² and n³); use a smaller --size",
+             (memory and time grow as n² and n³); use a smaller --size or --method hierarchical",
             grid.texels.len()
         );
     }
+    if !(a.tolerance.is_finite() && a.tolerance > 0.0) {
+        bail!(
+            "--tolerance {}: give a positive number (e.g. 1e-4)",
+            a.tolerance
+        );
+    }
     super::ensure_dir(&a.output)?;
+    let cancel = Arc::new(AtomicBool::new(false));
+    {
+        let c = cancel.clone();
+        // A second Ctrl-C exits at once; the first stops between steps and writes nothing.
+        let _ = ctrlc::set_handler(move || {
+            if c.swap(true, Ordering::SeqCst) {
+                std::process::exit(130);
+            }
+            eprintln!("\ninterrupt: stopping the solve (nothing is written)");
+        });
+    }
     let t0 = Instant::now();
     let vis = Arc::new(Visibility::new(&scene.mesh));
     let kernels = Kernels::new(&scene, Effects::default(), vis.clone());
     let patches = texel_patches(&grid);
     let b_o = lighting::first_order(&grid, &scene.lights, &vis);
-    let dense = DenseTransport::new(&patches, &kernels);
-    let t_assemble = t0.elapsed();
-    let b = dense.solve(&b_o);
+    let bar = Mutex::new(Progress::hidden());
+    let events = |e: BakeEvent| match e {
+        BakeEvent::Phase { name, total } => {
+            let mut b = bar.lock().expect("progress lock");
+            b.finish();
+            *b = Progress::new(total, name);
+        }
+        BakeEvent::Advance(n) => bar.lock().expect("progress lock").inc(n),
+        BakeEvent::Message(m) => bar.lock().expect("progress lock").println(m),
+    };
+    let progress = SetupProgress::new(&events, &cancel);
+    let interrupted = || anyhow::anyhow!("interrupted: nothing was written");
+    let (b, t_assemble, how) = if dense {
+        let dense =
+            DenseTransport::build(&patches, &kernels, &progress).map_err(|_| interrupted())?;
+        let t_assemble = t0.elapsed();
+        (
+            dense.solve(&b_o),
+            t_assemble,
+            "exact dense solve".to_string(),
+        )
+    } else {
+        let settings = Settings {
+            tolerance: a.tolerance,
+            ..Settings::default()
+        };
+        let op =
+            Operator::build(&patches, &kernels, &settings, &progress).map_err(|_| interrupted())?;
+        let t_assemble = t0.elapsed();
+        let sol = op
+            .solve(&b_o, &settings, &progress)
+            .map_err(|_| interrupted())?;
+        let how = format!(
+            "hierarchical solve, ε = {:e}: {} links ({:.1} MB), {} sweeps (last change {:.1e})",
+            a.tolerance,
+            op.link_count(),
+            op.memory_bytes() as f64 / 1e6,
+            sol.iterations,
+            sol.change
+        );
+        (sol.b, t_assemble, how)
+    };
+    bar.lock().expect("progress lock").finish_and_clear();
     let t_total = t0.elapsed();
     let first = lighting::to_lightmap(&grid, &b_o);
     let fin = lighting::to_lightmap(&grid, &b);
@@ -80,7 +169,7 @@ pub fn run(a: Args) -> Result<()> {
     save_solution_pngs(&a.output, &first, &fin, &ind)?;
     let power = |v: &[glam::Vec3]| power_w(&grid, v);
     println!(
-        "{} texels at {}x{}: assembled in {:.2} s, solved in {:.2} s",
+        "{how}: {} texels at {}x{}: assembled in {:.2} s, solved in {:.2} s",
         grid.texels.len(),
         grid.width,
         grid.height,
