@@ -53,9 +53,10 @@ fn coarse_block_and_iterations_are_bounded_with_the_bound_in_the_help() {
         args.extend(extra);
         fails(ortm(&args, dir.path()))
     };
-    let err = bake(&["--coarse-block", "0"]);
+    let too_large = (max_block + 1).to_string();
+    let err = bake(&["--coarse-block", &too_large]);
     assert!(
-        err.contains("--coarse-block") && err.contains("1..="),
+        err.contains("--coarse-block") && err.contains(&format!("0..={max_block}")),
         "{err}"
     );
     let err = bake(&["--iterations", "4294967295"]);

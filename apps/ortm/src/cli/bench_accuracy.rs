@@ -157,8 +157,13 @@ fn measure_rows(case: &Case, a: &Args) -> Result<Vec<Row>> {
     if n <= a.max_evaluator_texels {
         eprintln!("{}: evaluator over {n}² pairs", case.label);
         let t = Instant::now();
-        let block = BakeSettings::default().coarse_block;
-        let tr = Transport::new(&case.scene, &case.grid, Effects::default(), block);
+        let tr = Transport::new(
+            &case.scene,
+            &case.grid,
+            Effects::default(),
+            BakeSettings::default().coarse_block,
+        );
+        let block = tr.remainder.block;
         let final_b = ortm::bake::eval::evaluator_final(&tr, &case.b_o);
         let senders = ortm::bake::eval::senders(&case.b_o).len() as u64;
         rows.push(Row {

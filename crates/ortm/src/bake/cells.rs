@@ -23,7 +23,7 @@
 //!   When the cluster's tile, seen from `t`, lies inside one cell (a precomputed table of
 //!   cell-uniform windows) it adds to that cell in O(1); otherwise each quadrant of the tile
 //!   goes whole to the cell of its texel nearest the quadrant's centre. So for far pairs the
-//!   partition of offset space is the Voronoi one up to ±`P/4` texels (±2 at the default 8×8
+//!   partition of offset space is the Voronoi one up to ±`P/4` texels (±2 with 8×8
 //!   clusters; exact for 1×1 and 2×2 clusters) — still a partition, so every sender's transfer
 //!   is counted once, only the site whose first-order light it multiplies can be a neighbouring
 //!   one.

@@ -61,7 +61,9 @@ pub struct BakeSettings {
     pub refinement_iterations: usize,
     /// Draws between rebuilds of the density.
     pub rebuild_every: usize,
-    /// Cluster size (texels per side) of the coarse higher-order solve.
+    /// Cluster size (texels per side) of the coarse higher-order solve; 0 = automatic
+    /// ([`crate::bake::transport::coarse::auto_block`]: the finest with at most
+    /// [`crate::bake::transport::coarse::AUTO_MAX_CLUSTERS`] clusters).
     pub coarse_block: u32,
     /// Receivers sampled per offset when estimating its transference.
     pub selection_receivers: usize,
@@ -85,7 +87,7 @@ impl Default for BakeSettings {
             seed_grid: 10,
             refinement_iterations: 1000,
             rebuild_every: 20,
-            coarse_block: 8,
+            coarse_block: 0,
             selection_receivers: 4096,
             cell_rule: CellRule::Integrated,
             scene: None,
@@ -528,7 +530,10 @@ pub fn bake(
     crate::io::limits::check_lightmap_memory(w, h)
         .map_err(|e| BakeError::Settings(e.to_string()))?;
     let grid = TexelGrid::build_with_size(scene, w, h)?;
-    let block = settings.coarse_block.max(1);
+    let block = match settings.coarse_block {
+        0 => crate::bake::transport::coarse::auto_block(&grid),
+        b => b,
+    };
     let clusters = crate::bake::transport::coarse::cluster_count(&grid, block);
     let cell_values = match settings.cell_rule {
         CellRule::Integrated => u64::from(w) * u64::from(h) * settings.offsets as u64,
@@ -545,15 +550,15 @@ pub fn bake(
     let settings_json = serde_json::to_value(settings).expect("settings serialise");
     let key = BakeKey::new(&hash, &settings_json);
     events(BakeEvent::Message(format!(
-        "{} covered texels at {w}x{h}; building the transport (BVH, coarse solve, {}² texel clusters)",
+        "{} covered texels at {w}x{h}; building the transport (BVH, coarse solve, {clusters} \
+         clusters of {block}² texels)",
         grid.texels.len(),
-        settings.coarse_block
     )));
     let transport = Transport::build(
         scene,
         &grid,
         settings.effects,
-        settings.coarse_block,
+        block,
         &SetupProgress::new(events, cancel),
     )
     .map_err(|_| BakeError::Interrupted {

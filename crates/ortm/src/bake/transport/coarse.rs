@@ -9,6 +9,7 @@
 use std::collections::HashMap;
 
 use glam::Vec3;
+use rayon::prelude::*;
 
 use super::dense::DenseTransport;
 use super::{Cancelled, Kernels, Patch, SetupProgress};
@@ -42,6 +43,27 @@ pub fn cluster_count(grid: &TexelGrid, block: u32) -> usize {
         .map(|t| cluster_key(t, block))
         .collect::<std::collections::HashSet<_>>()
         .len()
+}
+
+/// Most clusters the automatic block size ([`auto_block`]) allows: the dense coarse solve holds
+/// a few `n_c × n_c` matrices (4096² doubles are 134 MB each) and takes `O(n_c³)` time
+/// (seconds at 4096 on 2 cores).
+pub const AUTO_MAX_CLUSTERS: usize = 4096;
+
+/// The smallest block (texels per side) whose clusters number at most [`AUTO_MAX_CLUSTERS`]:
+/// every texel its own cluster (the coarse solve is then the exact dense solve) up to that many
+/// covered texels, coarser tiles beyond.
+pub fn auto_block(grid: &TexelGrid) -> u32 {
+    let n = grid.texels.len();
+    if n <= AUTO_MAX_CLUSTERS {
+        return 1;
+    }
+    // Full tiles of b² texels give n / b² clusters; partial tiles at chart borders add more.
+    let mut block = ((n as f64 / AUTO_MAX_CLUSTERS as f64).sqrt().floor() as u32).max(1);
+    while cluster_count(grid, block) > AUTO_MAX_CLUSTERS {
+        block += 1;
+    }
+    block
 }
 
 /// Groups texels into clusters: one per (tile of `block × block` texels, chart, material).
@@ -114,20 +136,30 @@ impl Remainder {
         let n = clusters.len();
         let dense = DenseTransport::build(&clusters, kernels, progress)?;
         let full = dense.transfer_with(progress)?;
+        // R_fine per cluster pair (one visibility ray each), rows in parallel.
+        let fine: Vec<Vec<[f64; 3]>> = (0..n)
+            .into_par_iter()
+            .map(|i| {
+                (0..n)
+                    .map(|j| kernels.r_fine(&clusters[i], &clusters[j], i == j))
+                    .collect()
+            })
+            .collect();
         let rem = std::array::from_fn(|ch| {
             let mut v = vec![0.0f32; n * n];
             for i in 0..n {
                 for j in 0..n {
-                    let fine = if dense.rho[j][ch] > 0.0 {
-                        kernels.r_fine(&clusters[i], &clusters[j], i == j)[ch]
+                    let f = if dense.rho[j][ch] > 0.0 {
+                        fine[i][j][ch]
                     } else {
                         0.0
                     };
-                    v[i * n + j] = (full[ch][(i, j)] - fine) as f32;
+                    v[i * n + j] = (full[ch][(i, j)] - f) as f32;
                 }
             }
             v
         });
+        drop(fine);
         let full = std::array::from_fn(|ch| {
             let m = &full[ch];
             let mut v = vec![0.0f32; n * n];

@@ -507,7 +507,8 @@ pub struct Transport {
 
 impl Transport {
     /// Builds the evaluator: texel patches, BVH, and the coarse remainder solve with clusters of
-    /// `block × block` texels.
+    /// `block × block` texels (0: [`coarse::auto_block`], the finest with at most
+    /// [`coarse::AUTO_MAX_CLUSTERS`] clusters).
     pub fn new(scene: &Scene, grid: &TexelGrid, effects: Effects, block: u32) -> Self {
         Self::build(scene, grid, effects, block, &SetupProgress::none())
             .unwrap_or_else(|_| unreachable!("never cancelled"))
@@ -527,6 +528,11 @@ impl Transport {
         let kernels = Kernels::new(scene, effects, visibility);
         let mut patches = texel_patches(grid);
         kernels.normalise_subsurface_with(&mut patches, progress)?;
+        let block = if block == 0 {
+            coarse::auto_block(grid)
+        } else {
+            block
+        };
         let remainder = coarse::Remainder::build(grid, &patches, &kernels, block, progress)?;
         Ok(Self {
             patches,
