@@ -64,7 +64,7 @@ fn cornell_64_evaluator_error(block: u32) -> (u32, f64) {
 #[test]
 fn evaluator_at_the_default_cluster_size_is_exact_where_the_clusters_can_be_texels() {
     // The bake's default (`coarse_block` 0, automatic) makes every texel a cluster up to
-    // `AUTO_MAX_CLUSTERS` covered texels: the coarse solve is then the exact dense solve, and
+    // `AUTO_EXACT_TEXELS` covered texels: the coarse solve is then the exact dense solve, and
     // R_fine + R_rem reproduces it up to f32 rounding (measured 3.8e-6).
     let default = BakeSettings::default().coarse_block;
     assert_eq!(default, 0, "the default block is automatic");

@@ -9,7 +9,7 @@ use super::progress::Progress;
 use anyhow::{Context, Result, bail};
 use ortm::bake::offsets::ImportanceMetric;
 use ortm::bake::transport::Effects;
-use ortm::bake::transport::coarse::AUTO_MAX_CLUSTERS;
+use ortm::bake::transport::coarse::{AUTO_EXACT_TEXELS, AUTO_MAX_CLUSTERS};
 use ortm::bake::{BakeEvent, BakeSettings, CellRule, Selector, bake};
 use ortm::io::limits::{MAX_COARSE_BLOCK, MAX_REFINEMENT_ITERATIONS};
 
@@ -57,7 +57,7 @@ pub struct Args {
         long,
         default_value_t = BakeSettings::default().coarse_block,
         value_parser = clap::value_parser!(u32).range(0..=i64::from(MAX_COARSE_BLOCK)),
-        help = format!("Texels per side of the clusters of the coarse higher-order solve, 1..={MAX_COARSE_BLOCK}; 0 = automatic: the finest with at most {AUTO_MAX_CLUSTERS} clusters (single texels up to that many covered texels)")
+        help = format!("Texels per side of the clusters of the coarse higher-order solve, 1..={MAX_COARSE_BLOCK}; 0 = automatic: single texels (the exact solve) up to {AUTO_EXACT_TEXELS} covered texels, else the finest block with at most {AUTO_MAX_CLUSTERS} clusters")
     )]
     pub coarse_block: u32,
 }

@@ -62,8 +62,8 @@ pub struct BakeSettings {
     /// Draws between rebuilds of the density.
     pub rebuild_every: usize,
     /// Cluster size (texels per side) of the coarse higher-order solve; 0 = automatic
-    /// ([`crate::bake::transport::coarse::auto_block`]: the finest with at most
-    /// [`crate::bake::transport::coarse::AUTO_MAX_CLUSTERS`] clusters).
+    /// ([`crate::bake::transport::coarse::auto_block`]: single texels up to 4,096 covered
+    /// texels, else the finest block with at most 1,024 clusters).
     pub coarse_block: u32,
     /// Receivers sampled per offset when estimating its transference.
     pub selection_receivers: usize,

@@ -45,17 +45,21 @@ pub fn cluster_count(grid: &TexelGrid, block: u32) -> usize {
         .len()
 }
 
-/// Most clusters the automatic block size ([`auto_block`]) allows: the dense coarse solve holds
-/// a few `n_c × n_c` matrices (4096² doubles are 134 MB each) and takes `O(n_c³)` time
-/// (seconds at 4096 on 2 cores).
-pub const AUTO_MAX_CLUSTERS: usize = 4096;
+/// Up to this many covered texels the automatic block size ([`auto_block`]) makes every texel a
+/// cluster: the coarse solve is then the exact dense solve (a few `n × n` matrices, 134 MB of
+/// doubles each at 4,096, and seconds of LU on 2 cores).
+pub const AUTO_EXACT_TEXELS: usize = 4096;
 
-/// The smallest block (texels per side) whose clusters number at most [`AUTO_MAX_CLUSTERS`]:
-/// every texel its own cluster (the coarse solve is then the exact dense solve) up to that many
-/// covered texels, coarser tiles beyond.
+/// Beyond [`AUTO_EXACT_TEXELS`], the most clusters the automatic block size allows: the bake's
+/// speed budget (the head at 256² with 100 offsets within 10 s on 2 cores, README "Bake speed";
+/// 3,910 clusters took 22 s and 1.6 GB there).
+pub const AUTO_MAX_CLUSTERS: usize = 1024;
+
+/// The automatic block (texels per side): 1 up to [`AUTO_EXACT_TEXELS`] covered texels, else
+/// the smallest block whose clusters number at most [`AUTO_MAX_CLUSTERS`].
 pub fn auto_block(grid: &TexelGrid) -> u32 {
     let n = grid.texels.len();
-    if n <= AUTO_MAX_CLUSTERS {
+    if n <= AUTO_EXACT_TEXELS {
         return 1;
     }
     // Full tiles of b² texels give n / b² clusters; partial tiles at chart borders add more.

@@ -507,8 +507,7 @@ pub struct Transport {
 
 impl Transport {
     /// Builds the evaluator: texel patches, BVH, and the coarse remainder solve with clusters of
-    /// `block × block` texels (0: [`coarse::auto_block`], the finest with at most
-    /// [`coarse::AUTO_MAX_CLUSTERS`] clusters).
+    /// `block × block` texels (0: [`coarse::auto_block`]).
     pub fn new(scene: &Scene, grid: &TexelGrid, effects: Effects, block: u32) -> Self {
         Self::build(scene, grid, effects, block, &SetupProgress::none())
             .unwrap_or_else(|_| unreachable!("never cancelled"))
