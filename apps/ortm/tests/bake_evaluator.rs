@@ -1,7 +1,7 @@
 //! The pair evaluator `R(t, t')` that every bake uses (exact subsurface term and first bounce,
-//! higher-order remainder solved on clusters of texels) against the exact dense solve: exact at
-//! the bake's default (automatic) cluster size where every texel can be a cluster, its error
-//! with 8×8 clusters, and the figures of `ortm bench transport` (README, "Figures").
+//! higher-order remainder solved on clusters of texels) against the exact dense solve: its error
+//! at the bake's default cluster size, exact at the automatic one where every texel can be a
+//! cluster, and the figures of `ortm bench transport` (README, "Figures").
 //!
 //! The error is the relative RMSE of the indirect term `B − B_o` ([`common::evaluator_error`],
 //! the figure the bench prints) for one or more light set-ups.
@@ -62,13 +62,11 @@ fn cornell_64_evaluator_error(block: u32) -> (u32, f64) {
 }
 
 #[test]
-fn evaluator_at_the_default_cluster_size_is_exact_where_the_clusters_can_be_texels() {
-    // The bake's default (`coarse_block` 0, automatic) makes every texel a cluster up to
+fn evaluator_with_the_automatic_cluster_size_is_exact_where_the_clusters_can_be_texels() {
+    // The automatic block (`--coarse-block 0`) makes every texel a cluster up to
     // `AUTO_EXACT_TEXELS` covered texels: the coarse solve is then the exact dense solve, and
     // R_fine + R_rem reproduces it up to f32 rounding (measured 3.8e-6).
-    let default = BakeSettings::default().coarse_block;
-    assert_eq!(default, 0, "the default block is automatic");
-    let (block, mean) = cornell_64_evaluator_error(default);
+    let (block, mean) = cornell_64_evaluator_error(0);
     assert_eq!(
         block, 1,
         "2,100 texels fit the automatic limit as single texels"
@@ -77,12 +75,12 @@ fn evaluator_at_the_default_cluster_size_is_exact_where_the_clusters_can_be_texe
 }
 
 #[test]
-fn evaluator_error_with_8x8_clusters_cornell_64() {
-    // The cluster approximation itself: at 64² a wall is ~18 texels wide, so an 8×8 cluster
-    // spans up to half a wall's side. Measured: 0.1459 (per set-up 0.137 / 0.155 / 0.163 /
+fn evaluator_error_at_the_default_cluster_size_cornell_64() {
+    // The cluster approximation at the bake's default 8×8: at 64² a wall is ~18 texels wide, so
+    // an 8×8 cluster spans up to half a wall's side. Measured: 0.1459 (per set-up 0.137 / 0.155 / 0.163 /
     // 0.129); 2×2: 0.070, 4×4: 0.119, 16×16: 0.219, 32×32: 0.241. The bound is the measured mean
     // + 25 %: coarser clusters (16×16: +50 %) fail it.
-    let (block, mean) = cornell_64_evaluator_error(8);
+    let (block, mean) = cornell_64_evaluator_error(BakeSettings::default().coarse_block);
     assert_eq!(block, 8);
     assert!(
         mean < 0.182,

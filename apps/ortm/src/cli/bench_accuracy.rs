@@ -78,6 +78,14 @@ pub struct Args {
     /// Seed of the bakes' offset selection and of the reference's paths.
     #[arg(long, default_value_t = 1)]
     seed: u64,
+    /// Cluster size of the evaluator and the bakes, as `ortm bake --coarse-block` (0 =
+    /// automatic).
+    #[arg(
+        long,
+        default_value_t = BakeSettings::default().coarse_block,
+        value_parser = clap::value_parser!(u32).range(0..=i64::from(ortm::io::limits::MAX_COARSE_BLOCK))
+    )]
+    coarse_block: u32,
 }
 
 /// One way of producing the final lightmap, measured against the reference.
@@ -157,12 +165,7 @@ fn measure_rows(case: &Case, a: &Args) -> Result<Vec<Row>> {
     if n <= a.max_evaluator_texels {
         eprintln!("{}: evaluator over {n}² pairs", case.label);
         let t = Instant::now();
-        let tr = Transport::new(
-            &case.scene,
-            &case.grid,
-            Effects::default(),
-            BakeSettings::default().coarse_block,
-        );
+        let tr = Transport::new(&case.scene, &case.grid, Effects::default(), a.coarse_block);
         let block = tr.remainder.block;
         let final_b = ortm::bake::eval::evaluator_final(&tr, &case.b_o);
         let senders = ortm::bake::eval::senders(&case.b_o).len() as u64;
@@ -180,7 +183,7 @@ fn measure_rows(case: &Case, a: &Args) -> Result<Vec<Row>> {
             (CellRule::Sampled, "Eq. 10 (sampled)"),
         ] {
             eprintln!("{}: bake, {k} offsets, {name}", case.label);
-            rows.push(bake_row(case, k, rule, name, a.seed)?);
+            rows.push(bake_row(case, k, rule, name, a)?);
         }
     }
     Ok(rows)
@@ -188,13 +191,14 @@ fn measure_rows(case: &Case, a: &Args) -> Result<Vec<Row>> {
 
 /// Bakes `case` with `k` offsets and `rule` into a temporary folder and applies the maps to the
 /// first order on the CPU.
-fn bake_row(case: &Case, k: usize, rule: CellRule, name: &str, seed: u64) -> Result<Row> {
+fn bake_row(case: &Case, k: usize, rule: CellRule, name: &str, a: &Args) -> Result<Row> {
     let dir = scratch_dir(&case.label, k)?;
     let settings = BakeSettings {
         size: case.scene.lightmap_size,
         offsets: k,
         cell_rule: rule,
-        seed,
+        seed: a.seed,
+        coarse_block: a.coarse_block,
         ..BakeSettings::default()
     };
     let cancel = AtomicBool::new(false);

@@ -63,7 +63,9 @@ pub struct BakeSettings {
     pub rebuild_every: usize,
     /// Cluster size (texels per side) of the coarse higher-order solve; 0 = automatic
     /// ([`crate::bake::transport::coarse::auto_block`]: single texels up to 4,096 covered
-    /// texels, else the finest block with at most 1,024 clusters).
+    /// texels, else the finest block with at most 1,024 clusters). The default stays 8: with
+    /// exact clusters the evaluator is exact, but today's offset maps get worse (README,
+    /// "Transport model").
     pub coarse_block: u32,
     /// Receivers sampled per offset when estimating its transference.
     pub selection_receivers: usize,
@@ -87,7 +89,7 @@ impl Default for BakeSettings {
             seed_grid: 10,
             refinement_iterations: 1000,
             rebuild_every: 20,
-            coarse_block: 0,
+            coarse_block: 8,
             selection_receivers: 4096,
             cell_rule: CellRule::Integrated,
             scene: None,
