@@ -14,6 +14,7 @@
 //! - `ortm inspect` on overlapping UVs: reports them and draws exactly those texels red.
 //! - Readable outputs: enlarged lightmap PNGs with a legend, atlas size fitted by `ortm bin`.
 //! - Progress lines on stderr when it is not a terminal.
+//! - A convex object (no transport between its texels) bakes, lit by a default light outside it.
 //! - One `--shadow-size` default, help texts without internal names, power in W in both
 //!   `render` and `solve`, "does not exist" for a missing bake folder.
 
@@ -466,5 +467,57 @@ fn help_texts_use_one_shadow_default_and_user_words() {
         ] {
             assert!(!help.contains(internal), "{internal} in\n{help}");
         }
+    }
+}
+
+/// A closed unit cube as a bare OBJ (no UVs, no normals, no lights), faces counter-clockwise
+/// seen from outside.
+const CUBE_OBJ: &str = "v -0.5 -0.5 -0.5\nv 0.5 -0.5 -0.5\nv 0.5 0.5 -0.5\nv -0.5 0.5 -0.5\n\
+v -0.5 -0.5 0.5\nv 0.5 -0.5 0.5\nv 0.5 0.5 0.5\nv -0.5 0.5 0.5\n\
+f 1 4 3 2\nf 5 6 7 8\nf 1 2 6 5\nf 2 3 7 6\nf 3 4 8 7\nf 4 1 5 8\n";
+
+/// A convex object has no light transport between its texels (radiosity only: no surface sees
+/// another). The bake says so, picks its offsets on a jittered grid and writes a valid bake
+/// whose maps add nothing (it used to stop: "transference is 0 at all 101 seed offsets"); the
+/// default light sits outside the object (it used to sit inside it, so the render was black).
+#[test]
+fn a_convex_object_bakes_without_transport_and_its_default_light_is_outside() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("cube.obj"), CUBE_OBJ).unwrap();
+    let text = ok(ortm(
+        &[
+            "bake",
+            "cube.obj",
+            "--size",
+            "32",
+            "--offsets",
+            "4",
+            "-o",
+            "b",
+        ],
+        dir.path(),
+    ));
+    assert!(
+        text.contains("no light transport") && text.contains("jittered grid"),
+        "{text}"
+    );
+    assert!(!text.contains("transference is 0"), "{text}");
+    let index = BakeIndex::read(&dir.path().join("b")).unwrap();
+    assert_eq!(index.maps.len(), 4);
+    let text = ok(ortm(
+        &["render", "b", "--scene", "cube.obj", "-o", "f.png"],
+        dir.path(),
+    ));
+    let first = rgb_after(&text, "first-order power");
+    let fin = rgb_after(&text, "final");
+    assert!(
+        first.iter().all(|&p| p > 0.0),
+        "lit by the default light: {text}"
+    );
+    for c in 0..3 {
+        assert!(
+            (fin[c] - first[c]).abs() <= 1e-4 * first[c],
+            "nothing transferred: {text}"
+        );
     }
 }

@@ -103,8 +103,8 @@ pub enum BakeError {
     /// The UV layout could not be rasterized.
     #[error(transparent)]
     Texels(#[from] TexelError),
-    /// Offset selection failed.
-    #[error("offset selection: {0}")]
+    /// Offset selection failed (the cause is the error's source).
+    #[error("offset selection")]
     Offsets(#[from] OffsetError),
     /// Writing or reading maps failed.
     #[error(transparent)]
@@ -342,7 +342,25 @@ pub fn select_offsets(
                     v
                 },
                 |_, _, _| {},
-            )?;
+            );
+            let selection = match selection {
+                Err(offsets::OffsetError::ZeroTransference { seeds }) => {
+                    // Nothing to importance-sample: a convex object, or surfaces that do not
+                    // see each other, without subsurface scattering. The maps then hold
+                    // whatever transfer the seeds missed (usually none); the bake stays valid.
+                    events(BakeEvent::Message(format!(
+                        "warning: no light transport at any of the {seeds} seed offsets (a \
+                         convex mesh, or surfaces that do not see each other, without \
+                         subsurface scattering?): the offsets are chosen on a jittered grid \
+                         instead, and the final lightmap will be about the first order"
+                    )));
+                    return Ok((
+                        offsets::select_jittered_grid(w, h, settings.offsets, settings.seed)?,
+                        Vec::new(),
+                    ));
+                }
+                other => other?,
+            };
             let points = selection
                 .data_points
                 .iter()

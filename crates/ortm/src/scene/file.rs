@@ -472,19 +472,88 @@ impl LoadedMesh {
 }
 
 /// The default light of a scene without lights: a point light a quarter of the bounding
-/// box's height above its centre, bright enough for 1 W/m² at the bounding sphere's radius
-/// (`I = r²` W/sr). Lights do not change a bake; they light previews and renders.
+/// box's height above its centre when that point lies in an open space the surfaces face (a
+/// room), bright enough for 1 W/m² at the bounding sphere's radius (`I = r²` W/sr); when it
+/// lies inside a closed object (most of the surfaces its rays reach face away from it:
+/// [`inside_solid`]), a point light outside, 2.5 radii from the centre, above, to the right and
+/// in front (+x, +y, +z), with 1 W/m² at that distance (`I = (2.5 r)²`). Lights do not change a
+/// bake; they light previews and renders.
 pub fn default_lights(mesh: &Mesh) -> Vec<Light> {
     let (lo, hi) = mesh.bounds();
     let Some((centre, r)) = mesh.bounding_sphere() else {
         return Vec::new();
     };
-    let up = Vec3::new(0.0, 0.25 * (hi.y - lo.y), 0.0);
+    let inside = centre + Vec3::new(0.0, 0.25 * (hi.y - lo.y), 0.0);
+    let (position_m, d) = if inside_solid(mesh, inside) {
+        (
+            centre + Vec3::new(1.0, 2.0, 1.5).normalize() * 2.5 * r,
+            2.5 * r,
+        )
+    } else {
+        (inside, r)
+    };
     vec![Light::Point {
-        position_m: centre + up,
+        position_m,
         color: Vec3::ONE,
-        intensity_w_sr: (r * r).max(f32::MIN_POSITIVE),
+        intensity_w_sr: (d * d).max(f32::MIN_POSITIVE),
     }]
+}
+
+/// Whether `p` lies inside a closed object rather than in a space its surfaces face: of the
+/// rays from `p` along the 26 directions of a 3×3×3 stencil, more of those that hit the mesh
+/// hit a triangle's back (its counter-clockwise normal points away from `p`) than its front.
+/// Brute force over the triangles (26 rays).
+pub fn inside_solid(mesh: &Mesh, p: Vec3) -> bool {
+    let (mut front, mut back) = (0u32, 0u32);
+    for dz in -1i32..=1 {
+        for dy in -1i32..=1 {
+            for dx in -1i32..=1 {
+                if (dx, dy, dz) == (0, 0, 0) {
+                    continue;
+                }
+                let dir = Vec3::new(dx as f32, dy as f32, dz as f32).normalize();
+                let mut best: Option<(f32, Vec3)> = None;
+                for t in &mesh.triangles {
+                    let [a, b, c] = t.position.map(|i| mesh.positions_m[i as usize]);
+                    if let Some(s) = ray_triangle(p, dir, a, b, c)
+                        && best.is_none_or(|(bs, _)| s < bs)
+                    {
+                        best = Some((s, (b - a).cross(c - a)));
+                    }
+                }
+                match best {
+                    Some((_, n)) if n.dot(dir) > 0.0 => back += 1,
+                    Some(_) => front += 1,
+                    None => {}
+                }
+            }
+        }
+    }
+    back > front
+}
+
+/// Distance along the unit `dir` from `o` to triangle `abc` (Möller–Trumbore, both sides), or
+/// `None`.
+fn ray_triangle(o: Vec3, dir: Vec3, a: Vec3, b: Vec3, c: Vec3) -> Option<f32> {
+    let (e1, e2) = (b - a, c - a);
+    let pv = dir.cross(e2);
+    let det = e1.dot(pv);
+    if det.abs() < 1e-12 {
+        return None;
+    }
+    let inv = 1.0 / det;
+    let tv = o - a;
+    let u = tv.dot(pv) * inv;
+    if !(0.0..=1.0).contains(&u) {
+        return None;
+    }
+    let qv = tv.cross(e1);
+    let v = dir.dot(qv) * inv;
+    if v < 0.0 || u + v > 1.0 {
+        return None;
+    }
+    let s = e2.dot(qv) * inv;
+    (s > 0.0).then_some(s)
 }
 
 /// The file stem of `path` (or `scene`).
@@ -1251,5 +1320,83 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("mesh"), "{e}");
+    }
+}
+
+#[cfg(test)]
+mod default_light_tests {
+    use super::*;
+    use crate::scene::MeshTriangle;
+
+    /// A unit cube at `(0, 0.5, 0)` (so the default light's candidate, above the centre, is
+    /// inside it), its faces counter-clockwise seen from outside, or from inside when
+    /// `inward`.
+    fn cube(inward: bool) -> Mesh {
+        let p = |x: f32, y: f32, z: f32| Vec3::new(x - 0.5, y, z - 0.5);
+        let positions_m = vec![
+            p(0.0, 0.0, 0.0),
+            p(1.0, 0.0, 0.0),
+            p(1.0, 1.0, 0.0),
+            p(0.0, 1.0, 0.0),
+            p(0.0, 0.0, 1.0),
+            p(1.0, 0.0, 1.0),
+            p(1.0, 1.0, 1.0),
+            p(0.0, 1.0, 1.0),
+        ];
+        // Outward counter-clockwise quads.
+        let quads = [
+            [0, 3, 2, 1],
+            [4, 5, 6, 7],
+            [0, 1, 5, 4],
+            [1, 2, 6, 5],
+            [2, 3, 7, 6],
+            [3, 0, 4, 7],
+        ];
+        let mut triangles = Vec::new();
+        for q in quads {
+            for mut t in [[q[0], q[1], q[2]], [q[0], q[2], q[3]]] {
+                if inward {
+                    t.swap(1, 2);
+                }
+                triangles.push(MeshTriangle {
+                    position: t,
+                    uv: [0; 3],
+                    normal: [0; 3],
+                    material: 0,
+                });
+            }
+        }
+        Mesh {
+            positions_m,
+            uvs: vec![glam::Vec2::ZERO],
+            normals: vec![Vec3::Y],
+            triangles,
+        }
+    }
+
+    fn light_position(mesh: &Mesh) -> Vec3 {
+        match default_lights(mesh).as_slice() {
+            [Light::Point { position_m, .. }] => *position_m,
+            other => panic!("one point light expected, got {other:?}"),
+        }
+    }
+
+    #[test]
+    fn a_room_keeps_its_light_inside_and_an_object_gets_one_outside() {
+        // Seen from inside (a room): the light stays a quarter of the height above the centre.
+        let room = cube(true);
+        assert!(!inside_solid(&room, Vec3::new(0.0, 0.75, 0.0)));
+        let p = light_position(&room);
+        assert!((p - Vec3::new(0.0, 0.75, 0.0)).length() < 1e-5, "{p}");
+        // A closed object: the candidate is inside the solid, the light moves out, above it.
+        let object = cube(false);
+        assert!(inside_solid(&object, Vec3::new(0.0, 0.75, 0.0)));
+        let p = light_position(&object);
+        assert!(
+            p.x > 0.5 && p.y > 1.0 && p.z > 0.5,
+            "outside, above, in front: {p}"
+        );
+        // Outside the object, the object's faces face the point.
+        assert!(!inside_solid(&object, p));
     }
 }
