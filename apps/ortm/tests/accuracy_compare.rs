@@ -508,4 +508,27 @@ fn solve_methods_agree_and_the_dense_limit_names_the_other() {
         dir.path(),
     ));
     assert!(e.contains("--tolerance"), "{e}");
+    // Links beyond half the memory limit stop the refinement with an error that names the
+    // tolerance (maze 64² at 10⁻⁴ holds ~19 MB of links).
+    let out = common::ortm_command()
+        .args([
+            "solve",
+            "maze",
+            "--size",
+            "64",
+            "-o",
+            "m",
+            "--method",
+            "hierarchical",
+        ])
+        .env("ORTM_MEMORY_LIMIT_BYTES", "4000000")
+        .current_dir(dir.path())
+        .output()
+        .unwrap();
+    let e = fails(out);
+    assert!(
+        e.contains("needs more than 2000000 bytes") && e.contains("--tolerance"),
+        "{e}"
+    );
+    assert!(!dir.path().join("m").join("final.exr").exists());
 }

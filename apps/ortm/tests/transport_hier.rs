@@ -164,3 +164,73 @@ fn links_grow_slower_than_n_log_n() {
     println!("growth exponent of the links: {exponent:.3}");
     assert!(exponent < 1.1, "links grow as n^{exponent:.3}");
 }
+
+/// `R(i, j)` for every receiver `i` and each sender of `senders`: one hierarchical solve per
+/// sender with `B_o` = 1 W/m² at that sender alone (`B = B_o + R B_o`).
+fn columns(op: &Operator, settings: &Settings, n: usize, senders: &[usize]) -> Vec<Vec<Vec3>> {
+    senders
+        .iter()
+        .map(|&j| {
+            let mut b_o = vec![Vec3::ZERO; n];
+            b_o[j] = Vec3::ONE;
+            let mut b = op.solve(&b_o, settings, &SetupProgress::none()).unwrap().b;
+            b[j] -= Vec3::ONE;
+            b
+        })
+        .collect()
+}
+
+/// Reciprocity of the radiosity transfer (`F_ij A_i = F_ji A_j`, so
+/// `A_i R(i, j) / ρ_i = A_j R(j, i) / ρ_j` for all bounces): on the maze at 32², between texels
+/// of different walls and bays, from the hierarchical operator at ε = 10⁻³ (block links carry
+/// most of these pairs). Measured: largest relative asymmetry over the 15 pairs and 3 channels
+/// 3.3 %, bound 5 %; the exact dense solve on the same pairs is symmetric to rounding (bound
+/// 10⁻⁴).
+#[test]
+fn radiosity_transfer_is_reciprocal() {
+    let scene = ortm::scene::maze::maze(32);
+    let grid = TexelGrid::build(&scene).unwrap();
+    let vis = Arc::new(Visibility::new(&scene.mesh));
+    let kernels = Kernels::new(&scene, RADIOSITY, vis);
+    let patches = texel_patches(&grid);
+    let n = patches.len();
+    // Six texels spread over the lightmap (different charts).
+    let senders: Vec<usize> = (0..6).map(|k| (k * n) / 6 + n / 12).collect();
+    let settings = Settings {
+        tolerance: 1e-3,
+        ..Settings::default()
+    };
+    let op = Operator::build(&patches, &kernels, &settings, &SetupProgress::none()).unwrap();
+    let hier = columns(&op, &settings, n, &senders);
+    let dense = DenseTransport::new(&patches, &kernels);
+    let exact: Vec<Vec<Vec3>> = senders
+        .iter()
+        .map(|&j| {
+            let mut b_o = vec![Vec3::ZERO; n];
+            b_o[j] = Vec3::ONE;
+            let mut b = dense.solve(&b_o);
+            b[j] -= Vec3::ONE;
+            b
+        })
+        .collect();
+    let asymmetry = |cols: &[Vec<Vec3>]| -> f64 {
+        let mut worst = 0.0f64;
+        for (a, &i) in senders.iter().enumerate() {
+            for (b, &j) in senders.iter().enumerate().skip(a + 1) {
+                let (pi, pj) = (&patches[i], &patches[j]);
+                let (rij, rji) = (cols[b][i], cols[a][j]);
+                for c in 0..3 {
+                    let ij = (pi.area_m2 * rij[c] / pi.rho[c]) as f64;
+                    let ji = (pj.area_m2 * rji[c] / pj.rho[c]) as f64;
+                    assert!(ij > 0.0 && ji > 0.0, "texels {i}, {j}: no transfer");
+                    worst = worst.max((ij - ji).abs() / ij.max(ji));
+                }
+            }
+        }
+        worst
+    };
+    let (h, d) = (asymmetry(&hier), asymmetry(&exact));
+    println!("largest relative asymmetry of A·R/ρ: hierarchical {h:.4}, dense {d:.5}");
+    assert!(d < 1e-4, "dense asymmetry {d}");
+    assert!(h < 0.05, "hierarchical asymmetry {h}");
+}

@@ -22,7 +22,7 @@ use ortm::bake::raycast::Visibility;
 use ortm::bake::report::save_solution_pngs;
 use ortm::bake::texels::TexelGrid;
 use ortm::bake::transport::dense::DenseTransport;
-use ortm::bake::transport::hier::{Operator, Settings};
+use ortm::bake::transport::hier::{BuildError, Operator, Settings};
 use ortm::bake::transport::{Effects, Kernels, SetupProgress, texel_patches};
 use ortm::render::lightmap_exr::write_lightmap_exr;
 use ortm::scene::light::{LIGHT_SYNTAX, parse_light};
@@ -133,12 +133,25 @@ pub fn run(a: Args) -> Result<()> {
             "exact dense solve".to_string(),
         )
     } else {
+        // The links may take at most half the memory limit (the rest: texels, BVH, solve).
+        let limit = ortm::io::limits::memory_limit_bytes()?;
         let settings = Settings {
             tolerance: a.tolerance,
+            max_bytes: limit.map(|l| l / 2),
             ..Settings::default()
         };
-        let op =
-            Operator::build(&patches, &kernels, &settings, &progress).map_err(|_| interrupted())?;
+        let op = match Operator::build(&patches, &kernels, &settings, &progress) {
+            Ok(op) => op,
+            Err(BuildError::Cancelled) => return Err(interrupted()),
+            Err(e @ BuildError::TooLarge { .. }) => {
+                bar.lock().expect("progress lock").finish_and_clear();
+                bail!(
+                    "{e} (--tolerance {:e}; the limit is half of the memory limit: physical \
+                     memory or ORTM_MEMORY_LIMIT_BYTES)",
+                    a.tolerance
+                )
+            }
+        };
         let t_assemble = t0.elapsed();
         let sol = op
             .solve(&b_o, &settings, &progress)

@@ -68,6 +68,39 @@ pub struct Settings {
     pub convergence: f64,
     /// At most this many sweeps.
     pub max_iterations: u32,
+    /// Stop refining with [`BuildError::TooLarge`] once the links found and the pairs still to
+    /// refine would take more bytes than this (`None`: no limit).
+    pub max_bytes: Option<u64>,
+}
+
+/// Why [`Operator::build`] stopped.
+#[derive(Debug, thiserror::Error)]
+pub enum BuildError {
+    /// The progress's cancel flag was raised.
+    #[error("cancelled")]
+    Cancelled,
+    /// The links would exceed [`Settings::max_bytes`].
+    #[error(
+        "the hierarchical operator needs more than {limit} bytes ({links} links and {pending} \
+         pairs to refine after round {round}); raise the tolerance (each tenfold rise has cut \
+         the links 2–5× in the tests) or use a smaller lightmap"
+    )]
+    TooLarge {
+        /// Links found so far.
+        links: usize,
+        /// Pairs left to refine.
+        pending: usize,
+        /// Refinement round (from 1).
+        round: u32,
+        /// The limit, bytes.
+        limit: u64,
+    },
+}
+
+impl From<Cancelled> for BuildError {
+    fn from(_: Cancelled) -> Self {
+        Self::Cancelled
+    }
 }
 
 impl Default for Settings {
@@ -77,6 +110,7 @@ impl Default for Settings {
             visibility_rays: 8,
             convergence: 1e-6,
             max_iterations: 1000,
+            max_bytes: None,
         }
     }
 }
@@ -132,13 +166,14 @@ pub struct Solution {
 impl Operator {
     /// Builds the operator over `patches` (subsurface weights normalised here, as
     /// [`super::dense::DenseTransport::new`] does). Reports "transport: links" (one step per
-    /// refinement round) and "transport: subsurface weights" to `progress`.
+    /// refinement round) and "transport: subsurface weights" to `progress`; stops when it is
+    /// cancelled or the links outgrow [`Settings::max_bytes`].
     pub fn build(
         patches: &[Patch],
         kernels: &Kernels,
         settings: &Settings,
         progress: &SetupProgress,
-    ) -> Result<Self, Cancelled> {
+    ) -> Result<Self, BuildError> {
         let mut patches = patches.to_vec();
         kernels.normalise_subsurface_with(&mut patches, progress)?;
         let tree = Tree::build(&patches);
@@ -350,14 +385,16 @@ fn refine_all(
     kernels: &Kernels,
     settings: &Settings,
     progress: &SetupProgress,
-) -> Result<(Vec<u32>, Vec<Link>), Cancelled> {
+) -> Result<(Vec<u32>, Vec<Link>), BuildError> {
     // The tree's depth bounds the rounds: each splits one node of every pair.
     let depth = (patches.len() as f64).log2().ceil() as u64 + 1;
     progress.phase("transport: links", 2 * depth);
     let mut frontier = vec![(0u32, 0u32)];
     let mut found: Vec<(u32, Link)> = Vec::new();
+    let mut round = 0u32;
     while !frontier.is_empty() {
         progress.check()?;
+        round += 1;
         let results: Vec<Refined> = frontier
             .par_iter()
             .map(|&(r, s)| refine(patches, tree, kernels, settings, r, s))
@@ -372,6 +409,18 @@ fn refine_all(
         }
         frontier = next;
         progress.advance(1);
+        if let Some(limit) = settings.max_bytes {
+            let bytes = found.len() * std::mem::size_of::<(u32, Link)>()
+                + frontier.len() * std::mem::size_of::<(u32, u32)>();
+            if bytes as u64 > limit {
+                return Err(BuildError::TooLarge {
+                    links: found.len(),
+                    pending: frontier.len(),
+                    round,
+                    limit,
+                });
+            }
+        }
     }
     found.par_sort_unstable_by_key(|&(r, l)| (r, l.send));
     let mut start = vec![0u32; tree.nodes.len() + 1];
