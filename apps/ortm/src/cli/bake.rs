@@ -55,11 +55,16 @@ pub struct Args {
     /// Texels per side of the clusters of the coarse higher-order solve.
     #[arg(
         long,
-        default_value_t = BakeSettings::default().coarse_block,
         value_parser = clap::value_parser!(u32).range(0..=i64::from(MAX_COARSE_BLOCK)),
-        help = format!("Texels per side of the clusters of the coarse higher-order solve, 1..={MAX_COARSE_BLOCK}; 0 = automatic: single texels (the exact solve) up to {AUTO_EXACT_TEXELS} covered texels, else the finest block with at most {AUTO_MAX_CLUSTERS} clusters")
+        help = format!("Texels per side of the clusters of the coarse higher-order solve, 1..={MAX_COARSE_BLOCK}; 0 = automatic: single texels (the exact solve) up to {AUTO_EXACT_TEXELS} covered texels, else the finest block with at most {AUTO_MAX_CLUSTERS} clusters [default: {}; 0 with --tolerance]", BakeSettings::default().coarse_block)
     )]
-    pub coarse_block: u32,
+    pub coarse_block: Option<u32>,
+    /// Tolerance of the hierarchical first bounce.
+    #[arg(
+        long,
+        help = "Hierarchical first bounce: the light between surfaces from links refined to this tolerance (a form factor, e.g. 1e-3; smaller is more accurate and takes more memory and time) instead of from the coarse clusters; makes large lightmaps (1024² and up) bakeable"
+    )]
+    pub tolerance: Option<f32>,
 }
 
 /// Parses `--effects`.
@@ -100,8 +105,19 @@ pub fn settings(a: &Args, size: (u32, u32)) -> Result<BakeSettings> {
         "sampled" => CellRule::Sampled,
         o => bail!("--cell-rule: unknown '{o}'; use integrated or sampled"),
     };
+    if let Some(t) = a.tolerance
+        && !(t.is_finite() && t > 0.0)
+    {
+        bail!("--tolerance {t}: give a positive number, e.g. 1e-3");
+    }
+    let coarse_block = a.coarse_block.unwrap_or(if a.tolerance.is_some() {
+        0
+    } else {
+        BakeSettings::default().coarse_block
+    });
     Ok(BakeSettings {
         size,
+        tolerance: a.tolerance,
         cell_rule,
         offsets: a.offsets,
         effects: parse_effects(&a.effects)?,
@@ -109,7 +125,7 @@ pub fn settings(a: &Args, size: (u32, u32)) -> Result<BakeSettings> {
         selector,
         metric,
         refinement_iterations: a.iterations as usize,
-        coarse_block: a.coarse_block,
+        coarse_block,
         scene: Some(recorded_scene(&a.scene)),
         ..BakeSettings::default()
     })

@@ -11,7 +11,7 @@ use serde::{Deserialize, Serialize};
 use crate::Lightmap;
 use crate::bake::offsets::{self, ImportanceMetric, OffsetError, SelectionSettings};
 use crate::bake::texels::{TexelError, TexelGrid};
-use crate::bake::transport::{Effects, SetupProgress, Transport};
+use crate::bake::transport::{Effects, SetupProgress, Transport, hier};
 use crate::bake_dir::{self, BakeIndex, BakeKey, LightmapSize};
 use crate::maps::{MapsError, TransferMap};
 use crate::scene::{Scene, scene_hash};
@@ -67,6 +67,13 @@ pub struct BakeSettings {
     /// exact clusters the evaluator is exact, but today's offset maps get worse (README,
     /// "Transport model").
     pub coarse_block: u32,
+    /// Tolerance `ε` of the hierarchical first bounce ([`crate::bake::transport::hier`]): when
+    /// set, the cell integration takes the first bounce from the operator's links
+    /// ([`crate::bake::cells`], "With the hierarchical operator") and the coarse clusters carry
+    /// only the higher-order remainder; `None`: first bounce from the coarse clusters and texel
+    /// pairs.
+    #[serde(default)]
+    pub tolerance: Option<f32>,
     /// Receivers sampled per offset when estimating its transference.
     pub selection_receivers: usize,
     /// How map values cover their Voronoi cells.
@@ -90,6 +97,7 @@ impl Default for BakeSettings {
             refinement_iterations: 1000,
             rebuild_every: 20,
             coarse_block: 8,
+            tolerance: None,
             selection_receivers: 4096,
             cell_rule: CellRule::Integrated,
             scene: None,
@@ -569,22 +577,48 @@ pub fn bake(
     let hash = scene_hash(scene);
     let settings_json = serde_json::to_value(settings).expect("settings serialise");
     let key = BakeKey::new(&hash, &settings_json);
+    let links = match settings.tolerance {
+        Some(t) => format!("; hierarchical first bounce at tolerance {t:e}"),
+        None => String::new(),
+    };
     events(BakeEvent::Message(format!(
         "{} covered texels at {w}x{h}; building the transport (BVH, coarse solve, {clusters} \
-         clusters of {block}² texels)",
+         clusters of {block}² texels{links})",
         grid.texels.len(),
     )));
-    let transport = Transport::build(
-        scene,
-        &grid,
-        settings.effects,
-        block,
-        &SetupProgress::new(events, cancel),
-    )
-    .map_err(|_| BakeError::Interrupted {
+    let interrupted = || BakeError::Interrupted {
         done: 0,
         total: settings.offsets,
-    })?;
+    };
+    let progress = SetupProgress::new(events, cancel);
+    let transport = match settings.tolerance {
+        None => Transport::build(scene, &grid, settings.effects, block, &progress)
+            .map_err(|_| interrupted())?,
+        Some(tolerance) => {
+            // The links may take what the memory limit leaves after the rest of the bake.
+            let rest = crate::io::limits::bake_memory_bytes(
+                clusters as u64,
+                grid.texels.len() as u64,
+                cell_values,
+            );
+            let max_bytes = crate::io::limits::memory_limit_bytes()
+                .map_err(|e| BakeError::Settings(e.to_string()))?
+                .map(|l| l.saturating_sub(rest));
+            let hs = hier::Settings {
+                tolerance,
+                max_bytes,
+                ..hier::Settings::default()
+            };
+            Transport::build_hierarchical(scene, &grid, settings.effects, block, &hs, &progress)
+                .map_err(|e| match e {
+                    hier::BuildError::Cancelled => interrupted(),
+                    e @ hier::BuildError::TooLarge { .. } => BakeError::Settings(format!(
+                        "{e} (--tolerance {tolerance:e}; the links may use the memory limit \
+                         less the rest of the bake: physical memory or ORTM_MEMORY_LIMIT_BYTES)"
+                    )),
+                })?
+        }
+    };
     let t_transport = t0.elapsed().as_secs_f64();
 
     let (offset_list, points) =

@@ -503,6 +503,10 @@ pub struct Transport {
     pub kernels: Kernels,
     /// Higher-order remainder at the coarse level.
     pub remainder: coarse::Remainder,
+    /// The hierarchical first-bounce operator, when the bake asked for one
+    /// ([`Transport::build_hierarchical`]): the cell integration takes the first bounce from
+    /// its links ([`crate::bake::cells`]) instead of from the coarse clusters and texel pairs.
+    pub links: Option<hier::Operator>,
 }
 
 impl Transport {
@@ -537,7 +541,28 @@ impl Transport {
             patches,
             kernels,
             remainder,
+            links: None,
         })
+    }
+
+    /// [`Transport::build`] plus the hierarchical first-bounce operator at `settings`
+    /// ([`hier::Operator::build`] over the texel patches), for the cell integration.
+    ///
+    /// # Errors
+    /// [`hier::BuildError`] when cancelled or when the links outgrow `settings.max_bytes`.
+    pub fn build_hierarchical(
+        scene: &Scene,
+        grid: &TexelGrid,
+        effects: Effects,
+        block: u32,
+        settings: &hier::Settings,
+        progress: &SetupProgress,
+    ) -> Result<Self, hier::BuildError> {
+        let mut tr = Self::build(scene, grid, effects, block, progress)?;
+        // The operator normalises the subsurface weights of the patches it is given itself.
+        let op = hier::Operator::build(&texel_patches(grid), &tr.kernels, settings, progress)?;
+        tr.links = Some(op);
+        Ok(tr)
     }
 
     /// True when texel `i` is translucent (its `R(i, i)` holds the subsurface point mass `−1`).

@@ -115,15 +115,31 @@ impl Default for Settings {
     }
 }
 
-/// One link into a receiver node.
+/// One link into a receiver node: the receiver's texels get the irradiance
+/// `max(0, n_i · dir)·coef·B_S` (block receiver) or `coef·B_S` (texel receiver; `dir` = 0) from
+/// the sender node's area-weighted mean radiosity `B_S`.
 #[derive(Clone, Copy, Debug)]
-struct Link {
+pub struct Link {
     /// Sender node.
-    send: u32,
+    pub send: u32,
     /// `g` (block receiver) or the scalar form factor (texel receiver).
-    coef: f32,
+    pub coef: f32,
     /// Unit direction to the sender (block receiver), or zero (texel receiver: scalar).
-    dir: Vec3,
+    pub dir: Vec3,
+}
+
+impl Link {
+    /// The irradiance (W/m²) this link brings a receiving texel of normal `n` per W/m² of the
+    /// sender's mean radiosity (what [`Operator::gather`] adds, per link: the gather clamps
+    /// the sum of a node's links at the texel, this clamps each link).
+    #[inline]
+    pub fn irradiance_per_radiosity(&self, n: Vec3) -> f32 {
+        if self.dir == Vec3::ZERO {
+            self.coef
+        } else {
+            n.dot(self.dir).max(0.0) * self.coef
+        }
+    }
 }
 
 /// The result of refining one node pair.
@@ -199,6 +215,17 @@ impl Operator {
             translucent,
             subsurface,
         })
+    }
+
+    /// The cluster tree.
+    pub fn tree(&self) -> &Tree {
+        &self.tree
+    }
+
+    /// The links into node `node` of [`Operator::tree`].
+    #[inline]
+    pub fn links_of(&self, node: u32) -> &[Link] {
+        &self.links[self.start[node as usize] as usize..self.start[node as usize + 1] as usize]
     }
 
     /// Number of links.

@@ -34,6 +34,16 @@
 //!   closer than [`FF_EXACT_PITCHES`] texel pitches of the others (whose remaining bounce is the
 //!   cluster's, by area).
 //!
+//! # With the hierarchical operator
+//! When the transport holds the hierarchical first-bounce operator
+//! ([`crate::bake::transport::Transport::links`], `ortm bake --tolerance ε`), the first bounce
+//! comes from its links instead ([`links`]): every receiver walks up the cluster tree and bins
+//! each link's sender node into the cell its texture-space bounding box falls in (descending
+//! where the box straddles cells, down to single texels). The coarse clusters then carry only
+//! the higher-order remainder (`R_rem` for every cluster pair), and the exact zone only the
+//! subsurface term. Cost and error follow the operator's tolerance instead of the cluster
+//! size: no texel-by-texel first bounce over whole near clusters.
+//!
 //! # Seams
 //! Texture-space Voronoi assumes the first-order light is smooth across a cell. Where a cell
 //! straddles a UV seam or several charts, its site can land on an unrelated surface. So every
@@ -50,6 +60,8 @@
 //!
 //! The error of each rule against the exact solve (head and Cornell box) is printed by
 //! `cargo test -p ortm-cli --test bake_exact -- --nocapture`.
+
+mod links;
 
 use glam::{IVec2, Vec3};
 use rayon::prelude::*;
@@ -98,6 +110,10 @@ pub struct CellStats {
     pub rehomed_far: u64,
     /// Receiver cells whose site was uncovered, moved to the nearest cell with a covered site.
     pub moved_uncovered: u64,
+    /// Hierarchical links applied to a receiver ([`links`]).
+    pub links: u64,
+    /// Sender nodes of those links binned whole into one cell.
+    pub link_nodes: u64,
 }
 
 impl CellValues {
@@ -291,6 +307,8 @@ fn near_clusters(transport: &Transport, texels: &[Vec<u32>]) -> Vec<Vec<Near>> {
         .map(|p| p.area_m2.sqrt())
         .fold(0.0f32, f32::max);
     let k = &transport.kernels;
+    // With links the first bounce is theirs: near clusters only for the subsurface term.
+    let bounce_here = k.effects.radiosity && transport.links.is_none();
     (0..nc)
         .into_par_iter()
         .map(|ci| {
@@ -305,18 +323,18 @@ fn near_clusters(transport: &Transport, texels: &[Vec<u32>]) -> Vec<Vec<Near>> {
                     } else {
                         0.0
                     };
-                    let ff_zone = if k.effects.radiosity {
+                    let ff_zone = if bounce_here {
                         FF_EXACT_PITCHES * max_pitch
                     } else {
                         0.0
                     };
                     let exact_zone = ci == cj || d - reach < support.max(ff_zone);
-                    let near_bounce = k.effects.radiosity && d < NEAR_FACTOR * reach;
+                    let near_bounce = bounce_here && d < NEAR_FACTOR * reach;
                     if !(exact_zone || near_bounce || support > 0.0 && d - reach < support) {
                         return None;
                     }
                     let exact_bounce = near_bounce;
-                    let bounce = if exact_bounce || ci == cj {
+                    let bounce = if exact_bounce || ci == cj || !bounce_here {
                         [0.0; 3]
                     } else {
                         k.r_bounce(a, bp, false).map(|v| v as f32)
@@ -456,6 +474,7 @@ pub fn integrate(
         c => Some(c),
     };
     let neighbours = cell_neighbours(&table, kmaps);
+    let links = (transport.links.as_ref()).map(|op| links::LinkIndex::new(op, grid, &table));
     let run = Integration {
         transport,
         grid,
@@ -464,6 +483,7 @@ pub fn integrate(
         table,
         origin,
         neighbours,
+        links,
     };
     let per_cluster: Vec<(Vec<[f32; 3]>, CellStats)> = (0..nc)
         .into_par_iter()
@@ -511,6 +531,8 @@ impl CellStats {
             rehomed: self.rehomed + b.rehomed,
             moved_uncovered: self.moved_uncovered + b.moved_uncovered,
             rehomed_far: self.rehomed_far + b.rehomed_far,
+            links: self.links + b.links,
+            link_nodes: self.link_nodes + b.link_nodes,
         }
     }
 }
@@ -526,6 +548,8 @@ struct Integration<'a> {
     origin: Option<u32>,
     /// Voronoi neighbours of every cell.
     neighbours: Vec<Vec<u32>>,
+    /// The link walk's tables when the transport has the hierarchical operator.
+    links: Option<links::LinkIndex>,
 }
 
 /// The running sums of one receiving cluster: per receiver `r` (in cluster order) and map `k`,
@@ -556,6 +580,9 @@ impl Integration<'_> {
         let mut rx = self.receivers(ci);
         self.add_cluster_shares(ci, &mut rx);
         self.add_exact_zone(ci, &mut rx);
+        if let Some(index) = &self.links {
+            self.add_links(index, ci, &mut rx);
+        }
         self.move_uncovered(&mut rx);
         let out: Vec<[f32; 3]> = rx
             .acc
@@ -616,6 +643,9 @@ impl Integration<'_> {
                 let b = near_bounce(&near[next_near]);
                 next_near += 1;
                 [0, 1, 2].map(|c| rem.rem[c][k] as f64 + b[c])
+            } else if self.links.is_some() {
+                // The first bounce comes from the links.
+                [0, 1, 2].map(|c| rem.rem[c][k] as f64)
             } else {
                 [0, 1, 2].map(|c| rem.full[c][k] as f64)
             };
@@ -682,7 +712,8 @@ impl Integration<'_> {
             } else {
                 0.0
             };
-            let ff2 = if kern.effects.radiosity {
+            let bounce_here = kern.effects.radiosity && self.links.is_none();
+            let ff2 = if bounce_here {
                 FF_EXACT_PITCHES * FF_EXACT_PITCHES * pi.area_m2
             } else {
                 0.0
@@ -697,7 +728,7 @@ impl Integration<'_> {
                     let pj = &transport.patches[j as usize];
                     let d2 = (pj.position_m - pi.position_m).length_squared();
                     let in_sss = translucent && pj.material == pi.material && d2 < support2;
-                    let in_ff = n.exact_bounce || one_texel || d2 < ff2;
+                    let in_ff = bounce_here && (n.exact_bounce || one_texel || d2 < ff2);
                     if !(in_sss || in_ff || i == j) {
                         continue;
                     }

@@ -1,0 +1,181 @@
+//! The first bounce of the cell integration from the hierarchical operator's links
+//! ([`crate::bake::transport::hier`]).
+//!
+//! A link `(A ← S)` into a tree node `A` brings every texel `i` of `A` the irradiance
+//! `k_i B_S` ([`Link::irradiance_per_radiosity`]), `B_S` the area-weighted mean radiosity of
+//! the sender node `S`. As transfer, `R(i, j) = ρ_i k_i A_j / A_S` for every texel `j` of `S`
+//! (the operator's first bounce to its tolerance), so the link adds `ρ_i k_i` to receiver `i`'s
+//! cells, split over `S`'s texels by area. Receiver `i` takes the links of its leaf and of every
+//! ancestor.
+//!
+//! Binning: each node has the bounding box of its texels in texture space. Seen from receiver
+//! `(x, y)`, the box is a rectangle of offsets; when it lies inside one cell (a test in O(1) on
+//! summed-area tables of the cell table's borders) the whole link goes to that cell, else the
+//! node's children are tried with their area shares, down to single texels, which go to the
+//! cell of their own offset. A node's cell is re-homed by its centroid like a far cluster
+//! ([`super::place`]).
+
+use super::{CellTable, Integration, NO_CELL, Receivers};
+use crate::bake::texels::TexelGrid;
+use crate::bake::transport::hier::Operator;
+use crate::bake::transport::hier::tree::NO_CHILD;
+
+/// No parent (the root).
+const NO_PARENT: u32 = u32::MAX;
+
+/// What the link walk needs besides the operator: parents, texture-space boxes and the
+/// uniform-rectangle test.
+pub(super) struct LinkIndex {
+    /// Parent of every node ([`NO_PARENT`] for the root).
+    parent: Vec<u32>,
+    /// Per node: its texels' bounding box `[x0, y0, x1, y1]` (inclusive), texels.
+    bbox: Vec<[i32; 4]>,
+    /// Summed-area table (rows + 1) × (stride + 1) of the horizontal borders: entry `(r, c)`
+    /// is 1 when offset-table entry `(r, c)` is [`NO_CELL`] or differs from `(r, c + 1)`.
+    h_sat: Vec<u32>,
+    /// Summed-area table of the vertical borders: `(r, c)` differs from `(r + 1, c)`.
+    v_sat: Vec<u32>,
+}
+
+impl LinkIndex {
+    pub(super) fn new(op: &Operator, grid: &TexelGrid, table: &CellTable) -> Self {
+        let tree = op.tree();
+        let nodes = &tree.nodes;
+        let mut parent = vec![NO_PARENT; nodes.len()];
+        for (id, n) in nodes.iter().enumerate() {
+            if n.children[0] != NO_CHILD {
+                for c in n.children {
+                    parent[c as usize] = id as u32;
+                }
+            }
+        }
+        // Boxes children first (children follow their parents in the node order).
+        let mut bbox = vec![[i32::MAX, i32::MAX, i32::MIN, i32::MIN]; nodes.len()];
+        for id in (0..nodes.len()).rev() {
+            let n = &nodes[id];
+            bbox[id] = if n.children[0] == NO_CHILD {
+                let t = &grid.texels[tree.order[n.first as usize] as usize];
+                let (x, y) = (t.x as i32, t.y as i32);
+                [x, y, x, y]
+            } else {
+                let [a, b] = n.children.map(|c| bbox[c as usize]);
+                [
+                    a[0].min(b[0]),
+                    a[1].min(b[1]),
+                    a[2].max(b[2]),
+                    a[3].max(b[3]),
+                ]
+            };
+        }
+        let stride = table.stride;
+        let rows = table.cell.len() / stride;
+        let cell = |r: usize, c: usize| table.cell[r * stride + c];
+        let sat = |border: &dyn Fn(usize, usize) -> bool| -> Vec<u32> {
+            let mut s = vec![0u32; (rows + 1) * (stride + 1)];
+            for r in 0..rows {
+                let mut row_sum = 0u32;
+                for c in 0..stride {
+                    row_sum += u32::from(border(r, c));
+                    s[(r + 1) * (stride + 1) + c + 1] = s[r * (stride + 1) + c + 1] + row_sum;
+                }
+            }
+            s
+        };
+        let h_sat =
+            sat(&|r, c| cell(r, c) == NO_CELL || (c + 1 < stride && cell(r, c) != cell(r, c + 1)));
+        let v_sat = sat(&|r, c| r + 1 < rows && cell(r, c) != cell(r + 1, c));
+        Self {
+            parent,
+            bbox,
+            h_sat,
+            v_sat,
+        }
+    }
+
+    /// Sum of a summed-area table over rows `r0..=r1`, columns `c0..=c1`.
+    #[inline]
+    fn sum(sat: &[u32], stride: usize, r0: usize, r1: usize, c0: usize, c1: usize) -> u32 {
+        let w = stride + 1;
+        sat[(r1 + 1) * w + c1 + 1]
+            .wrapping_sub(sat[r0 * w + c1 + 1])
+            .wrapping_sub(sat[(r1 + 1) * w + c0])
+            .wrapping_add(sat[r0 * w + c0])
+    }
+
+    /// The cell when every offset of the box `[dx0, dx1] × [dy0, dy1]` lies in it, else
+    /// [`NO_CELL`].
+    #[inline]
+    fn uniform(&self, table: &CellTable, dx0: i32, dy0: i32, dx1: i32, dy1: i32) -> u32 {
+        let c0 = (dx0 + table.w - 1) as usize;
+        let c1 = (dx1 + table.w - 1) as usize;
+        let r0 = (dy0 + table.h - 1) as usize;
+        let r1 = (dy1 + table.h - 1) as usize;
+        let s = table.stride;
+        // Columns c0..c1 − 1 hold no horizontal border (nor an empty entry), rows r0..r1 − 1
+        // no vertical one, and the corner has a cell.
+        let corner = table.cell[r0 * s + c0];
+        if corner == NO_CELL
+            || (c1 > c0 && Self::sum(&self.h_sat, s, r0, r1, c0, c1 - 1) != 0)
+            || (r1 > r0 && Self::sum(&self.v_sat, s, r0, r1 - 1, c0, c1) != 0)
+        {
+            return NO_CELL;
+        }
+        corner
+    }
+}
+
+impl Integration<'_> {
+    /// Adds every link of every receiver of cluster `ci` (module docs).
+    pub(super) fn add_links(&self, index: &LinkIndex, ci: usize, rx: &mut Receivers) {
+        let op = self.transport.links.as_ref().expect("links mode");
+        let tree = op.tree();
+        let kmaps = self.offsets.len();
+        let mut stack: Vec<(u32, f64)> = Vec::new();
+        for (r, &i) in self.clusters.texels[ci].iter().enumerate() {
+            let p = &self.transport.patches[i as usize];
+            let (xi, yi) = rx.xy[r];
+            let sites = &rx.sites[r * kmaps..(r + 1) * kmaps];
+            let acc = &mut rx.acc[r * kmaps..(r + 1) * kmaps];
+            let st = &mut rx.stats;
+            let mut node = tree.leaf_of[i as usize];
+            while node != NO_PARENT {
+                for l in op.links_of(node) {
+                    let k = l.irradiance_per_radiosity(p.normal) as f64;
+                    if k <= 0.0 {
+                        continue;
+                    }
+                    st.links += 1;
+                    let v = [0, 1, 2].map(|c| p.rho[c] as f64 * k);
+                    stack.clear();
+                    stack.push((l.send, 1.0));
+                    while let Some((s, share)) = stack.pop() {
+                        let b = index.bbox[s as usize];
+                        let cell =
+                            index.uniform(&self.table, b[0] - xi, b[1] - yi, b[2] - xi, b[3] - yi);
+                        let n = &tree.nodes[s as usize];
+                        if cell != NO_CELL {
+                            st.link_nodes += 1;
+                            let at = if n.children[0] == NO_CHILD {
+                                self.transport.patches[tree.order[n.first as usize] as usize]
+                                    .position_m
+                            } else {
+                                n.centroid
+                            };
+                            let cell = self.place(cell, at, sites, &mut st.rehomed_far);
+                            let a = &mut acc[cell as usize];
+                            for c in 0..3 {
+                                a[c] += v[c] * share;
+                            }
+                        } else if n.children[0] != NO_CHILD && n.area_m2 > 0.0 {
+                            for c in n.children {
+                                let f = tree.nodes[c as usize].area_m2 as f64 / n.area_m2 as f64;
+                                stack.push((c, share * f));
+                            }
+                        }
+                    }
+                }
+                node = index.parent[node as usize];
+            }
+        }
+    }
+}
