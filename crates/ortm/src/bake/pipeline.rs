@@ -449,7 +449,8 @@ impl MapPlan {
         events(BakeEvent::Message(format!(
             "cells integrated in {:.2} s: {} near cluster pairs ({} texel pairs, {} of them \
              counted at a nearer site), {} far windows in one cell, {} split, {} counted at a \
-             nearer site, {} receiver cells with an uncovered site moved to the receiver's cell",
+             nearer site, {} receiver cells with an uncovered site moved to the receiver's cell; \
+             {} links binned as {} sender nodes",
             t0.elapsed().as_secs_f64(),
             st.near_cluster_pairs,
             st.near_texel_pairs,
@@ -457,7 +458,9 @@ impl MapPlan {
             st.uniform_windows,
             st.split_windows,
             st.rehomed_far,
-            st.moved_uncovered
+            st.moved_uncovered,
+            st.links,
+            st.link_nodes
         )));
         self.integrated = Some(iv);
     }

@@ -125,27 +125,67 @@ impl LinkIndex {
 }
 
 impl Integration<'_> {
-    /// Adds every link of every receiver of cluster `ci` (module docs).
+    /// Adds every link of every receiver of cluster `ci` (module docs). The receivers are
+    /// grouped by the tree nodes above them, so each link is read once per group and its
+    /// sender's box tested once for the whole group (one cell for all of them when the box of
+    /// offsets over the group's receivers lies in one), then per receiver.
     pub(super) fn add_links(&self, index: &LinkIndex, ci: usize, rx: &mut Receivers) {
         let op = self.transport.links.as_ref().expect("links mode");
         let tree = op.tree();
         let kmaps = self.offsets.len();
-        let mut stack: Vec<(u32, f64)> = Vec::new();
+        // (ancestor node, receiver) for every receiver and every node above it.
+        let mut pairs: Vec<(u32, u32)> = Vec::new();
         for (r, &i) in self.clusters.texels[ci].iter().enumerate() {
-            let p = &self.transport.patches[i as usize];
-            let (xi, yi) = rx.xy[r];
-            let sites = &rx.sites[r * kmaps..(r + 1) * kmaps];
-            let acc = &mut rx.acc[r * kmaps..(r + 1) * kmaps];
-            let st = &mut rx.stats;
             let mut node = tree.leaf_of[i as usize];
             while node != NO_PARENT {
-                for l in op.links_of(node) {
+                if !op.links_of(node).is_empty() {
+                    pairs.push((node, r as u32));
+                }
+                node = index.parent[node as usize];
+            }
+        }
+        pairs.sort_unstable();
+        let mut stack: Vec<(u32, f64)> = Vec::new();
+        for group in pairs.chunk_by(|a, b| a.0 == b.0) {
+            let node = group[0].0;
+            // The group's receivers' texel box.
+            let (mut x0, mut y0, mut x1, mut y1) = (i32::MAX, i32::MAX, i32::MIN, i32::MIN);
+            for &(_, r) in group {
+                let (x, y) = rx.xy[r as usize];
+                (x0, y0, x1, y1) = (x0.min(x), y0.min(y), x1.max(x), y1.max(y));
+            }
+            for l in op.links_of(node) {
+                let b = index.bbox[l.send as usize];
+                let shared = index.uniform(&self.table, b[0] - x1, b[1] - y1, b[2] - x0, b[3] - y0);
+                let s_node = &tree.nodes[l.send as usize];
+                let s_at = if s_node.children[0] == NO_CHILD {
+                    self.transport.patches[tree.order[s_node.first as usize] as usize].position_m
+                } else {
+                    s_node.centroid
+                };
+                for &(_, r) in group {
+                    let r = r as usize;
+                    let i = self.clusters.texels[ci][r];
+                    let p = &self.transport.patches[i as usize];
                     let k = l.irradiance_per_radiosity(p.normal) as f64;
                     if k <= 0.0 {
                         continue;
                     }
+                    let (xi, yi) = rx.xy[r];
+                    let sites = &rx.sites[r * kmaps..(r + 1) * kmaps];
+                    let acc = &mut rx.acc[r * kmaps..(r + 1) * kmaps];
+                    let st = &mut rx.stats;
                     st.links += 1;
                     let v = [0, 1, 2].map(|c| p.rho[c] as f64 * k);
+                    if shared != NO_CELL {
+                        st.link_nodes += 1;
+                        let cell = self.place(shared, s_at, sites, &mut st.rehomed_far);
+                        let a = &mut acc[cell as usize];
+                        for c in 0..3 {
+                            a[c] += v[c];
+                        }
+                        continue;
+                    }
                     stack.clear();
                     stack.push((l.send, 1.0));
                     while let Some((s, share)) = stack.pop() {
@@ -174,7 +214,6 @@ impl Integration<'_> {
                         }
                     }
                 }
-                node = index.parent[node as usize];
             }
         }
     }
