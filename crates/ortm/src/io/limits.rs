@@ -172,7 +172,7 @@ pub fn check_bake_request(width: u32, height: u32, offsets: usize) -> Result<(),
     Ok(())
 }
 
-/// Bytes of one cell value of the integrated cell rule (`bake/cells.rs`, `CellValues`: RGB f32
+/// Bytes of one cell value of the integrated cell rule (`bake/cells/mod.rs`, `CellValues`: RGB f32
 /// per lightmap slot and map, all held while the transport is alive).
 pub const CELL_VALUE_BYTES: u64 = 12;
 

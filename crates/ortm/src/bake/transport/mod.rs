@@ -559,8 +559,7 @@ impl Transport {
         progress: &SetupProgress,
     ) -> Result<Self, hier::BuildError> {
         let mut tr = Self::build(scene, grid, effects, block, progress)?;
-        // The operator normalises the subsurface weights of the patches it is given itself.
-        let op = hier::Operator::build(&texel_patches(grid), &tr.kernels, settings, progress)?;
+        let op = hier::Operator::build_links_only(&tr.patches, &tr.kernels, settings, progress)?;
         tr.links = Some(op);
         Ok(tr)
     }

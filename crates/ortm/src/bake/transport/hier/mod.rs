@@ -167,6 +167,8 @@ pub struct Operator {
     links: Vec<Link>,
     translucent: Vec<bool>,
     subsurface: Option<Subsurface>,
+    /// Built by [`Operator::build_links_only`]: no subsurface operator, no solve.
+    links_only: bool,
 }
 
 /// A solution and how it was reached.
@@ -214,6 +216,36 @@ impl Operator {
             links,
             translucent,
             subsurface,
+            links_only: false,
+        })
+    }
+
+    /// The links alone, for the bake's cell integration ([`crate::bake::cells`]): no subsurface
+    /// weights or operator (the cells take the subsurface term texel by texel), so the set-up
+    /// costs no `n × support²` pairs. [`Operator::solve`] refuses such an operator.
+    ///
+    /// # Errors
+    /// As [`Operator::build`].
+    pub fn build_links_only(
+        patches: &[Patch],
+        kernels: &Kernels,
+        settings: &Settings,
+        progress: &SetupProgress,
+    ) -> Result<Self, BuildError> {
+        let tree = Tree::build(patches);
+        let (start, links) = if kernels.effects.radiosity {
+            refine_all(patches, &tree, kernels, settings, progress)?
+        } else {
+            (vec![0; tree.nodes.len() + 1], Vec::new())
+        };
+        Ok(Self {
+            patches: patches.to_vec(),
+            tree,
+            start,
+            links,
+            translucent: vec![false; patches.len()],
+            subsurface: None,
+            links_only: true,
         })
     }
 
@@ -333,6 +365,10 @@ impl Operator {
             b_o.len(),
             self.patches.len(),
             "one first-order value per patch"
+        );
+        assert!(
+            !self.links_only,
+            "an operator built by build_links_only has no subsurface operator to solve with"
         );
         let e_d: Vec<Vec3> = b_o
             .iter()
