@@ -56,7 +56,7 @@ pub struct Args {
     #[arg(
         long,
         value_parser = clap::value_parser!(u32).range(0..=i64::from(MAX_COARSE_BLOCK)),
-        help = format!("Texels per side of the clusters of the coarse higher-order solve, 1..={MAX_COARSE_BLOCK}; 0 = automatic: single texels (the exact solve) up to {AUTO_EXACT_TEXELS} covered texels, else the finest block with at most {AUTO_MAX_CLUSTERS} clusters [default: {}; 0 with --tolerance]", BakeSettings::default().coarse_block)
+        help = format!("Texels per side of the clusters of the coarse higher-order solve, 1..={MAX_COARSE_BLOCK}; 0 = automatic: single texels (the exact solve) up to {AUTO_EXACT_TEXELS} covered texels, else the finest block with at most {AUTO_MAX_CLUSTERS} clusters; 0 when --tolerance is given [default: {}]", BakeSettings::default().coarse_block)
     )]
     pub coarse_block: Option<u32>,
     /// Tolerance of the hierarchical first bounce.
