@@ -81,56 +81,71 @@ fn all_offset_errors(scene: &Scene, lights: &[Light], tolerances: &[f32]) -> Vec
         .collect()
 }
 
-fn check_falls(name: &str, e: &[f64], bound: f64) {
+/// Asserts that the errors `e` fall as ε falls and that each is below its bound.
+fn check_falls(name: &str, e: &[f64], bounds: &[f64]) {
     for w in e.windows(2) {
         assert!(w[1] < w[0], "{name}: {e:?} does not fall with ε");
     }
-    let last = *e.last().unwrap();
-    assert!(last < bound, "{name}: {last} ≥ {bound}");
+    for (x, b) in e.iter().zip(bounds) {
+        assert!(x < b, "{name}: errors {e:?}, bounds {bounds:?}");
+    }
 }
 
 const TOLERANCES: [f32; 3] = [1e-2, 1e-3, 1e-4];
 
 /// Cornell 32², the box's light. Measured: 0.0729 (15.5 k links), 0.0142 (49.6 k), 0.00090
-/// (77.9 k). Bound: measured + 33 %.
+/// (77.9 k). Bounds: measured + 25 % (+ 33 % at 10⁻⁴). Counting only the receivers' own links
+/// (not their ancestors') gives 0.39 / 0.107 / 0.0012.
 #[test]
 fn cornell_all_offsets_converge_to_the_exact_solve_as_the_tolerance_falls() {
     let scene = ortm::scene::cornell::cornell_box(32);
     let lights = scene.lights.clone();
     let e = all_offset_errors(&scene, &lights, &TOLERANCES);
-    check_falls("cornell 32²", &e, 0.0012);
+    check_falls("cornell 32²", &e, &[0.0911, 0.0178, 0.0012]);
 }
 
 /// The head at 48², radiosity and subsurface, a random light. Measured: 0.0557 (21.4 k links),
-/// 0.0225 (43.2 k), 0.0070 (127 k). Bound: measured + 25 %.
+/// 0.0225 (43.2 k), 0.0070 (127 k). Bounds: measured + 25 %.
 #[test]
 fn head_all_offsets_converge_to_the_exact_solve_as_the_tolerance_falls() {
     let mut scene = ortm::scene::head::head_scene().expect("head scene (../shared/faces/head.obj)");
     scene.lightmap_size = (48, 48);
     let lights = random_light_setups(&scene, 1, 7).remove(0);
     let e = all_offset_errors(&scene, &lights, &TOLERANCES);
-    check_falls("head 48²", &e, 0.0088);
+    check_falls("head 48²", &e, &[0.0696, 0.0281, 0.0088]);
 }
 
 /// The 64² figures (evaluator vs exact, indirect, all offsets; ~800 MB of cell values
 /// per scene, so not in the default run: `cargo test --release --test bake_links -- --ignored
 /// --nocapture`, 4 min). Measured at ε = 10⁻³ / 3·10⁻⁴ / 10⁻⁴: Cornell 0.0440 / 0.0231 /
 /// 0.0090, maze 0.0121 / 0.0051 / 0.0021, head (radiosity + subsurface, a random light)
-/// 0.0229 / 0.0105 / 0.0063. Bounds at 10⁻⁴: measured + 25 %.
+/// 0.0229 / 0.0105 / 0.0063. Bounds: measured + 25 %.
 #[test]
 #[ignore = "~800 MB of cell values per scene; run with --ignored"]
 fn all_offsets_at_64_fall_below_two_percent() {
     let t = [1e-3f32, 3e-4, 1e-4];
     let scene = ortm::scene::cornell::cornell_box(64);
     let l = scene.lights.clone();
-    check_falls("cornell 64²", &all_offset_errors(&scene, &l, &t), 0.0113);
+    check_falls(
+        "cornell 64²",
+        &all_offset_errors(&scene, &l, &t),
+        &[0.055, 0.0289, 0.0113],
+    );
     let scene = ortm::scene::maze::maze(64);
     let l = scene.lights.clone();
-    check_falls("maze 64²", &all_offset_errors(&scene, &l, &t), 0.0027);
+    check_falls(
+        "maze 64²",
+        &all_offset_errors(&scene, &l, &t),
+        &[0.0151, 0.0064, 0.0027],
+    );
     let mut scene = ortm::scene::head::head_scene().expect("head scene (../shared/faces/head.obj)");
     scene.lightmap_size = (64, 64);
     let l = random_light_setups(&scene, 1, 7).remove(0);
-    check_falls("head 64²", &all_offset_errors(&scene, &l, &t), 0.0079);
+    check_falls(
+        "head 64²",
+        &all_offset_errors(&scene, &l, &t),
+        &[0.0286, 0.0131, 0.0079],
+    );
 }
 
 /// `ortm bake --tolerance ε`: bakes with the links and automatic clusters (recorded in the
