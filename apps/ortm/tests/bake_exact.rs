@@ -8,7 +8,6 @@ mod common;
 
 use std::sync::Arc;
 
-use glam::IVec2;
 use ortm::bake::eval::{Reference, random_light_setups};
 use ortm::bake::lighting;
 use ortm::bake::raycast::Visibility;
@@ -124,24 +123,11 @@ fn cornell_exact_solve_conserves_energy() {
     }
 }
 
-/// Every integer offset that can pair two texels.
-fn all_offsets(w: u32, h: u32) -> Vec<IVec2> {
-    let mut v = vec![IVec2::ZERO];
-    for dy in -(h as i32 - 1)..=(h as i32 - 1) {
-        for dx in -(w as i32 - 1)..=(w as i32 - 1) {
-            if dx != 0 || dy != 0 {
-                v.push(IVec2::new(dx, dy));
-            }
-        }
-    }
-    v
-}
-
 fn check_all_offsets_exact(scene: &Scene, lights: &[ortm::scene::Light]) {
     let grid = TexelGrid::build(scene).unwrap();
     // block = 1: the coarse level is the texel level, so R(t, t') is the exact transfer.
     let transport = Transport::new(scene, &grid, Effects::default(), 1);
-    let offsets = all_offsets(grid.width, grid.height);
+    let offsets = common::all_offsets(grid.width, grid.height);
     let maps = bake::bake_maps(
         &transport,
         &grid,

@@ -7,7 +7,7 @@
 
 mod common;
 
-use glam::{IVec2, Vec3};
+use glam::Vec3;
 use ortm::accuracy::compare::{interior_mask, relative_rmse};
 use ortm::bake::eval::random_light_setups;
 use ortm::bake::lighting;
@@ -19,26 +19,13 @@ use ortm::bake::{self, CellRule};
 use ortm::maps;
 use ortm::scene::{Light, Scene};
 
-/// Every integer offset that can pair two texels.
-fn all_offsets(w: u32, h: u32) -> Vec<IVec2> {
-    let mut v = vec![IVec2::ZERO];
-    for dy in -(h as i32 - 1)..=(h as i32 - 1) {
-        for dx in -(w as i32 - 1)..=(w as i32 - 1) {
-            if dx != 0 || dy != 0 {
-                v.push(IVec2::new(dx, dy));
-            }
-        }
-    }
-    v
-}
-
 /// Relative RMSE (interior texels) of the indirect term of all-offset maps baked with the
 /// hierarchical first bounce at each of `tolerances`, against the exact solve for `lights`.
 fn all_offset_errors(scene: &Scene, lights: &[Light], tolerances: &[f32]) -> Vec<f64> {
     let grid = TexelGrid::build(scene).unwrap();
     let vis = Visibility::new(&scene.mesh);
     let b_o = lighting::first_order(&grid, lights, &vis);
-    let offsets = all_offsets(grid.width, grid.height);
+    let offsets = common::all_offsets(grid.width, grid.height);
     let mask = interior_mask(&grid);
     let mut exact_ind = None;
     tolerances

@@ -265,3 +265,16 @@ pub fn random_log_valued_maps(rng: &mut ChaCha8Rng, w: u32, h: u32, n: usize) ->
         })
         .collect()
 }
+
+/// Every integer offset that can pair two texels of a `w × h` lightmap, `(0, 0)` first.
+pub fn all_offsets(w: u32, h: u32) -> Vec<glam::IVec2> {
+    let mut v = vec![glam::IVec2::ZERO];
+    for dy in -(h as i32 - 1)..=(h as i32 - 1) {
+        for dx in -(w as i32 - 1)..=(w as i32 - 1) {
+            if dx != 0 || dy != 0 {
+                v.push(glam::IVec2::new(dx, dy));
+            }
+        }
+    }
+    v
+}

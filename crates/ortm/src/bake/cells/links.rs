@@ -15,6 +15,8 @@
 //! cell of their own offset. A node's cell is re-homed by its centroid like a far cluster
 //! ([`super::place`]).
 
+use glam::Vec3;
+
 use super::{CellTable, Integration, NO_CELL, Receivers};
 use crate::bake::texels::TexelGrid;
 use crate::bake::transport::hier::Operator;
@@ -157,12 +159,7 @@ impl Integration<'_> {
             for l in op.links_of(node) {
                 let b = index.bbox[l.send as usize];
                 let shared = index.uniform(&self.table, b[0] - x1, b[1] - y1, b[2] - x0, b[3] - y0);
-                let s_node = &tree.nodes[l.send as usize];
-                let s_at = if s_node.children[0] == NO_CHILD {
-                    self.transport.patches[tree.order[s_node.first as usize] as usize].position_m
-                } else {
-                    s_node.centroid
-                };
+                let s_at = self.node_position(l.send);
                 for &(_, r) in group {
                     let r = r as usize;
                     let i = self.clusters.texels[ci][r];
@@ -179,11 +176,7 @@ impl Integration<'_> {
                     let v = [0, 1, 2].map(|c| p.rho[c] as f64 * k);
                     if shared != NO_CELL {
                         st.link_nodes += 1;
-                        let cell = self.place(shared, s_at, sites, &mut st.rehomed_far);
-                        let a = &mut acc[cell as usize];
-                        for c in 0..3 {
-                            a[c] += v[c];
-                        }
+                        self.add_placed(acc, sites, shared, s_at, v, 1.0, &mut st.rehomed_far);
                         continue;
                     }
                     stack.clear();
@@ -195,17 +188,8 @@ impl Integration<'_> {
                         let n = &tree.nodes[s as usize];
                         if cell != NO_CELL {
                             st.link_nodes += 1;
-                            let at = if n.children[0] == NO_CHILD {
-                                self.transport.patches[tree.order[n.first as usize] as usize]
-                                    .position_m
-                            } else {
-                                n.centroid
-                            };
-                            let cell = self.place(cell, at, sites, &mut st.rehomed_far);
-                            let a = &mut acc[cell as usize];
-                            for c in 0..3 {
-                                a[c] += v[c] * share;
-                            }
+                            let at = self.node_position(s);
+                            self.add_placed(acc, sites, cell, at, v, share, &mut st.rehomed_far);
                         } else if n.children[0] != NO_CHILD && n.area_m2 > 0.0 {
                             for c in n.children {
                                 let f = tree.nodes[c as usize].area_m2 as f64 / n.area_m2 as f64;
@@ -215,6 +199,18 @@ impl Integration<'_> {
                     }
                 }
             }
+        }
+    }
+
+    /// Where a tree node's sender stands for the seam rule: a texel's own position, a
+    /// cluster's centroid.
+    fn node_position(&self, node: u32) -> Vec3 {
+        let tree = self.transport.links.as_ref().expect("links mode").tree();
+        let n = &tree.nodes[node as usize];
+        if n.children[0] == NO_CHILD {
+            self.transport.patches[tree.order[n.first as usize] as usize].position_m
+        } else {
+            n.centroid
         }
     }
 }

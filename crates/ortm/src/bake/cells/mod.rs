@@ -662,11 +662,7 @@ impl Integration<'_> {
                     let u = table.uniform[table.index(tile.origin.x - xi, tile.origin.y - yi)];
                     if u != NO_CELL {
                         st.uniform_windows += 1;
-                        let u = self.place(u, pj, sites, &mut st.rehomed_far);
-                        let a = &mut acc[u as usize];
-                        for c in 0..3 {
-                            a[c] += v[c];
-                        }
+                        self.add_placed(acc, sites, u, pj, v, 1.0, &mut st.rehomed_far);
                         continue;
                     }
                 }
@@ -681,11 +677,7 @@ impl Integration<'_> {
                     if cell == NO_CELL {
                         continue;
                     }
-                    let cell = self.place(cell, pj, sites, &mut st.rehomed_far);
-                    let a = &mut acc[cell as usize];
-                    for c in 0..3 {
-                        a[c] += v[c] * share;
-                    }
+                    self.add_placed(acc, sites, cell, pj, v, share, &mut st.rehomed_far);
                 }
             }
         }
@@ -701,6 +693,8 @@ impl Integration<'_> {
         let rem = &transport.remainder;
         let cl = &self.clusters;
         let recv = &cl.texels[ci];
+        // With links the first bounce is theirs: the exact zone is the subsurface term only.
+        let bounce_here = kern.effects.radiosity && self.links.is_none();
         for (r, (&i, &(xi, yi))) in recv.iter().zip(&rx.xy).enumerate() {
             let pi = &transport.patches[i as usize];
             let sites = &rx.sites[r * kmaps..(r + 1) * kmaps];
@@ -712,7 +706,6 @@ impl Integration<'_> {
             } else {
                 0.0
             };
-            let bounce_here = kern.effects.radiosity && self.links.is_none();
             let ff2 = if bounce_here {
                 FF_EXACT_PITCHES * FF_EXACT_PITCHES * pi.area_m2
             } else {
@@ -790,5 +783,28 @@ impl Integration<'_> {
     #[inline]
     fn place(&self, cell: u32, p_m: Vec3, sites: &[Option<Vec3>], moved: &mut u64) -> u32 {
         place(cell, p_m, sites, self.origin, &self.neighbours, moved)
+    }
+
+    /// Adds `v · share` to the receiver's sum `acc` in the cell that [`place`] picks for a
+    /// sender at `p_m` whose offset lies in `cell`.
+    #[inline]
+    #[expect(
+        clippy::too_many_arguments,
+        reason = "one receiver's slices and one sender's data"
+    )]
+    fn add_placed(
+        &self,
+        acc: &mut [[f64; 3]],
+        sites: &[Option<Vec3>],
+        cell: u32,
+        p_m: Vec3,
+        v: [f64; 3],
+        share: f64,
+        moved: &mut u64,
+    ) {
+        let a = &mut acc[self.place(cell, p_m, sites, moved) as usize];
+        for c in 0..3 {
+            a[c] += v[c] * share;
+        }
     }
 }

@@ -194,12 +194,7 @@ impl Operator {
     ) -> Result<Self, BuildError> {
         let mut patches = patches.to_vec();
         kernels.normalise_subsurface_with(&mut patches, progress)?;
-        let tree = Tree::build(&patches);
-        let (start, links) = if kernels.effects.radiosity {
-            refine_all(&patches, &tree, kernels, settings, progress)?
-        } else {
-            (vec![0; tree.nodes.len() + 1], Vec::new())
-        };
+        let (tree, start, links) = tree_and_links(&patches, kernels, settings, progress)?;
         let translucent: Vec<bool> = patches
             .iter()
             .map(|p| kernels.is_translucent(p.material))
@@ -232,12 +227,7 @@ impl Operator {
         settings: &Settings,
         progress: &SetupProgress,
     ) -> Result<Self, BuildError> {
-        let tree = Tree::build(patches);
-        let (start, links) = if kernels.effects.radiosity {
-            refine_all(patches, &tree, kernels, settings, progress)?
-        } else {
-            (vec![0; tree.nodes.len() + 1], Vec::new())
-        };
+        let (tree, start, links) = tree_and_links(patches, kernels, settings, progress)?;
         Ok(Self {
             patches: patches.to_vec(),
             tree,
@@ -438,6 +428,23 @@ impl Operator {
             })
             .collect()
     }
+}
+
+/// The cluster tree over `patches` and its links grouped by receiver node (none without
+/// radiosity).
+fn tree_and_links(
+    patches: &[Patch],
+    kernels: &Kernels,
+    settings: &Settings,
+    progress: &SetupProgress,
+) -> Result<(Tree, Vec<u32>, Vec<Link>), BuildError> {
+    let tree = Tree::build(patches);
+    let (start, links) = if kernels.effects.radiosity {
+        refine_all(patches, &tree, kernels, settings, progress)?
+    } else {
+        (vec![0; tree.nodes.len() + 1], Vec::new())
+    };
+    Ok((tree, start, links))
 }
 
 /// Refines from (root, root) in rounds (all pairs of a round in parallel) and returns the
