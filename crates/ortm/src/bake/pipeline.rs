@@ -450,7 +450,7 @@ impl MapPlan {
             "cells integrated in {:.2} s: {} near cluster pairs ({} texel pairs, {} of them \
              counted at a nearer site), {} far windows in one cell, {} split, {} counted at a \
              nearer site, {} receiver cells with an uncovered site moved to the receiver's cell; \
-             {} links binned as {} sender nodes",
+             {} links binned as {} sender nodes; {} subsurface sender nodes",
             t0.elapsed().as_secs_f64(),
             st.near_cluster_pairs,
             st.near_texel_pairs,
@@ -460,7 +460,8 @@ impl MapPlan {
             st.rehomed_far,
             st.moved_uncovered,
             st.links,
-            st.link_nodes
+            st.link_nodes,
+            st.subsurface_nodes
         )));
         self.integrated = Some(iv);
     }

@@ -1,5 +1,5 @@
-//! The first bounce of the cell integration from the hierarchical operator's links
-//! ([`crate::bake::transport::hier`]).
+//! The first bounce and the subsurface term of the cell integration from the hierarchical
+//! operator ([`crate::bake::transport::hier`]): its links, and its subsurface walk.
 //!
 //! A link `(A ← S)` into a tree node `A` brings every texel `i` of `A` the irradiance
 //! `k_i B_S` ([`Link::irradiance_per_radiosity`]), `B_S` the area-weighted mean radiosity of
@@ -14,13 +14,27 @@
 //! node's children are tried with their area shares, down to single texels, which go to the
 //! cell of their own offset. A node's cell is re-homed by its centroid like a far cluster
 //! ([`super::place`]).
+//!
+//! The subsurface walk ([`SubsurfaceWalk`]) gives each translucent receiver its senders within
+//! the profile's support as tree nodes with one profile value each; they are binned the same
+//! way, a node's transfer being the profile value times its sender weight `W_s`.
 
 use glam::Vec3;
 
 use super::{CellTable, Integration, NO_CELL, Receivers};
 use crate::bake::texels::TexelGrid;
 use crate::bake::transport::hier::Operator;
+use crate::bake::transport::hier::subsurface::SubsurfaceWalk;
 use crate::bake::transport::hier::tree::NO_CHILD;
+
+/// A sender node that straddles cells and whose transfer to the receiver is at most this
+/// fraction of the operator's tolerance in every channel is binned whole at one member texel's
+/// cell instead of by its children ([`LinkIndex::small`]). Measured: with every offset selected
+/// (so every node straddles; `bake_links`), Cornell 32² at ε = 10⁻² is 7.3 % off the exact
+/// solve with 0.1, as without the rule, and 19.3 % with 1; the head at 512² (100 offsets,
+/// ε = 10⁻³) bins 61 M link and 144 M subsurface nodes with 0.1, against 277 M and 339 M
+/// without the rule, and integrates its cells in 24 s instead of 50 s.
+pub const SMALL_NODE_FACTOR: f64 = 0.1;
 
 /// No parent (the root).
 const NO_PARENT: u32 = u32::MAX;
@@ -37,6 +51,13 @@ pub(super) struct LinkIndex {
     h_sat: Vec<u32>,
     /// Summed-area table of the vertical borders: `(r, c)` differs from `(r + 1, c)`.
     v_sat: Vec<u32>,
+    /// Per node: a member texel's coordinates (the larger child's, down to a leaf): where a
+    /// small straddling node is binned whole.
+    rep: Vec<[i32; 2]>,
+    /// A node straddling cells whose transfer is at most this (every channel) is binned whole
+    /// at its [`LinkIndex::rep`] texel's cell instead of by its children:
+    /// [`SMALL_NODE_FACTOR`] times the operator's tolerance.
+    small: f64,
 }
 
 impl LinkIndex {
@@ -53,11 +74,23 @@ impl LinkIndex {
         }
         // Boxes children first (children follow their parents in the node order).
         let mut bbox = vec![[i32::MAX, i32::MAX, i32::MIN, i32::MIN]; nodes.len()];
+        let mut rep = vec![[0i32; 2]; nodes.len()];
         for id in (0..nodes.len()).rev() {
             let n = &nodes[id];
-            bbox[id] = if n.children[0] == NO_CHILD {
+            rep[id] = if n.children[0] == NO_CHILD {
                 let t = &grid.texels[tree.order[n.first as usize] as usize];
-                let (x, y) = (t.x as i32, t.y as i32);
+                [t.x as i32, t.y as i32]
+            } else {
+                let [a, b] = n.children;
+                let larger = if nodes[a as usize].area_m2 >= nodes[b as usize].area_m2 {
+                    a
+                } else {
+                    b
+                };
+                rep[larger as usize]
+            };
+            bbox[id] = if n.children[0] == NO_CHILD {
+                let [x, y] = rep[id];
                 [x, y, x, y]
             } else {
                 let [a, b] = n.children.map(|c| bbox[c as usize]);
@@ -91,6 +124,8 @@ impl LinkIndex {
             bbox,
             h_sat,
             v_sat,
+            rep,
+            small: SMALL_NODE_FACTOR * op.tolerance() as f64,
         }
     }
 
@@ -147,7 +182,7 @@ impl Integration<'_> {
             }
         }
         pairs.sort_unstable();
-        let mut stack: Vec<(u32, f64)> = Vec::new();
+        let mut stack: Vec<u32> = Vec::new();
         for group in pairs.chunk_by(|a, b| a.0 == b.0) {
             let node = group[0].0;
             // The group's receivers' texel box.
@@ -179,25 +214,117 @@ impl Integration<'_> {
                         self.add_placed(acc, sites, shared, s_at, v, 1.0, &mut st.rehomed_far);
                         continue;
                     }
-                    stack.clear();
-                    stack.push((l.send, 1.0));
-                    while let Some((s, share)) = stack.pop() {
-                        let b = index.bbox[s as usize];
-                        let cell =
-                            index.uniform(&self.table, b[0] - xi, b[1] - yi, b[2] - xi, b[3] - yi);
-                        let n = &tree.nodes[s as usize];
-                        if cell != NO_CELL {
-                            st.link_nodes += 1;
-                            let at = self.node_position(s);
-                            self.add_placed(acc, sites, cell, at, v, share, &mut st.rehomed_far);
-                        } else if n.children[0] != NO_CHILD && n.area_m2 > 0.0 {
-                            for c in n.children {
-                                let f = tree.nodes[c as usize].area_m2 as f64 / n.area_m2 as f64;
-                                stack.push((c, share * f));
-                            }
-                        }
-                    }
+                    let inv_area = 1.0 / (tree.nodes[l.send as usize].area_m2 as f64);
+                    let value = |s: u32| {
+                        let share = tree.nodes[s as usize].area_m2 as f64 * inv_area;
+                        v.map(|x| x * share)
+                    };
+                    let counts = (&mut st.link_nodes, &mut st.rehomed_far);
+                    self.bin_node(
+                        index,
+                        acc,
+                        sites,
+                        (xi, yi),
+                        l.send,
+                        &value,
+                        &mut stack,
+                        counts,
+                    );
                 }
+            }
+        }
+    }
+
+    /// Adds sender node `s`'s transfer to a receiver at texel `(xi, yi)` (its sums `acc`, its
+    /// sites `sites`): whole to one cell when the node's box of offsets lies in it, else its
+    /// children's, down to single texels; a straddling node whose transfer is at most
+    /// [`LinkIndex::small`] goes whole to its member texel's cell. `value(node)` is a node's
+    /// transfer; `stack` is scratch space. Adds the nodes binned and those counted at a nearer
+    /// site ([`super::place`]) to `stats`.
+    #[expect(
+        clippy::too_many_arguments,
+        reason = "one receiver's slices, one sender node and scratch space"
+    )]
+    fn bin_node(
+        &self,
+        index: &LinkIndex,
+        acc: &mut [[f64; 3]],
+        sites: &[Option<Vec3>],
+        (xi, yi): (i32, i32),
+        s: u32,
+        value: &dyn Fn(u32) -> [f64; 3],
+        stack: &mut Vec<u32>,
+        (binned, moved): (&mut u64, &mut u64),
+    ) {
+        let tree = self.transport.links.as_ref().expect("links mode").tree();
+        stack.clear();
+        stack.push(s);
+        while let Some(s) = stack.pop() {
+            let n = &tree.nodes[s as usize];
+            let b = index.bbox[s as usize];
+            let mut cell = if n.children[0] == NO_CHILD {
+                self.table.cell(b[0] - xi, b[1] - yi)
+            } else {
+                index.uniform(&self.table, b[0] - xi, b[1] - yi, b[2] - xi, b[3] - yi)
+            };
+            let v = value(s);
+            if cell == NO_CELL
+                && n.children[0] != NO_CHILD
+                && v.iter().all(|x| x.abs() <= index.small)
+            {
+                let [x, y] = index.rep[s as usize];
+                cell = self.table.cell(x - xi, y - yi);
+            }
+            if cell != NO_CELL {
+                *binned += 1;
+                let at = self.node_position(s);
+                self.add_placed(acc, sites, cell, at, v, 1.0, moved);
+            } else if n.children[0] != NO_CHILD && n.area_m2 > 0.0 {
+                stack.extend(n.children);
+            }
+        }
+    }
+
+    /// Adds the subsurface term of every receiver of cluster `ci` from the operator's walk
+    /// ([`SubsurfaceWalk`]): each visited sender node `s` with profile value `R` brings
+    /// `R·W_s` (and the self texel also the point mass `−1`), binned like a link's sender node
+    /// (whole when its box of offsets lies in one cell, else by its children, each with its own
+    /// `R·W`).
+    pub(super) fn add_subsurface_walk(
+        &self,
+        index: &LinkIndex,
+        walk: &SubsurfaceWalk,
+        ci: usize,
+        rx: &mut Receivers,
+    ) {
+        let op = self.transport.links.as_ref().expect("links mode");
+        let tree = op.tree();
+        let kmaps = self.offsets.len();
+        let mut visits: Vec<(u32, [f64; 3], bool)> = Vec::new();
+        let mut stack: Vec<u32> = Vec::new();
+        for (r, &i) in self.clusters.texels[ci].iter().enumerate() {
+            visits.clear();
+            let patches = &self.transport.patches;
+            walk.walk(
+                tree,
+                patches,
+                &self.transport.kernels,
+                i as usize,
+                |s, rd, me| {
+                    visits.push((s, rd, me));
+                },
+            );
+            let xy = rx.xy[r];
+            let sites = &rx.sites[r * kmaps..(r + 1) * kmaps];
+            let acc = &mut rx.acc[r * kmaps..(r + 1) * kmaps];
+            for &(s, rd, me) in &visits {
+                let value = |s: u32| {
+                    let w = walk.weight(s);
+                    [0, 1, 2].map(|c| rd[c] * w[c] as f64 - if me { 1.0 } else { 0.0 })
+                };
+                let st = &mut rx.stats;
+                let counts = (&mut st.subsurface_nodes, &mut st.rehomed);
+                self.bin_node(index, acc, sites, xy, s, &value, &mut stack, counts);
             }
         }
     }

@@ -44,6 +44,12 @@
 //! subsurface term. Cost and error follow the operator's tolerance instead of the cluster
 //! size: no texel-by-texel first bounce over whole near clusters.
 //!
+//! With translucent texels the operator also holds a subsurface walk
+//! ([`crate::bake::transport::hier::subsurface`]): each receiver's senders within the profile's
+//! support come as tree nodes, refined to the same tolerance, and are binned like the links'
+//! sender nodes — no texel-by-texel exact zone, whose `n × support²` pairs grow as `N⁴` in the
+//! lightmap's side.
+//!
 //! # Seams
 //! Texture-space Voronoi assumes the first-order light is smooth across a cell. Where a cell
 //! straddles a UV seam or several charts, its site can land on an unrelated surface. So every
@@ -114,6 +120,8 @@ pub struct CellStats {
     pub links: u64,
     /// Sender nodes of those links binned whole into one cell.
     pub link_nodes: u64,
+    /// Sender nodes of the subsurface walk ([`links`]) binned whole into one cell.
+    pub subsurface_nodes: u64,
 }
 
 impl CellValues {
@@ -533,6 +541,7 @@ impl CellStats {
             rehomed_far: self.rehomed_far + b.rehomed_far,
             links: self.links + b.links,
             link_nodes: self.link_nodes + b.link_nodes,
+            subsurface_nodes: self.subsurface_nodes + b.subsurface_nodes,
         }
     }
 }
@@ -579,9 +588,17 @@ impl Integration<'_> {
     fn receiving_cluster(&self, ci: usize) -> (Vec<[f32; 3]>, CellStats) {
         let mut rx = self.receivers(ci);
         self.add_cluster_shares(ci, &mut rx);
-        self.add_exact_zone(ci, &mut rx);
-        if let Some(index) = &self.links {
-            self.add_links(index, ci, &mut rx);
+        let walk = (self.transport.links.as_ref()).and_then(|op| op.subsurface_walk());
+        match (&self.links, walk) {
+            (Some(index), Some(walk)) => {
+                self.add_links(index, ci, &mut rx);
+                self.add_subsurface_walk(index, walk, ci, &mut rx);
+            }
+            (Some(index), None) => {
+                self.add_exact_zone(ci, &mut rx);
+                self.add_links(index, ci, &mut rx);
+            }
+            (None, _) => self.add_exact_zone(ci, &mut rx),
         }
         self.move_uncovered(&mut rx);
         let out: Vec<[f32; 3]> = rx

@@ -378,8 +378,15 @@ impl Kernels {
         progress: &SetupProgress,
     ) -> Result<usize, Cancelled> {
         let q = self.subsurface_reemission_with(patches, progress)?;
+        Ok(self.scale_subsurface(patches, &q))
+    }
+
+    /// Sets every patch's [`Patch::subsurface_scale`] to `min(1, ρ̄ / Q_j)` per channel from its
+    /// re-emission `q[j]` (1 for opaque patches). Returns the number of patches scaled in some
+    /// channel.
+    pub fn scale_subsurface(&self, patches: &mut [Patch], q: &[[f64; 3]]) -> usize {
         let mut scaled = 0;
-        for (p, q) in patches.iter_mut().zip(&q) {
+        for (p, q) in patches.iter_mut().zip(q) {
             p.subsurface_scale = Vec3::ONE;
             let Some(profile) = self.profiles[p.material as usize].as_ref() else {
                 continue;
@@ -392,7 +399,7 @@ impl Kernels {
             }
             scaled += usize::from(p.subsurface_scale != Vec3::ONE);
         }
-        Ok(scaled)
+        scaled
     }
 
     /// True when material `m` scatters under the surface.
@@ -545,8 +552,11 @@ impl Transport {
         })
     }
 
-    /// [`Transport::build`] plus the hierarchical first-bounce operator at `settings`
-    /// ([`hier::Operator::build`] over the texel patches), for the cell integration.
+    /// [`Transport::build`] with the hierarchical operator at `settings`
+    /// ([`hier::Operator::build_links_only`] over the texel patches), for the cell integration:
+    /// its links carry the first bounce and its walk the subsurface term, whose normalisation
+    /// it also does (the walk's, to `settings.tolerance`, instead of every pair within the
+    /// support).
     ///
     /// # Errors
     /// [`hier::BuildError`] when cancelled or when the links outgrow `settings.max_bytes`.
@@ -558,10 +568,23 @@ impl Transport {
         settings: &hier::Settings,
         progress: &SetupProgress,
     ) -> Result<Self, hier::BuildError> {
-        let mut tr = Self::build(scene, grid, effects, block, progress)?;
-        let op = hier::Operator::build_links_only(&tr.patches, &tr.kernels, settings, progress)?;
-        tr.links = Some(op);
-        Ok(tr)
+        let visibility = Arc::new(Visibility::new(&scene.mesh));
+        let kernels = Kernels::new(scene, effects, visibility);
+        let op =
+            hier::Operator::build_links_only(&texel_patches(grid), &kernels, settings, progress)?;
+        let patches = op.patches().to_vec();
+        let block = if block == 0 {
+            coarse::auto_block(grid)
+        } else {
+            block
+        };
+        let remainder = coarse::Remainder::build(grid, &patches, &kernels, block, progress)?;
+        Ok(Self {
+            patches,
+            kernels,
+            remainder,
+            links: Some(op),
+        })
     }
 
     /// True when texel `i` is translucent (its `R(i, i)` holds the subsurface point mass `−1`).

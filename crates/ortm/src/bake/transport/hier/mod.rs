@@ -40,12 +40,14 @@
 //! grows it as `n × support²`). Block links assume the clusters see each other as wholes
 //! (`Φ` is clamped per texel, not per link), which the flatness and distance tests bound.
 
+pub mod subsurface;
 pub mod tree;
 
 use glam::Vec3;
 use rayon::prelude::*;
 
 use super::{Cancelled, Kernels, Patch, SetupProgress, SupportGrid};
+use subsurface::SubsurfaceWalk;
 use tree::Tree;
 
 /// A partly visible pair is refined when its form factor exceeds this fraction of `ε`: partial
@@ -169,6 +171,11 @@ pub struct Operator {
     subsurface: Option<Subsurface>,
     /// Built by [`Operator::build_links_only`]: no subsurface operator, no solve.
     links_only: bool,
+    /// The subsurface term as a walk of the tree ([`Operator::build_links_only`] over
+    /// translucent patches).
+    walk: Option<SubsurfaceWalk>,
+    /// [`Settings::tolerance`] of the build.
+    tolerance: f32,
 }
 
 /// A solution and how it was reached.
@@ -194,7 +201,8 @@ impl Operator {
     ) -> Result<Self, BuildError> {
         let mut patches = patches.to_vec();
         kernels.normalise_subsurface_with(&mut patches, progress)?;
-        let (tree, start, links) = tree_and_links(&patches, kernels, settings, progress)?;
+        let tree = Tree::build(&patches);
+        let (start, links) = refine_links(&patches, &tree, kernels, settings, progress)?;
         let translucent: Vec<bool> = patches
             .iter()
             .map(|p| kernels.is_translucent(p.material))
@@ -212,12 +220,16 @@ impl Operator {
             translucent,
             subsurface,
             links_only: false,
+            walk: None,
+            tolerance: settings.tolerance,
         })
     }
 
-    /// The links alone, for the bake's cell integration ([`crate::bake::cells`]): no subsurface
-    /// weights or operator (the cells take the subsurface term texel by texel), so the set-up
-    /// costs no `n × support²` pairs. [`Operator::solve`] refuses such an operator.
+    /// The links and the subsurface walk, for the bake's cell integration
+    /// ([`crate::bake::cells`]): no sparse subsurface operator, so the set-up costs no
+    /// `n × support²` pairs. The subsurface weights are normalised by the walk
+    /// ([`SubsurfaceWalk::normalise`]) on the operator's copy of the patches
+    /// ([`Operator::patches`]). [`Operator::solve`] refuses such an operator.
     ///
     /// # Errors
     /// As [`Operator::build`].
@@ -227,16 +239,43 @@ impl Operator {
         settings: &Settings,
         progress: &SetupProgress,
     ) -> Result<Self, BuildError> {
-        let (tree, start, links) = tree_and_links(patches, kernels, settings, progress)?;
+        let mut patches = patches.to_vec();
+        let tree = Tree::build(&patches);
+        let walk = if patches.iter().any(|p| kernels.is_translucent(p.material)) {
+            let mut w = SubsurfaceWalk::new(&tree, &patches, settings.tolerance);
+            w.normalise(&tree, &mut patches, kernels, progress)?;
+            Some(w)
+        } else {
+            None
+        };
+        let (start, links) = refine_links(&patches, &tree, kernels, settings, progress)?;
         Ok(Self {
-            patches: patches.to_vec(),
+            translucent: vec![false; patches.len()],
+            patches,
             tree,
             start,
             links,
-            translucent: vec![false; patches.len()],
             subsurface: None,
             links_only: true,
+            walk,
+            tolerance: settings.tolerance,
         })
+    }
+
+    /// The operator's patches (for [`Operator::build_links_only`], with the subsurface scales
+    /// of the walk's normalisation).
+    pub fn patches(&self) -> &[Patch] {
+        &self.patches
+    }
+
+    /// The subsurface walk ([`Operator::build_links_only`] over translucent patches).
+    pub fn subsurface_walk(&self) -> Option<&SubsurfaceWalk> {
+        self.walk.as_ref()
+    }
+
+    /// The tolerance `ε` it was built at ([`Settings::tolerance`]).
+    pub fn tolerance(&self) -> f32 {
+        self.tolerance
     }
 
     /// The cluster tree.
@@ -430,21 +469,19 @@ impl Operator {
     }
 }
 
-/// The cluster tree over `patches` and its links grouped by receiver node (none without
-/// radiosity).
-fn tree_and_links(
+/// The links of `tree` (over `patches`) grouped by receiver node (none without radiosity).
+fn refine_links(
     patches: &[Patch],
+    tree: &Tree,
     kernels: &Kernels,
     settings: &Settings,
     progress: &SetupProgress,
-) -> Result<(Tree, Vec<u32>, Vec<Link>), BuildError> {
-    let tree = Tree::build(patches);
-    let (start, links) = if kernels.effects.radiosity {
-        refine_all(patches, &tree, kernels, settings, progress)?
+) -> Result<(Vec<u32>, Vec<Link>), BuildError> {
+    if kernels.effects.radiosity {
+        refine_all(patches, tree, kernels, settings, progress)
     } else {
-        (vec![0; tree.nodes.len() + 1], Vec::new())
-    };
-    Ok((tree, start, links))
+        Ok((vec![0; tree.nodes.len() + 1], Vec::new()))
+    }
 }
 
 /// Refines from (root, root) in rounds (all pairs of a round in parallel) and returns the
