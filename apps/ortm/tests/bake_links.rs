@@ -194,3 +194,41 @@ fn bake_tolerance_option_bakes_refuses_and_names_itself_when_memory_runs_out() {
     );
     assert!(!dir.path().join("m/index.json").exists());
 }
+
+/// Issue 16's memory bound: the maze at 1024² (844,546 covered texels) bakes with
+/// `--tolerance 1e-3` under `ORTM_MEMORY_LIMIT_BYTES` = 4 GiB, and its peak resident memory
+/// (`VmHWM`, reported by the test hook `ORTM_TEST_REPORT_PEAK`) stays under it. 16 maps keep
+/// the cell values (12 bytes per texel and map) and the run short (~2–4 min on 2 cores); with
+/// 100 maps it peaks at 2.8 GB (README, "Transport model").
+#[test]
+fn maze_1024_bakes_under_four_gib() {
+    let dir = tempfile::tempdir().unwrap();
+    let limit: u64 = 4 << 30;
+    let out = common::ortm_command()
+        .args([
+            "bake",
+            "maze",
+            "--size",
+            "1024",
+            "--offsets",
+            "16",
+            "--tolerance",
+            "1e-3",
+            "-o",
+            "b",
+        ])
+        .current_dir(dir.path())
+        .env("ORTM_MEMORY_LIMIT_BYTES", limit.to_string())
+        .env("ORTM_TEST_REPORT_PEAK", "1")
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert!(out.status.success(), "{err}");
+    let peak = common::reported_peak(&err);
+    println!("maze 1024², 16 maps, ε = 1e-3: peak {peak} bytes");
+    assert!(peak < limit, "peak {peak} bytes over the 4 GiB limit");
+    let index: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.path().join("b/index.json")).unwrap()).unwrap();
+    assert_eq!(index["maps"].as_array().map(Vec::len), Some(16), "{index}");
+    assert_eq!(index["lightmap"]["width"], 1024, "{}", index["lightmap"]);
+}

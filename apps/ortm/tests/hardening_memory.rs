@@ -10,16 +10,7 @@ mod common;
 
 use std::fs;
 
-use common::ortm_command;
-
-/// Peak bytes the run reported (`ORTM_TEST_PEAK_BYTES: N` on stderr).
-fn peak(stderr: &str) -> u64 {
-    stderr
-        .lines()
-        .find_map(|l| l.strip_prefix("ORTM_TEST_PEAK_BYTES: "))
-        .and_then(|v| v.trim().parse().ok())
-        .unwrap_or_else(|| panic!("no peak reported: {stderr}"))
-}
+use common::{ortm_command, reported_peak as peak};
 
 #[test]
 fn huge_lightmap_is_refused_before_rasterizing_under_the_memory_limit() {

@@ -84,6 +84,16 @@ pub fn fails(out: Output) -> String {
     String::from_utf8_lossy(&out.stderr).into_owned()
 }
 
+/// Peak resident bytes that a run under the test hook `ORTM_TEST_REPORT_PEAK` reported
+/// (`ORTM_TEST_PEAK_BYTES: N` on stderr).
+pub fn reported_peak(stderr: &str) -> u64 {
+    stderr
+        .lines()
+        .find_map(|l| l.strip_prefix("ORTM_TEST_PEAK_BYTES: "))
+        .and_then(|v| v.trim().parse().ok())
+        .unwrap_or_else(|| panic!("no peak reported: {stderr}"))
+}
+
 /// The tiny Cornell bake that [`tiny_cornell_bake`] copies, as typed after `ortm` (without
 /// `-o`): 32² lightmap, 12 jittered-grid offsets, the default seed and effects.
 pub const TINY_CORNELL_BAKE: &str = "bake cornell --size 32 --offsets 12 --selector jittered-grid";
