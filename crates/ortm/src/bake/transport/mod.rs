@@ -538,6 +538,19 @@ impl Transport {
         let kernels = Kernels::new(scene, effects, visibility);
         let mut patches = texel_patches(grid);
         kernels.normalise_subsurface_with(&mut patches, progress)?;
+        Self::with_remainder(grid, patches, kernels, block, None, progress)
+    }
+
+    /// The transport of normalised `patches`: the coarse remainder with clusters of
+    /// `block × block` texels (0: [`coarse::auto_block`]) and the hierarchical operator `links`.
+    fn with_remainder(
+        grid: &TexelGrid,
+        patches: Vec<Patch>,
+        kernels: Kernels,
+        block: u32,
+        links: Option<hier::Operator>,
+        progress: &SetupProgress,
+    ) -> Result<Self, Cancelled> {
         let block = if block == 0 {
             coarse::auto_block(grid)
         } else {
@@ -548,7 +561,7 @@ impl Transport {
             patches,
             kernels,
             remainder,
-            links: None,
+            links,
         })
     }
 
@@ -573,18 +586,14 @@ impl Transport {
         let op =
             hier::Operator::build_links_only(&texel_patches(grid), &kernels, settings, progress)?;
         let patches = op.patches().to_vec();
-        let block = if block == 0 {
-            coarse::auto_block(grid)
-        } else {
-            block
-        };
-        let remainder = coarse::Remainder::build(grid, &patches, &kernels, block, progress)?;
-        Ok(Self {
+        Ok(Self::with_remainder(
+            grid,
             patches,
             kernels,
-            remainder,
-            links: Some(op),
-        })
+            block,
+            Some(op),
+            progress,
+        )?)
     }
 
     /// True when texel `i` is translucent (its `R(i, i)` holds the subsurface point mass `−1`).
