@@ -77,29 +77,27 @@ impl LinkIndex {
         let mut rep = vec![[0i32; 2]; nodes.len()];
         for id in (0..nodes.len()).rev() {
             let n = &nodes[id];
-            rep[id] = if n.children[0] == NO_CHILD {
+            (rep[id], bbox[id]) = if n.children[0] == NO_CHILD {
                 let t = &grid.texels[tree.order[n.first as usize] as usize];
-                [t.x as i32, t.y as i32]
+                let (x, y) = (t.x as i32, t.y as i32);
+                ([x, y], [x, y, x, y])
             } else {
-                let [a, b] = n.children;
-                let larger = if nodes[a as usize].area_m2 >= nodes[b as usize].area_m2 {
-                    a
+                let [c0, c1] = n.children;
+                let larger = if nodes[c0 as usize].area_m2 >= nodes[c1 as usize].area_m2 {
+                    c0
                 } else {
-                    b
+                    c1
                 };
-                rep[larger as usize]
-            };
-            bbox[id] = if n.children[0] == NO_CHILD {
-                let [x, y] = rep[id];
-                [x, y, x, y]
-            } else {
                 let [a, b] = n.children.map(|c| bbox[c as usize]);
-                [
-                    a[0].min(b[0]),
-                    a[1].min(b[1]),
-                    a[2].max(b[2]),
-                    a[3].max(b[3]),
-                ]
+                (
+                    rep[larger as usize],
+                    [
+                        a[0].min(b[0]),
+                        a[1].min(b[1]),
+                        a[2].max(b[2]),
+                        a[3].max(b[3]),
+                    ],
+                )
             };
         }
         let stride = table.stride;

@@ -469,7 +469,8 @@ impl Operator {
     }
 }
 
-/// The links of `tree` (over `patches`) grouped by receiver node (none without radiosity).
+/// Refines from (root, root) in rounds (all pairs of a round in parallel) and returns the
+/// links grouped by receiver node (`start`, `links`); none without radiosity.
 fn refine_links(
     patches: &[Patch],
     tree: &Tree,
@@ -477,22 +478,9 @@ fn refine_links(
     settings: &Settings,
     progress: &SetupProgress,
 ) -> Result<(Vec<u32>, Vec<Link>), BuildError> {
-    if kernels.effects.radiosity {
-        refine_all(patches, tree, kernels, settings, progress)
-    } else {
-        Ok((vec![0; tree.nodes.len() + 1], Vec::new()))
+    if !kernels.effects.radiosity {
+        return Ok((vec![0; tree.nodes.len() + 1], Vec::new()));
     }
-}
-
-/// Refines from (root, root) in rounds (all pairs of a round in parallel) and returns the
-/// links grouped by receiver node (`start`, `links`).
-fn refine_all(
-    patches: &[Patch],
-    tree: &Tree,
-    kernels: &Kernels,
-    settings: &Settings,
-    progress: &SetupProgress,
-) -> Result<(Vec<u32>, Vec<Link>), BuildError> {
     // The tree's depth bounds the rounds: each splits one node of every pair.
     let depth = (patches.len() as f64).log2().ceil() as u64 + 1;
     progress.phase("transport: links", 2 * depth);
