@@ -56,6 +56,10 @@ pub struct Args {
     /// Offset budgets: one bake per budget and cell rule.
     #[arg(long, value_delimiter = ',', default_values_t = [100usize, 400])]
     offsets: Vec<usize>,
+    /// Tolerances `ε` of the multi-resolution maps (rows where the evaluator row fits): one set
+    /// of maps per tolerance, from the evaluator's rows.
+    #[arg(long, value_delimiter = ',', default_values_t = [1e-2, 3e-3, 1e-3])]
+    levels: Vec<f64>,
     /// Paths per texel the path-traced reference starts with.
     #[arg(
         long,
@@ -169,13 +173,15 @@ fn measure_rows(case: &Case, a: &Args) -> Result<Vec<Row>> {
         let block = tr.remainder.block;
         let final_b = ortm::bake::eval::evaluator_final(&tr, &case.b_o);
         let senders = ortm::bake::eval::senders(&case.b_o).len() as u64;
+        let build_s = t.elapsed().as_secs_f64();
         rows.push(Row {
             method: format!("evaluator, every pair ({block}×{block} clusters)"),
             offsets: None,
             final_b,
-            bake_s: t.elapsed().as_secs_f64(),
+            bake_s: build_s,
             frame_cost: n as u64 * senders,
         });
+        rows.extend(level_rows(case, &tr, build_s, a)?);
     }
     for &k in &a.offsets {
         for (rule, name) in [
@@ -185,6 +191,51 @@ fn measure_rows(case: &Case, a: &Args) -> Result<Vec<Row>> {
             eprintln!("{}: bake, {k} offsets, {name}", case.label);
             rows.push(bake_row(case, k, rule, name, a)?);
         }
+    }
+    Ok(rows)
+}
+
+/// Multi-resolution maps from the evaluator's rows, one set per tolerance of `--levels`, applied
+/// on the CPU ([`ortm::maps::levels::apply_levels`]). Bake time: the evaluator's set-up
+/// (`build_s`) plus the rows and their partition, shared by the tolerances.
+fn level_rows(case: &Case, tr: &Transport, build_s: f64, a: &Args) -> Result<Vec<Row>> {
+    use ortm::bake::multires::{self, MultiresSettings};
+    if a.levels.is_empty() {
+        return Ok(Vec::new());
+    }
+    if let Some(e) = a.levels.iter().find(|e| !(e.is_finite() && **e >= 0.0)) {
+        bail!("--levels: tolerance {e} must be a finite number ≥ 0");
+    }
+    eprintln!(
+        "{}: multi-resolution maps at ε = {:?}",
+        case.label, a.levels
+    );
+    let t = Instant::now();
+    let settings: Vec<MultiresSettings> = a
+        .levels
+        .iter()
+        .map(|&tolerance| MultiresSettings {
+            tolerance,
+            ..MultiresSettings::default()
+        })
+        .collect();
+    let entries = multires::partition_rows(&case.grid, multires::transport_row(tr), &settings);
+    let shared_s = build_s + t.elapsed().as_secs_f64();
+    let first = lighting::to_lightmap(&case.grid, &case.b_o);
+    let area = case.grid.area_map();
+    let mut rows = Vec::new();
+    for (eps, e) in a.levels.iter().zip(&entries) {
+        let t = Instant::now();
+        let maps = multires::to_maps(&case.grid, e)?;
+        let bake_s = shared_s + t.elapsed().as_secs_f64();
+        let final_map = ortm::maps::levels::apply_levels(&maps, &first, &area)?;
+        rows.push(Row {
+            method: format!("multi-resolution maps, ε = {eps:.0e}"),
+            offsets: Some(maps.len()),
+            final_b: lighting::from_lightmap(&case.grid, &final_map),
+            bake_s,
+            frame_cost: ortm::maps::levels::stored_texels(&maps),
+        });
     }
     Ok(rows)
 }

@@ -37,6 +37,7 @@
 pub mod cells;
 pub mod eval;
 pub mod lighting;
+pub mod multires;
 pub mod offsets;
 pub mod pipeline;
 pub mod raycast;

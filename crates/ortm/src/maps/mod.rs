@@ -26,6 +26,7 @@
 
 pub mod apply;
 pub mod crop;
+pub mod levels;
 pub mod transfer_map;
 
 use std::path::PathBuf;

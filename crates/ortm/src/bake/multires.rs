@@ -1,0 +1,288 @@
+//! Multi-resolution offset maps ([`crate::maps::levels`]) from the transfer `R(t, t')`.
+//!
+//! # What is computed
+//! For every receiver `t`, its row `R(t, ·)` is partitioned into blocks of the lightmap's
+//! quadtree, top-down: a block `b` of level `ℓ` is kept whole when the first-order light taken as
+//! the block's area-weighted mean changes the result by little whatever that light is, and is
+//! split into its four children otherwise; single texels (level 0) are exact. Kept blocks become
+//! entries `(ℓ, Δ = b − ⌊t/2^ℓ⌋, Σ_{j∈b} R(t, j))` of the level-`ℓ` map of offset `Δ`.
+//!
+//! # Error control
+//! Taking `B_o` as its block mean `P_ℓ(b) = Σ A_j B_o(j) / Σ A_j` errs by
+//! `Σ_j (R(t,j) − S_b A_j / A_b) B_o(j)`, with `S_b = Σ_j R(t,j)` and `A_b = Σ_j A_j`. Its terms
+//! sum to zero, so for any first order with `0 ≤ B_o ≤ B_max` the error is at most
+//! `δ_b B_max / 2`, `δ_b = Σ_j |R(t,j) − S_b A_j / A_b|` (per channel, the largest taken). A
+//! block is kept when `δ_b ≤ ε` (the tolerance): every receiver's error is bounded by `ε B_max / 2`
+//! per block it uses, for every lighting. `ε = 0` keeps only exact blocks: with a generic
+//! transfer, every single texel — the full-budget form, equal to Eq. 9 with every offset.
+//!
+//! # Cost
+//! Rows come from a caller's closure (the dense transfer matrix, or the pair evaluator
+//! [`Transport::r`]): `n` evaluations per receiver. The partition costs `O(n log n)` per
+//! receiver in the worst case; blocks whose `Σ |R|` is within `ε / 2` are kept without a scan.
+
+use std::collections::BTreeMap;
+
+use glam::IVec2;
+use rayon::prelude::*;
+
+use crate::Lightmap;
+use crate::bake::texels::TexelGrid;
+use crate::bake::transport::Transport;
+use crate::maps::levels::{LevelMap, level_count};
+use crate::maps::{MapsError, TransferMap};
+
+/// How the receivers' rows are partitioned.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MultiresSettings {
+    /// `ε`: the largest `δ_b` of a kept block (module docs). 0: every block down to texels.
+    pub tolerance: f64,
+    /// Coarsest pyramid level used (blocks of `2^max_level` texels).
+    pub max_level: u32,
+}
+
+impl Default for MultiresSettings {
+    fn default() -> Self {
+        Self {
+            tolerance: 1e-3,
+            max_level: 16,
+        }
+    }
+}
+
+/// One kept block of one receiver's row.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Entry {
+    /// Pyramid level.
+    pub level: u8,
+    /// Offset in level-`level` blocks.
+    pub offset: IVec2,
+    /// `Σ_{j ∈ block} R(t, j)`, per channel.
+    pub value: [f32; 3],
+}
+
+/// Per-level sums of one row: `Σ R` and `Σ |R|` per block and channel.
+struct RowSums {
+    sum: Vec<Vec<[f64; 3]>>,
+    abs: Vec<Vec<[f64; 3]>>,
+}
+
+/// Level geometry and the texel weights shared by every row.
+struct Layout {
+    dims: Vec<(u32, u32)>,
+    /// Per level, per block: summed texel area (m²).
+    weight: Vec<Vec<f64>>,
+    /// Level 0 weights (texel area, 0 where uncovered), row-major.
+    area: Vec<f64>,
+}
+
+impl Layout {
+    fn new(grid: &TexelGrid, levels: u32) -> Self {
+        let (w, h) = (grid.width, grid.height);
+        let area: Vec<f64> = grid.area_map().iter().map(|&a| a as f64).collect();
+        let mut dims = vec![(w, h)];
+        let mut weight = vec![area.clone()];
+        for l in 1..levels as usize {
+            let (pw, ph) = dims[l - 1];
+            let (nw, nh) = (pw.div_ceil(2), ph.div_ceil(2));
+            let mut nwt = vec![0.0; (nw * nh) as usize];
+            for y in 0..ph {
+                for x in 0..pw {
+                    nwt[((y / 2) * nw + x / 2) as usize] += weight[l - 1][(y * pw + x) as usize];
+                }
+            }
+            dims.push((nw, nh));
+            weight.push(nwt);
+        }
+        Self { dims, weight, area }
+    }
+
+    fn sums(&self, row: &[[f64; 3]]) -> RowSums {
+        let mut sum = vec![row.to_vec()];
+        let mut abs = vec![row.iter().map(|v| v.map(f64::abs)).collect::<Vec<_>>()];
+        for l in 1..self.dims.len() {
+            let (pw, ph) = self.dims[l - 1];
+            let (nw, nh) = self.dims[l];
+            let mut ns = vec![[0.0f64; 3]; (nw * nh) as usize];
+            let mut na = vec![[0.0f64; 3]; (nw * nh) as usize];
+            for y in 0..ph {
+                for x in 0..pw {
+                    let (i, o) = ((y * pw + x) as usize, ((y / 2) * nw + x / 2) as usize);
+                    for c in 0..3 {
+                        ns[o][c] += sum[l - 1][i][c];
+                        na[o][c] += abs[l - 1][i][c];
+                    }
+                }
+            }
+            sum.push(ns);
+            abs.push(na);
+        }
+        RowSums { sum, abs }
+    }
+}
+
+/// The kept blocks of receiver texel `(tx, ty)` for its full-resolution row `row` and the row's
+/// block sums (module docs).
+fn partition(
+    layout: &Layout,
+    sums: &RowSums,
+    row: &[[f64; 3]],
+    (tx, ty): (u32, u32),
+    settings: &MultiresSettings,
+) -> Vec<Entry> {
+    let eps = settings.tolerance;
+    let top = (layout.dims.len() as u32 - 1).min(settings.max_level);
+    let (w0, h0) = layout.dims[0];
+    let mut stack: Vec<(u32, u32, u32)> = Vec::new();
+    let (tw, th) = layout.dims[top as usize];
+    for by in (0..th).rev() {
+        for bx in (0..tw).rev() {
+            stack.push((top, bx, by));
+        }
+    }
+    let mut out = Vec::new();
+    while let Some((l, bx, by)) = stack.pop() {
+        let (lw, _) = layout.dims[l as usize];
+        let i = (by * lw + bx) as usize;
+        let a = sums.abs[l as usize][i];
+        if a == [0.0; 3] {
+            continue;
+        }
+        let s = sums.sum[l as usize][i];
+        let emit = |out: &mut Vec<Entry>| {
+            out.push(Entry {
+                level: l as u8,
+                offset: IVec2::new(bx as i32 - (tx >> l) as i32, by as i32 - (ty >> l) as i32),
+                value: s.map(|c| c as f32),
+            })
+        };
+        if l == 0 || a.iter().all(|&c| 2.0 * c <= eps) {
+            emit(&mut out);
+            continue;
+        }
+        let wb = layout.weight[l as usize][i];
+        let mut keep = wb > 0.0;
+        if keep {
+            let mut delta = [0.0f64; 3];
+            let (x0, y0) = (bx << l, by << l);
+            let (x1, y1) = ((x0 + (1 << l)).min(w0), (y0 + (1 << l)).min(h0));
+            'scan: for y in y0..y1 {
+                for x in x0..x1 {
+                    let j = (y * w0 + x) as usize;
+                    let f = layout.area[j] / wb;
+                    for c in 0..3 {
+                        delta[c] += (row[j][c] - s[c] * f).abs();
+                    }
+                    if delta.iter().any(|&d| d > eps) {
+                        keep = false;
+                        break 'scan;
+                    }
+                }
+            }
+        }
+        if keep {
+            emit(&mut out);
+        } else {
+            for (cx, cy) in [(1, 1), (0, 1), (1, 0), (0, 0)] {
+                let (nx, ny) = (2 * bx + cx, 2 * by + cy);
+                let (nw, nh) = layout.dims[l as usize - 1];
+                if nx < nw && ny < nh {
+                    stack.push((l - 1, nx, ny));
+                }
+            }
+        }
+    }
+    out
+}
+
+/// Every covered receiver's kept blocks for each of `settings`: `[setting][receiver]`, receivers
+/// in the grid's texel order. `row(i, out)` fills `out` (one value per covered texel, grid order)
+/// with `R(i, ·)`; each row is computed once for all settings.
+pub fn partition_rows(
+    grid: &TexelGrid,
+    row: impl Fn(u32, &mut [[f32; 3]]) + Sync,
+    settings: &[MultiresSettings],
+) -> Vec<Vec<Vec<Entry>>> {
+    let layout = Layout::new(grid, level_count(grid.width, grid.height));
+    let n = grid.texels.len();
+    let w = grid.width;
+    let per_receiver: Vec<Vec<Vec<Entry>>> = (0..n as u32)
+        .into_par_iter()
+        .map_init(
+            || (vec![[0.0f32; 3]; n], vec![[0.0f64; 3]; layout.area.len()]),
+            |(r, full), i| {
+                row(i, r);
+                for (t, v) in grid.texels.iter().zip(r.iter()) {
+                    full[(t.y * w + t.x) as usize] = v.map(|c| c as f64);
+                }
+                let t = &grid.texels[i as usize];
+                let sums = layout.sums(full);
+                settings
+                    .iter()
+                    .map(|s| partition(&layout, &sums, full, (t.x, t.y), s))
+                    .collect()
+            },
+        )
+        .collect();
+    let mut out: Vec<Vec<Vec<Entry>>> = settings.iter().map(|_| Vec::with_capacity(n)).collect();
+    for per_setting in per_receiver {
+        for (o, e) in out.iter_mut().zip(per_setting) {
+            o.push(e);
+        }
+    }
+    out
+}
+
+/// Rows of the pair evaluator: `R(i, j)` = [`Transport::r`].
+pub fn transport_row(tr: &Transport) -> impl Fn(u32, &mut [[f32; 3]]) + Sync + '_ {
+    move |i, out| {
+        for (j, o) in out.iter_mut().enumerate() {
+            *o = tr.r(i, j as u32);
+        }
+    }
+}
+
+/// Groups the receivers' entries into maps, one per `(level, offset)`, ordered by level then
+/// offset (row-major).
+///
+/// # Errors
+/// [`MapsError`] from cropping (a non-finite value).
+pub fn to_maps(grid: &TexelGrid, entries: &[Vec<Entry>]) -> Result<Vec<LevelMap>, MapsError> {
+    // (level, dy, dx) → (receiver, value) pairs.
+    type Receivers = Vec<(u32, [f32; 3])>;
+    let mut keyed: BTreeMap<(u8, i32, i32), Receivers> = BTreeMap::new();
+    for (i, es) in entries.iter().enumerate() {
+        for e in es {
+            keyed
+                .entry((e.level, e.offset.y, e.offset.x))
+                .or_default()
+                .push((i as u32, e.value));
+        }
+    }
+    keyed
+        .into_par_iter()
+        .map(|((level, dy, dx), list)| {
+            let mut full = Lightmap::new(grid.width, grid.height);
+            for (i, v) in list {
+                let t = &grid.texels[i as usize];
+                full.set(t.x, t.y, v);
+            }
+            Ok(LevelMap {
+                level: level as u32,
+                map: TransferMap::from_full(IVec2::new(dx, dy), 0.0, 0.0, &full)?,
+            })
+        })
+        .collect()
+}
+
+/// Entries per level (for reports).
+pub fn entries_per_level(entries: &[Vec<Entry>]) -> Vec<u64> {
+    let mut out = Vec::new();
+    for e in entries.iter().flatten() {
+        if out.len() <= e.level as usize {
+            out.resize(e.level as usize + 1, 0);
+        }
+        out[e.level as usize] += 1;
+    }
+    out
+}

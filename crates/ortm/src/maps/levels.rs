@@ -1,0 +1,284 @@
+//! Multi-resolution offset maps: Eq. 9 with senders read from a pyramid of the first-order
+//! lightmap.
+//!
+//! # The form
+//! Level `ℓ` of the [`Pyramid`] holds the first-order radiosity averaged over `2^ℓ × 2^ℓ`
+//! blocks of texels, weighted by each texel's area (uncovered texels weigh 0, so gutters never
+//! darken a block): `P_ℓ(b) = Σ_{j ∈ b} A_j B_o(j) / Σ_{j ∈ b} A_j`. A [`LevelMap`] of level
+//! `ℓ` and offset `Δ` (in level-`ℓ` blocks) holds full-resolution receiver values: its value at
+//! texel `t` multiplies `P_ℓ(⌊t / 2^ℓ⌋ + Δ)`,
+//!
+//! ```text
+//! B(t) = B_o(t) + Σ_maps map(t) · P_ℓ(⌊t / 2^ℓ⌋ + Δ) .
+//! ```
+//!
+//! Level 0 is today's form (`P_0 = B_o`). On the GPU a level-`ℓ` map is one more shifted read:
+//! the pyramid level sampled with nearest filtering at the receiver's texel shifted by
+//! `Δ·2^ℓ` texels. Where a map's block lies outside level `ℓ` (or holds no covered texel) it
+//! reads 0.
+//!
+//! The bake ([`crate::bake::multires`]) chooses for every receiver a partition of its senders
+//! into pyramid blocks, coarse where the transfer varies little across a block and down to
+//! single texels near the receiver; the map value is the transfer summed over the block, so the
+//! only approximation is the first-order light taken as its block mean.
+//!
+//! # Determinism
+//! Each texel is accumulated by one thread in map order, in f64, rounded once (as [`super::apply`]).
+
+use rayon::prelude::*;
+
+use super::MapsError;
+use super::transfer_map::{TransferMap, check_lightmap};
+use crate::Lightmap;
+
+/// The area-weighted pyramid of a first-order lightmap (module docs).
+#[derive(Clone, Debug)]
+pub struct Pyramid {
+    /// Per level (0 = the lightmap itself): width, height, mean radiosity (W/m²) per block and
+    /// the block's summed weight (m²).
+    pub levels: Vec<PyramidLevel>,
+}
+
+/// One level of a [`Pyramid`].
+#[derive(Clone, Debug)]
+pub struct PyramidLevel {
+    /// Width in blocks: `⌈W / 2^ℓ⌉`.
+    pub width: u32,
+    /// Height in blocks: `⌈H / 2^ℓ⌉`.
+    pub height: u32,
+    /// Area-weighted mean radiosity of each block (0 where the block's weight is 0), row-major.
+    pub mean: Vec<[f32; 3]>,
+    /// Summed weight (texel areas, m²) of each block, row-major.
+    pub weight: Vec<f64>,
+}
+
+impl PyramidLevel {
+    /// The block value at `(x, y)`, 0 outside the level.
+    #[inline]
+    pub fn get(&self, x: i64, y: i64) -> [f32; 3] {
+        if x < 0 || y < 0 || x >= self.width as i64 || y >= self.height as i64 {
+            return [0.0; 3];
+        }
+        self.mean[(y * self.width as i64 + x) as usize]
+    }
+}
+
+/// One level's block sums: width, height, `Σ value · weight` and `Σ weight` per block.
+type Sums = (u32, u32, Vec<[f64; 3]>, Vec<f64>);
+
+/// Block sums of `value · weight` and `weight` at every level up to `levels − 1`, by successive
+/// 2×2 reductions (exactly the sums over each block's texels).
+fn reduce(first: Sums, levels: u32) -> Vec<Sums> {
+    let mut out = vec![first];
+    for _ in 1..levels {
+        let (w, h, s, a) = out.last().unwrap();
+        let (nw, nh) = (w.div_ceil(2), h.div_ceil(2));
+        let mut ns = vec![[0.0f64; 3]; (nw * nh) as usize];
+        let mut na = vec![0.0f64; (nw * nh) as usize];
+        for y in 0..*h {
+            for x in 0..*w {
+                let (i, o) = ((y * w + x) as usize, ((y / 2) * nw + x / 2) as usize);
+                for c in 0..3 {
+                    ns[o][c] += s[i][c];
+                }
+                na[o] += a[i];
+            }
+        }
+        out.push((nw, nh, ns, na));
+    }
+    out
+}
+
+/// Number of levels needed for a `width × height` lightmap to reach one block.
+pub fn level_count(width: u32, height: u32) -> u32 {
+    32 - (width.max(height).max(1) - 1).leading_zeros() + 1
+}
+
+impl Pyramid {
+    /// The pyramid of `first_order` with per-texel weights `weight` (texel area in m², 0 where
+    /// uncovered; row-major `W × H`), `levels` levels (at least 1).
+    ///
+    /// # Errors
+    /// [`MapsError::LightmapSize`] / [`MapsError::LightmapDataLength`] for a malformed
+    /// lightmap, [`MapsError::SizeMismatch`] when `weight` is not `W × H`.
+    pub fn new(first_order: &Lightmap, weight: &[f32], levels: u32) -> Result<Self, MapsError> {
+        check_lightmap("first-order lightmap", first_order)?;
+        if weight.len() != first_order.data.len() {
+            return Err(MapsError::SizeMismatch {
+                what: "pyramid weights vs. first-order lightmap".to_owned(),
+                expected: (first_order.width, first_order.height),
+                found: (weight.len() as u32, 1),
+            });
+        }
+        let weighted = first_order
+            .data
+            .iter()
+            .zip(weight)
+            .map(|(v, &a)| v.map(|c| c as f64 * a as f64))
+            .collect();
+        let weight = weight.iter().map(|&a| a as f64).collect();
+        let levels = reduce(
+            (first_order.width, first_order.height, weighted, weight),
+            levels.max(1),
+        )
+        .into_iter()
+        .map(|(w, h, s, a)| PyramidLevel {
+            width: w,
+            height: h,
+            mean: s
+                .iter()
+                .zip(&a)
+                .map(|(s, &a)| {
+                    if a > 0.0 {
+                        s.map(|c| (c / a) as f32)
+                    } else {
+                        [0.0; 3]
+                    }
+                })
+                .collect(),
+            weight: a,
+        })
+        .collect();
+        Ok(Self { levels })
+    }
+}
+
+/// One multi-resolution map: a [`TransferMap`] whose offset is in blocks of `level`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LevelMap {
+    /// Pyramid level of the senders (0: texels).
+    pub level: u32,
+    /// The map: full-resolution receiver values, offset `Δ` in level-`level` blocks.
+    pub map: TransferMap,
+}
+
+/// The indirect light `Σ_maps map(t) · P_ℓ(⌊t/2^ℓ⌋ + Δ)` (module docs).
+///
+/// # Errors
+/// [`MapsError::SizeMismatch`] when a map's size differs from the pyramid's level 0 or its
+/// level is beyond the pyramid.
+pub fn apply_levels_indirect(maps: &[LevelMap], pyramid: &Pyramid) -> Result<Lightmap, MapsError> {
+    let base = &pyramid.levels[0];
+    let (w, h) = (base.width, base.height);
+    for (i, m) in maps.iter().enumerate() {
+        if (m.map.width(), m.map.height()) != (w, h) || m.level as usize >= pyramid.levels.len() {
+            return Err(MapsError::SizeMismatch {
+                what: format!(
+                    "level-{} map {i} (offset {:?}) vs. the {}-level pyramid",
+                    m.level,
+                    m.map.offset.to_array(),
+                    pyramid.levels.len()
+                ),
+                expected: (w, h),
+                found: (m.map.width(), m.map.height()),
+            });
+        }
+    }
+    let rows: Vec<Vec<[f32; 3]>> = (0..h)
+        .into_par_iter()
+        .map(|y| {
+            let mut acc = vec![[0.0f64; 3]; w as usize];
+            for m in maps {
+                let lv = &pyramid.levels[m.level as usize];
+                let (dx, dy) = (m.map.offset.x as i64, m.map.offset.y as i64);
+                for crop in m.map.crops() {
+                    let r = crop.rect;
+                    if y < r.y || y >= r.y + r.h {
+                        continue;
+                    }
+                    let row =
+                        &crop.data[((y - r.y) * r.w) as usize..((y - r.y + 1) * r.w) as usize];
+                    let by = (y as i64 >> m.level) + dy;
+                    for (k, v) in row.iter().enumerate() {
+                        let x = r.x + k as u32;
+                        let s = lv.get((x as i64 >> m.level) + dx, by);
+                        for c in 0..3 {
+                            acc[x as usize][c] += v[c] as f64 * s[c] as f64;
+                        }
+                    }
+                }
+            }
+            acc.into_iter().map(|a| a.map(|c| c as f32)).collect()
+        })
+        .collect();
+    Ok(Lightmap {
+        width: w,
+        height: h,
+        data: rows.into_iter().flatten().collect(),
+    })
+}
+
+/// Final radiosity `B_o + Σ_maps map(t) · P_ℓ(⌊t/2^ℓ⌋ + Δ)`, the pyramid built from `first_order`
+/// with texel weights `weight` (texel areas, 0 where uncovered).
+///
+/// # Errors
+/// As [`Pyramid::new`] and [`apply_levels_indirect`].
+pub fn apply_levels(
+    maps: &[LevelMap],
+    first_order: &Lightmap,
+    weight: &[f32],
+) -> Result<Lightmap, MapsError> {
+    let levels = level_count(first_order.width, first_order.height);
+    let pyramid = Pyramid::new(first_order, weight, levels)?;
+    let mut out = apply_levels_indirect(maps, &pyramid)?;
+    for (o, b) in out.data.iter_mut().zip(&first_order.data) {
+        for c in 0..3 {
+            o[c] += b[c];
+        }
+    }
+    Ok(out)
+}
+
+/// Map-texel contributions per frame: the stored texels of every map (the GPU's work).
+pub fn stored_texels(maps: &[LevelMap]) -> u64 {
+    maps.iter().map(|m| m.map.stored_texels()).sum()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn level_counts() {
+        assert_eq!(level_count(1, 1), 1);
+        assert_eq!(level_count(2, 2), 2);
+        assert_eq!(level_count(3, 2), 3);
+        assert_eq!(level_count(64, 64), 7);
+        assert_eq!(level_count(65, 8), 8);
+    }
+
+    /// Block means weigh texels by area and ignore uncovered ones; the top level is the
+    /// area-weighted mean of the whole map.
+    #[test]
+    fn pyramid_means_are_area_weighted() {
+        let mut lm = Lightmap::new(3, 2);
+        let mut wt = vec![0.0f32; 6];
+        for (i, (v, a)) in [
+            (1.0, 1.0),
+            (3.0, 3.0),
+            (5.0, 0.0),
+            (7.0, 2.0),
+            (0.0, 0.0),
+            (2.0, 1.0),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            lm.data[i] = [v; 3];
+            wt[i] = a;
+        }
+        let p = Pyramid::new(&lm, &wt, level_count(3, 2)).unwrap();
+        assert_eq!(p.levels.len(), 3);
+        // Level 1: blocks {0,1,3,4} and {2,5}.
+        let l1 = &p.levels[1];
+        assert_eq!((l1.width, l1.height), (2, 1));
+        let m0 = (1.0 + 9.0 + 14.0) / 6.0;
+        assert!((l1.mean[0][0] as f64 - m0).abs() < 1e-6);
+        assert!(
+            (l1.mean[1][0] - 2.0).abs() < 1e-6,
+            "the uncovered 5.0 weighs nothing"
+        );
+        let top = (1.0 + 9.0 + 14.0 + 2.0) / 7.0;
+        assert!((p.levels[2].mean[0][0] as f64 - top).abs() < 1e-6);
+    }
+}
