@@ -144,7 +144,7 @@ fn apply_atlas_pieces_of_a_map_subset_equals_maps_apply_of_that_subset() {
         vec![0, 5, 11],
         (0..12).collect::<Vec<u32>>(),
     ] {
-        let got = apply_atlas_pieces(&set, |p| keep.contains(&p.map_index), &bo).unwrap();
+        let got = apply_atlas_pieces(&set, |p| keep.contains(&p.map_index), &bo, None).unwrap();
         let subset: Vec<TransferMap> = keep.iter().map(|&m| maps[m as usize].clone()).collect();
         let want = maps::apply(&subset, &bo).unwrap();
         for (a, b) in got.data.iter().zip(&want.data) {

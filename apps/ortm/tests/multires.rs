@@ -13,8 +13,9 @@ use ortm::bake::multires::{self, MultiresSettings};
 use ortm::bake::raycast::Visibility;
 use ortm::bake::texels::TexelGrid;
 use ortm::bake::transport::dense::DenseTransport;
-use ortm::bake::transport::{Effects, Kernels, texel_patches};
-use ortm::maps::levels::{self, LevelMap, Pyramid};
+use ortm::bake::transport::{Effects, Kernels, SetupProgress, texel_patches};
+use ortm::maps::TransferMap;
+use ortm::maps::levels::{self, Pyramid};
 use ortm::scene::{Light, Scene};
 
 fn head(size: u32) -> Scene {
@@ -75,17 +76,18 @@ fn case(scene: &Scene, setups_n: usize) -> Case {
     }
 }
 
-fn maps_at(c: &Case, settings: &MultiresSettings) -> Vec<LevelMap> {
+fn maps_at(c: &Case, settings: &MultiresSettings) -> Vec<TransferMap> {
     let row = |i: u32, out: &mut [[f32; 3]]| {
         let n = out.len();
         out.copy_from_slice(&c.rows[i as usize * n..(i as usize + 1) * n]);
     };
-    let entries = multires::partition_rows(&c.grid, row, &[*settings]);
+    let entries =
+        multires::partition_rows(&c.grid, row, &[*settings], &SetupProgress::none()).unwrap();
     multires::to_maps(&c.grid, &entries[0]).unwrap()
 }
 
 /// Mean relative RMSE of the indirect term over the reference's set-ups.
-fn indirect_error(c: &Case, maps: &[LevelMap]) -> f64 {
+fn indirect_error(c: &Case, maps: &[TransferMap]) -> f64 {
     let area = c.grid.area_map();
     let levels = levels::level_count(c.grid.width, c.grid.height);
     let mut total = 0.0;
@@ -123,15 +125,21 @@ fn error_and_cost_by_tolerance() {
                 ..Default::default()
             };
             let maps = maps_at(&c, &settings);
+            let entries: u64 = maps
+                .iter()
+                .flat_map(|m| m.crops())
+                .flat_map(|cr| cr.data.iter())
+                .filter(|v| **v != [0.0; 3])
+                .count() as u64;
             let err = indirect_error(&c, &maps);
             let mut per_level = vec![(0usize, 0u64); 12];
             for m in &maps {
-                per_level[m.level as usize].0 += 1;
-                per_level[m.level as usize].1 += m.map.stored_texels();
+                per_level[m.level() as usize].0 += 1;
+                per_level[m.level() as usize].1 += m.stored_texels();
             }
             per_level.retain(|p| p.0 > 0);
             eprintln!(
-                "  ε {eps:>7.0e}: indirect {:6.3} %, {} maps, {} map texels ({:?}) [{:.1?}]",
+                "  ε {eps:>7.0e}: indirect {:6.3} %, {} maps, {entries} entries, {} map texels ({:?}) [{:.1?}]",
                 100.0 * err,
                 maps.len(),
                 levels::stored_texels(&maps),
@@ -158,7 +166,7 @@ fn every_offset(c: &Case, b_o: &[Vec3]) -> Vec<[f64; 3]> {
         .collect()
 }
 
-fn indirect_of(c: &Case, maps: &[LevelMap], b_o: &[Vec3]) -> Vec<Vec3> {
+fn indirect_of(c: &Case, maps: &[TransferMap], b_o: &[Vec3]) -> Vec<Vec3> {
     let levels = levels::level_count(c.grid.width, c.grid.height);
     let pyr = Pyramid::new(
         &lighting::to_lightmap(&c.grid, b_o),
@@ -236,7 +244,10 @@ fn error_is_bounded_and_falls_with_the_tolerance() {
                 let n = out.len();
                 out.copy_from_slice(&c.rows[i as usize * n..(i as usize + 1) * n]);
             };
-            let entries = multires::partition_rows(&c.grid, row, &[settings]).remove(0);
+            let entries =
+                multires::partition_rows(&c.grid, row, &[settings], &SetupProgress::none())
+                    .unwrap()
+                    .remove(0);
             let maps = multires::to_maps(&c.grid, &entries).unwrap();
             let want = every_offset(&c, &noise);
             let got = indirect_of(&c, &maps, &noise);
@@ -259,5 +270,88 @@ fn error_is_bounded_and_falls_with_the_tolerance() {
             errors.push(err);
         }
         assert!(errors.windows(2).all(|w| w[1] < w[0]), "{name}: {errors:?}");
+    }
+}
+
+/// `ortm bake --levels`: the bake writes the maps of the partition (level and offset in the
+/// index and the version-2 files), they read back equal, `maps::apply` refuses them (it has no
+/// pyramid), and the atlas set packed from them gives the same final lightmap on the CPU as the
+/// maps themselves (to 1e-6 relative: only the order of the f64 sums differs).
+#[test]
+fn level_bake_round_trips_through_files_and_atlases() {
+    use std::sync::atomic::AtomicBool;
+    let scene = ortm::scene::cornell::cornell_box(32);
+    let dir = tempfile::tempdir().unwrap();
+    let settings = ortm::bake::BakeSettings {
+        size: (32, 32),
+        coarse_block: 1,
+        levels: Some(3e-3),
+        ..Default::default()
+    };
+    let summary = ortm::bake::bake(
+        &scene,
+        &settings,
+        dir.path(),
+        &|_| {},
+        &AtomicBool::new(false),
+    )
+    .unwrap();
+    let index = ortm::bake_dir::BakeIndex::read(dir.path()).unwrap();
+    let loaded = index.load_maps(dir.path()).unwrap();
+    assert_eq!(loaded.len(), summary.maps);
+    assert!(loaded.iter().any(|m| m.level() > 0), "coarse levels in use");
+    assert!(
+        index
+            .maps
+            .iter()
+            .zip(&loaded)
+            .all(|(e, m)| e.level == m.level()),
+        "the index records each map's level"
+    );
+    // The same maps as the partition in memory (the bake's rows are the exact transfer here).
+    let c = case(&scene, 1);
+    let want = maps_at(
+        &c,
+        &MultiresSettings {
+            tolerance: 3e-3,
+            ..Default::default()
+        },
+    );
+    assert_eq!(want.len(), loaded.len());
+    for (a, b) in want.iter().zip(&loaded) {
+        assert_eq!(
+            (a.level(), a.offset, a.rects()),
+            (b.level(), b.offset, b.rects())
+        );
+        for (ca, cb) in a.crops().iter().zip(b.crops()) {
+            for (x, y) in ca.data.iter().zip(&cb.data) {
+                for ch in 0..3 {
+                    assert!((x[ch] - y[ch]).abs() <= 1e-5 * x[ch].abs().max(1e-6));
+                }
+            }
+        }
+    }
+    let first = lighting::to_lightmap(&c.grid, &c.reference.first_order[0]);
+    assert!(matches!(
+        ortm::maps::apply(&loaded, &first),
+        Err(ortm::maps::MapsError::NeedsPyramid { .. })
+    ));
+    let area = c.grid.area_map();
+    let from_maps = levels::apply_levels(&loaded, &first, &area).unwrap();
+    let set = ortm::atlas::build_atlas_set(&loaded, 256, 256).unwrap();
+    assert!(matches!(
+        ortm::atlas::apply_atlas_pieces(&set, |_| true, &first, None),
+        Err(ortm::atlas::AtlasError::NeedsWeights { .. })
+    ));
+    let from_atlas = ortm::atlas::apply_atlas_pieces(&set, |_| true, &first, Some(&area)).unwrap();
+    let peak = from_maps
+        .data
+        .iter()
+        .flatten()
+        .fold(0.0f32, |m, v| m.max(v.abs()));
+    for (a, b) in from_maps.data.iter().zip(&from_atlas.data) {
+        for ch in 0..3 {
+            assert!((a[ch] - b[ch]).abs() <= 1e-6 * peak, "{a:?} vs {b:?}");
+        }
     }
 }

@@ -65,6 +65,12 @@ pub struct Args {
         help = "Hierarchical first bounce: the light between surfaces from links refined to this tolerance (a form factor, e.g. 1e-3; smaller is more accurate and takes more memory and time) instead of from the coarse clusters; makes large lightmaps (1024² and up) bakeable"
     )]
     pub tolerance: Option<f32>,
+    /// Multi-resolution maps at this tolerance instead of importance-sampled offsets.
+    #[arg(
+        long,
+        help = "Multi-resolution maps instead of --offsets: each receiver's transfer split into blocks of a first-order pyramid, from single texels near it to coarse blocks far away, each block's error at most this tolerance × the brightest first order / 2 (e.g. 3e-3; 0 = every texel, exact). Costs n² transfer evaluations (n covered texels): lightmaps up to ~128²; --coarse-block 2 makes the higher bounces accurate"
+    )]
+    pub levels: Option<f64>,
 }
 
 /// Parses `--effects`.
@@ -110,6 +116,11 @@ pub fn settings(a: &Args, size: (u32, u32)) -> Result<BakeSettings> {
     {
         bail!("--tolerance {t}: give a positive number, e.g. 1e-3");
     }
+    if let Some(e) = a.levels
+        && !(e.is_finite() && e >= 0.0)
+    {
+        bail!("--levels {e}: give a tolerance ≥ 0, e.g. 3e-3");
+    }
     let coarse_block = a.coarse_block.unwrap_or(if a.tolerance.is_some() {
         0
     } else {
@@ -118,6 +129,7 @@ pub fn settings(a: &Args, size: (u32, u32)) -> Result<BakeSettings> {
     Ok(BakeSettings {
         size,
         tolerance: a.tolerance,
+        levels: a.levels,
         cell_rule,
         offsets: a.offsets,
         effects: parse_effects(&a.effects)?,
@@ -243,8 +255,13 @@ fn run_bake(a: Args) -> Result<()> {
         a.output.display()
     );
     println!(
-        "time: transport {:.2} s, offset selection {:.2} s, maps {:.2} s; stored {} texels ({:.1} per map)",
+        "time: transport {:.2} s, {} {:.2} s, maps {:.2} s; stored {} texels ({:.1} per map)",
         summary.seconds[0],
+        if s.levels.is_some() {
+            "multi-resolution rows"
+        } else {
+            "offset selection"
+        },
         summary.seconds[1],
         summary.seconds[2],
         summary.stored_texels,

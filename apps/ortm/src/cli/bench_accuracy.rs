@@ -219,7 +219,13 @@ fn level_rows(case: &Case, tr: &Transport, build_s: f64, a: &Args) -> Result<Vec
             ..MultiresSettings::default()
         })
         .collect();
-    let entries = multires::partition_rows(&case.grid, multires::transport_row(tr), &settings);
+    let entries = multires::partition_rows(
+        &case.grid,
+        multires::transport_row(tr),
+        &settings,
+        &ortm::bake::transport::SetupProgress::none(),
+    )
+    .expect("never cancelled");
     let shared_s = build_s + t.elapsed().as_secs_f64();
     let first = lighting::to_lightmap(&case.grid, &case.b_o);
     let area = case.grid.area_map();

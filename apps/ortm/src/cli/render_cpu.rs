@@ -47,7 +47,7 @@ pub fn lightmaps(
     let vis = Visibility::new(mesh);
     let values = ortm::bake::lighting::first_order(grid, lights, &vis);
     let first = ortm::bake::lighting::to_lightmap(grid, &values);
-    let fin = apply_atlas_pieces(set, |_| true, &first)?;
+    let fin = apply_atlas_pieces(set, |_| true, &first, Some(&grid.area_map()))?;
     let to_image = |map: &ortm::Lightmap| {
         let mut img = TexelImage::new(grid.width, grid.height);
         for t in &grid.texels {

@@ -137,7 +137,12 @@ pub fn map_contribution(
     map_index: u32,
     first_order: &Lightmap,
 ) -> Result<Lightmap, ortm::atlas::AtlasError> {
-    let with = apply_atlas_pieces(set, |p: &AtlasPiece| p.map_index == map_index, first_order)?;
+    let with = apply_atlas_pieces(
+        set,
+        |p: &AtlasPiece| p.map_index == map_index,
+        first_order,
+        None,
+    )?;
     Ok(difference(&with, first_order))
 }
 
@@ -174,7 +179,12 @@ pub fn cpu_mirror(
 ) -> Result<CpuMirror, ortm::atlas::AtlasError> {
     let values: Vec<Vec3> = ortm::bake::lighting::first_order(grid, lights, vis);
     let first_order = ortm::bake::lighting::to_lightmap(grid, &values);
-    let final_map = apply_atlas_pieces(set, |p| keep_map(p.map_index), &first_order)?;
+    let final_map = apply_atlas_pieces(
+        set,
+        |p| keep_map(p.map_index),
+        &first_order,
+        Some(&grid.area_map()),
+    )?;
     Ok(CpuMirror {
         first_order,
         final_map,

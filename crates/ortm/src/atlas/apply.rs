@@ -18,19 +18,23 @@ use crate::Lightmap;
 /// [`AtlasError::InvalidSet`] if the set is inconsistent, [`AtlasError::FirstOrderSize`] if
 /// `first_order` does not have the set's lightmap size.
 pub fn apply_atlas_set(set: &AtlasSet, first_order: &Lightmap) -> Result<Lightmap, AtlasError> {
-    apply_atlas_pieces(set, |_| true, first_order)
+    apply_atlas_pieces(set, |_| true, first_order, None)
 }
 
 /// [`apply_atlas_set`] with only the pieces for which `keep` is true (e.g. the maps of one
 /// offset, or the first K maps by importance, as `ortm view` shows them); same order and
-/// arithmetic.
+/// arithmetic. Pieces of multi-resolution maps (level > 0) read the first-order pyramid
+/// ([`crate::maps::levels::Pyramid`]) built with the texel weights `weights` (texel areas, 0
+/// where uncovered; `W × H`), which they then need.
 ///
 /// # Errors
-/// As [`apply_atlas_set`].
+/// As [`apply_atlas_set`]; [`AtlasError::NeedsWeights`] when a kept piece has level > 0 and
+/// `weights` is `None` or not `W × H`.
 pub fn apply_atlas_pieces(
     set: &AtlasSet,
     keep: impl Fn(&AtlasPiece) -> bool,
     first_order: &Lightmap,
+    weights: Option<&[f32]>,
 ) -> Result<Lightmap, AtlasError> {
     set.validate()?;
     let (w, h) = set.lightmap_size;
@@ -47,8 +51,42 @@ pub fn apply_atlas_pieces(
     let mut order: Vec<&AtlasPiece> = set.pieces.iter().filter(|p| keep(p)).collect();
     order.sort_by_key(|p| p.map_index); // stable: ties keep atlas order
     let aw = set.atlas_size.0 as usize;
+    let pyramid = match order.iter().map(|p| p.level).max() {
+        Some(top) if top > 0 => {
+            let weights = weights
+                .filter(|wt| wt.len() == w as usize * h as usize)
+                .ok_or(AtlasError::NeedsWeights { level: top })?;
+            let levels = (top + 1).max(crate::maps::levels::level_count(w, h));
+            Some(
+                crate::maps::levels::Pyramid::new(first_order, weights, levels).map_err(|e| {
+                    AtlasError::InvalidSet {
+                        reason: format!("first-order pyramid: {e}"),
+                    }
+                })?,
+            )
+        }
+        _ => None,
+    };
     for p in order {
         let atlas = &set.atlases[p.atlas as usize];
+        if p.level > 0 {
+            let lv = &pyramid.as_ref().expect("built for levels > 0").levels[p.level as usize];
+            let l = p.level;
+            for j in 0..p.h {
+                let y = p.dst_y + j;
+                let sy = i64::from(y >> l) + i64::from(p.offset[1]);
+                for i in 0..p.w {
+                    let x = p.dst_x + i;
+                    let s = lv.get(i64::from(x >> l) + i64::from(p.offset[0]), sy);
+                    let v = atlas[(p.src_y + j) as usize * aw + (p.src_x + i) as usize];
+                    let a = &mut acc[y as usize * w as usize + x as usize];
+                    for c in 0..3 {
+                        a[c] += f64::from(v[c]) * f64::from(s[c]);
+                    }
+                }
+            }
+            continue;
+        }
         for j in 0..p.h {
             let y = i64::from(p.dst_y + j);
             let sy = y + i64::from(p.offset[1]);

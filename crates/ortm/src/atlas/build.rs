@@ -186,6 +186,7 @@ fn pieces_of(
             dst_y: r.y + p.src_y,
             offset: m.offset.to_array(),
             map_index: map_index(mi)?,
+            level: m.level(),
         });
     }
     pieces.sort_by_key(|p| (p.atlas, p.src_y, p.src_x));

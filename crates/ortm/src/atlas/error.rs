@@ -10,6 +10,15 @@ use crate::io::FileError;
 /// Everything that can go wrong while building, writing, reading or applying atlases.
 #[derive(Debug, thiserror::Error)]
 pub enum AtlasError {
+    /// Multi-resolution pieces were applied without the texel weights of the pyramid.
+    #[error(
+        "the atlases hold multi-resolution maps (pyramid level up to {level}): applying them \
+         needs the lightmap's texel areas (open the bake with its scene)"
+    )]
+    NeedsWeights {
+        /// The highest level among the pieces.
+        level: u32,
+    },
     /// There are no maps to pack, so the lightmap size is unknown.
     #[error(
         "no transfer maps to pack: the bake index lists no maps; re-run the bake with at least \

@@ -361,28 +361,38 @@ fn check_bake(dir: &Path, atlas_index: &Path, index: &AtlasIndex) -> Result<(), 
         .get("maps")
         .and_then(|m| m.as_array())
         .ok_or_else(|| bad("field \"maps\" is missing or not an array".into()))?;
-    let offsets: Vec<Option<[i32; 2]>> = maps
+    let offsets: Vec<Option<([i32; 2], u32)>> = maps
         .iter()
         .map(|m| {
-            m.get("offset")
-                .and_then(|o| serde_json::from_value(o.clone()).ok())
+            let o = m
+                .get("offset")
+                .and_then(|o| serde_json::from_value(o.clone()).ok())?;
+            let level = match m.get("level") {
+                None => 0,
+                Some(l) => serde_json::from_value(l.clone()).ok()?,
+            };
+            Some((o, level))
         })
         .collect();
     for (i, p) in index.pieces.iter().enumerate() {
         match offsets.get(p.map_index as usize) {
-            Some(Some(o)) if *o == p.offset => {}
+            Some(Some(o)) if *o == (p.offset, p.level) => {}
             found => {
                 return Err(AtlasError::BadIndex {
                     path: atlas_index.to_owned(),
                     reason: format!(
-                        "piece {i} is map {} with offset {:?}, but the bake index {} has {}; the \
-                         atlases were packed from another bake: re-run `ortm bin`",
+                        "piece {i} is map {} with offset {:?} at level {}, but the bake index {} \
+                         has {}; the atlases were packed from another bake: re-run `ortm bin`",
                         p.map_index,
                         p.offset,
+                        p.level,
                         path.display(),
                         match found {
                             None => format!("{} maps", offsets.len()),
-                            Some(o) => format!("offset {o:?} for that map"),
+                            Some(o) => match o {
+                                Some((o, l)) => format!("offset {o:?} at level {l} for that map"),
+                                None => "no readable offset for that map".into(),
+                            },
                         }
                     ),
                 });

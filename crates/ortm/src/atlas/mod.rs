@@ -87,6 +87,14 @@ pub struct AtlasPiece {
     pub offset: [i32; 2],
     /// Index of the transfer map in the bake index.
     pub map_index: u32,
+    /// The map's pyramid level ([`crate::maps::levels`]): the piece multiplies
+    /// `P_ℓ(⌊t/2^ℓ⌋ + Δ)`, its offset in blocks of `2^ℓ` texels; absent (0) for the paper's maps.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub level: u32,
+}
+
+fn is_zero(v: &u32) -> bool {
+    *v == 0
 }
 
 /// A set of atlases in memory.

@@ -126,15 +126,24 @@ pub(super) fn check_geometry(
     pieces: &[AtlasPiece],
 ) -> Result<(), String> {
     check_sizes(atlas_size, lightmap_size)?;
-    let mut offsets: HashMap<u32, [i32; 2]> = HashMap::new();
+    let mut offsets: HashMap<u32, ([i32; 2], u32)> = HashMap::new();
     for (i, p) in pieces.iter().enumerate() {
         check_piece(i, pieces, atlas_size, lightmap_size, atlas_count)?;
-        if let Some(o) = offsets.insert(p.map_index, p.offset)
-            && o != p.offset
+        if p.level > crate::maps::MAX_MAP_LEVEL {
+            return Err(format!(
+                "piece {i} of map {} has pyramid level {} (at most {})",
+                p.map_index,
+                p.level,
+                crate::maps::MAX_MAP_LEVEL
+            ));
+        }
+        if let Some(o) = offsets.insert(p.map_index, (p.offset, p.level))
+            && o != (p.offset, p.level)
         {
             return Err(format!(
-                "piece {i} of map {} has offset {:?} but another piece of that map has {o:?}",
-                p.map_index, p.offset
+                "piece {i} of map {} has offset {:?} at level {} but another piece of that map \
+                 has {:?} at level {}",
+                p.map_index, p.offset, p.level, o.0, o.1
             ));
         }
     }
@@ -264,6 +273,7 @@ mod coverage_tests {
             dst_x: dst.0,
             dst_y: dst.1,
             offset: [0, 0],
+            level: 0,
             map_index: map,
         }
     }

@@ -28,8 +28,8 @@ use rayon::prelude::*;
 
 use crate::Lightmap;
 use crate::bake::texels::TexelGrid;
-use crate::bake::transport::Transport;
-use crate::maps::levels::{LevelMap, level_count};
+use crate::bake::transport::{Cancelled, SetupProgress, Transport};
+use crate::maps::levels::level_count;
 use crate::maps::{MapsError, TransferMap};
 
 /// How the receivers' rows are partitioned.
@@ -198,39 +198,49 @@ fn partition(
 /// Every covered receiver's kept blocks for each of `settings`: `[setting][receiver]`, receivers
 /// in the grid's texel order. `row(i, out)` fills `out` (one value per covered texel, grid order)
 /// with `R(i, ·)`; each row is computed once for all settings.
+///
+/// Reports the phase "multi-resolution rows" (one step per receiver) to `progress`.
+///
+/// # Errors
+/// [`Cancelled`] when `progress` is cancelled.
 pub fn partition_rows(
     grid: &TexelGrid,
     row: impl Fn(u32, &mut [[f32; 3]]) + Sync,
     settings: &[MultiresSettings],
-) -> Vec<Vec<Vec<Entry>>> {
+    progress: &SetupProgress,
+) -> Result<Vec<Vec<Vec<Entry>>>, Cancelled> {
     let layout = Layout::new(grid, level_count(grid.width, grid.height));
     let n = grid.texels.len();
     let w = grid.width;
+    progress.phase("multi-resolution rows", n as u64);
     let per_receiver: Vec<Vec<Vec<Entry>>> = (0..n as u32)
         .into_par_iter()
         .map_init(
             || (vec![[0.0f32; 3]; n], vec![[0.0f64; 3]; layout.area.len()]),
             |(r, full), i| {
+                progress.check()?;
                 row(i, r);
                 for (t, v) in grid.texels.iter().zip(r.iter()) {
                     full[(t.y * w + t.x) as usize] = v.map(|c| c as f64);
                 }
                 let t = &grid.texels[i as usize];
                 let sums = layout.sums(full);
-                settings
+                let out = settings
                     .iter()
                     .map(|s| partition(&layout, &sums, full, (t.x, t.y), s))
-                    .collect()
+                    .collect();
+                progress.advance(1);
+                Ok(out)
             },
         )
-        .collect();
+        .collect::<Result<_, Cancelled>>()?;
     let mut out: Vec<Vec<Vec<Entry>>> = settings.iter().map(|_| Vec::with_capacity(n)).collect();
     for per_setting in per_receiver {
         for (o, e) in out.iter_mut().zip(per_setting) {
             o.push(e);
         }
     }
-    out
+    Ok(out)
 }
 
 /// Rows of the pair evaluator: `R(i, j)` = [`Transport::r`].
@@ -247,7 +257,7 @@ pub fn transport_row(tr: &Transport) -> impl Fn(u32, &mut [[f32; 3]]) + Sync + '
 ///
 /// # Errors
 /// [`MapsError`] from cropping (a non-finite value).
-pub fn to_maps(grid: &TexelGrid, entries: &[Vec<Entry>]) -> Result<Vec<LevelMap>, MapsError> {
+pub fn to_maps(grid: &TexelGrid, entries: &[Vec<Entry>]) -> Result<Vec<TransferMap>, MapsError> {
     // (level, dy, dx) → (receiver, value) pairs.
     type Receivers = Vec<(u32, [f32; 3])>;
     let mut keyed: BTreeMap<(u8, i32, i32), Receivers> = BTreeMap::new();
@@ -267,10 +277,7 @@ pub fn to_maps(grid: &TexelGrid, entries: &[Vec<Entry>]) -> Result<Vec<LevelMap>
                 let t = &grid.texels[i as usize];
                 full.set(t.x, t.y, v);
             }
-            Ok(LevelMap {
-                level: level as u32,
-                map: TransferMap::from_full(IVec2::new(dx, dy), 0.0, 0.0, &full)?,
-            })
+            TransferMap::from_full(IVec2::new(dx, dy), 0.0, 0.0, &full)?.with_level(level as u32)
         })
         .collect()
 }

@@ -79,6 +79,12 @@ pub struct BakeSettings {
     /// How map values cover their Voronoi cells.
     #[serde(default)]
     pub cell_rule: CellRule,
+    /// Multi-resolution maps ([`crate::bake::multires`], [`crate::maps::levels`]) at this
+    /// tolerance `ε` instead of importance-sampled offsets: every receiver's transfer row is
+    /// partitioned into pyramid blocks with error at most `ε·B_max/2` each; `offsets`,
+    /// `selector`, `metric` and `cell_rule` are then unused. `None`: the paper's offsets.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub levels: Option<f64>,
     /// How the scene was named when baking (a built-in name or a scene-file path, as given), so
     /// that `ortm render DIR` can find it again; informational (the scene hash identifies it).
     pub scene: Option<String>,
@@ -100,6 +106,7 @@ impl Default for BakeSettings {
             tolerance: None,
             selection_receivers: 4096,
             cell_rule: CellRule::Integrated,
+            levels: None,
             scene: None,
         }
     }
@@ -625,6 +632,34 @@ pub fn bake(
     };
     let t_transport = t0.elapsed().as_secs_f64();
 
+    if let Some(tolerance) = settings.levels {
+        let written = write_level_maps(dir, &key, &transport, &grid, tolerance, events, cancel)?;
+        let t_rows = written.seconds;
+        let maps = written.entries.len();
+        let (reused, stored_texels) = (written.reused, written.stored_texels);
+        let index = BakeIndex::new(
+            LightmapSize {
+                width: w,
+                height: h,
+            },
+            hash,
+            settings_json,
+            written.entries,
+        );
+        index.write(dir)?;
+        return Ok(BakeSummary {
+            maps,
+            reused,
+            seconds: [
+                t_transport,
+                t_rows,
+                t0.elapsed().as_secs_f64() - t_transport - t_rows,
+            ],
+            texels: grid.texels.len(),
+            stored_texels,
+        });
+    }
+
     let (offset_list, points) =
         saved_or_new_selection(dir, &key, &transport, &grid, settings, events)?;
     let t_select = t0.elapsed().as_secs_f64() - t_transport;
@@ -778,6 +813,103 @@ fn write_maps(
         })
         .collect();
     gather_written(results, written.load(Ordering::Relaxed), total)
+}
+
+/// The multi-resolution maps at `tolerance` ([`crate::bake::multires`]): every receiver's row
+/// from the pair evaluator ([`Transport::r`], `n²` evaluations), partitioned, grouped into one
+/// map per level and offset, and written like [`write_maps`] (in parallel, each atomically;
+/// a finished map of the same bake key, index, offset, level and rectangles is kept: the rows
+/// are deterministic).
+fn write_level_maps(
+    dir: &Path,
+    key: &BakeKey,
+    transport: &Transport,
+    grid: &TexelGrid,
+    tolerance: f64,
+    events: &(dyn Fn(BakeEvent) + Sync),
+    cancel: &AtomicBool,
+) -> Result<LevelMapsWritten, BakeError> {
+    use crate::bake::multires::{self, MultiresSettings};
+    if !(tolerance.is_finite() && tolerance >= 0.0) {
+        return Err(BakeError::Settings(format!(
+            "--levels {tolerance}: give a tolerance ≥ 0, e.g. 3e-3"
+        )));
+    }
+    let t = std::time::Instant::now();
+    let progress = SetupProgress::new(events, cancel);
+    let settings = MultiresSettings {
+        tolerance,
+        ..MultiresSettings::default()
+    };
+    let entries = multires::partition_rows(
+        grid,
+        multires::transport_row(transport),
+        &[settings],
+        &progress,
+    )
+    .map_err(|_| BakeError::Interrupted { done: 0, total: 0 })?
+    .remove(0);
+    let maps = multires::to_maps(grid, &entries)?;
+    drop(entries);
+    if maps.len() > crate::io::limits::MAX_OFFSETS {
+        return Err(BakeError::Settings(format!(
+            "--levels {tolerance:e} makes {} maps, more than the {} a bake may hold \
+             (MAX_OFFSETS); give a larger tolerance",
+            maps.len(),
+            crate::io::limits::MAX_OFFSETS
+        )));
+    }
+    let seconds = t.elapsed().as_secs_f64();
+    let scan = bake_dir::scan_finished_maps(dir, key, grid.width, grid.height)?;
+    for p in &scan.stale_temp {
+        let _ = std::fs::remove_file(p);
+    }
+    let total = maps.len();
+    events(BakeEvent::Phase {
+        name: "writing transfer maps",
+        total: total as u64,
+    });
+    let written = std::sync::atomic::AtomicUsize::new(0);
+    let results: Vec<Result<(bake_dir::MapEntry, bool, u64), BakeError>> = maps
+        .par_iter()
+        .enumerate()
+        .map(|(k, map)| {
+            let stored = map.stored_texels();
+            if let Some(e) = scan.finished.get(&(k as u32))
+                && e.offset == map.offset.to_array()
+                && e.level == map.level()
+                && e.rects == map.rects()
+            {
+                events(BakeEvent::Advance(1));
+                return Ok((e.clone(), true, stored));
+            }
+            if cancel.load(Ordering::Relaxed) {
+                return Err(BakeError::Interrupted {
+                    done: written.load(Ordering::Relaxed),
+                    total,
+                });
+            }
+            let entry = bake_dir::write_map_file(dir, k as u32, map, key)?;
+            written.fetch_add(1, Ordering::Relaxed);
+            events(BakeEvent::Advance(1));
+            Ok((entry, false, stored))
+        })
+        .collect();
+    let w = gather_written(results, written.load(Ordering::Relaxed), total)?;
+    Ok(LevelMapsWritten {
+        entries: w.entries,
+        reused: w.reused,
+        stored_texels: w.stored_texels,
+        seconds,
+    })
+}
+
+/// What [`write_level_maps`] wrote, and the seconds its rows took.
+struct LevelMapsWritten {
+    entries: Vec<bake_dir::MapEntry>,
+    reused: usize,
+    stored_texels: u64,
+    seconds: f64,
 }
 
 /// Joins the per-map results of [`write_maps`] (in offset order). A failed map's error comes

@@ -17,6 +17,8 @@
 //!   ]
 //! }
 //! ```
+//! A multi-resolution map ([`crate::maps::levels`]) adds `"level": ℓ` (1–15; absent means 0)
+//! and its offset is in blocks of `2^ℓ` texels; its file has version 2 (older builds refuse it).
 //! Offsets are texels, `+y` down the image; rects are lightmap texels (row 0 = `v = 1`). File
 //! names are plain names inside the bake directory (no separators, no `..`, not absolute).
 //!
@@ -68,8 +70,11 @@ pub struct LightmapSize {
 pub struct MapEntry {
     /// Index of the map in the bake (unique; also in the file name and file header).
     pub index: u32,
-    /// Offset `[dx, dy]` in texels (+dy down the image).
+    /// Offset `[dx, dy]` in texels (+dy down the image), or in blocks of `2^level` texels.
     pub offset: [i32; 2],
+    /// Pyramid level of the senders ([`crate::maps::levels`]); absent (0) for the paper's maps.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub level: u32,
     /// Voronoi area of the offset (normalised units, informational).
     pub voronoi_area: f64,
     /// Importance of the offset (informational).
@@ -90,6 +95,7 @@ impl MapEntry {
         Self {
             index,
             offset: map.offset.to_array(),
+            level: map.level(),
             voronoi_area: map.voronoi_area,
             importance: map.importance,
             rects: map.rects(),
@@ -114,6 +120,10 @@ pub struct BakeIndex {
     pub settings: serde_json::Value,
     /// The maps, in index order.
     pub maps: Vec<MapEntry>,
+}
+
+fn is_zero(v: &u32) -> bool {
+    *v == 0
 }
 
 fn close(a: f64, b: f64) -> bool {
@@ -340,6 +350,13 @@ impl BakeIndex {
                 "file has offset {:?}, index says {:?}",
                 f.map.offset.to_array(),
                 m.offset
+            )));
+        }
+        if f.map.level() != m.level {
+            return Err(mismatch(format!(
+                "file has pyramid level {}, index says {}",
+                f.map.level(),
+                m.level
             )));
         }
         if f.map.rects() != m.rects {

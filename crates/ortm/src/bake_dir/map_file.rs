@@ -70,8 +70,11 @@ use crate::maps::{Crop, CropRect, MapsError, TransferMap};
 
 /// Value of the `ortmFormat` attribute.
 const FILE_FORMAT: &str = "ortm-transfer-map";
-/// Value of the `ortmVersion` attribute.
+/// Value of the `ortmVersion` attribute of a level-0 map (the paper's maps).
 const FILE_VERSION: i32 = 1;
+/// Value of the `ortmVersion` attribute of a multi-resolution map of level > 0 (it adds
+/// `ortmLevel`; older builds refuse it instead of applying it as a level-0 map).
+const FILE_VERSION_LEVELS: i32 = 2;
 /// Name of the placeholder part of an empty map.
 const EMPTY_PART: &str = "ortm-empty";
 
@@ -84,6 +87,7 @@ const A_IMPORTANCE: &str = "ortmImportance";
 const A_RECTS: &str = "ortmRectCount";
 const A_KEY: &str = "ortmBakeKey";
 const A_HASH: &str = "ortmContentSha256";
+const A_LEVEL: &str = "ortmLevel";
 
 /// A decoded transfer-map file.
 #[derive(Clone, Debug, PartialEq)]
@@ -99,7 +103,12 @@ pub struct MapFile {
 /// SHA-256 of the canonical content of map `index` (see the module doc).
 pub(crate) fn content_hash(index: u32, bake_key: &str, map: &TransferMap) -> String {
     let mut h = Sha256::new();
-    h.update(b"ortm-transfer-map-v1\0");
+    if map.level() == 0 {
+        h.update(b"ortm-transfer-map-v1\0");
+    } else {
+        h.update(b"ortm-transfer-map-v2\0");
+        h.update(map.level().to_le_bytes());
+    }
     h.update(index.to_le_bytes());
     h.update((bake_key.len() as u64).to_le_bytes());
     h.update(bake_key.as_bytes());
@@ -154,9 +163,17 @@ pub fn encode_map(index: u32, map: &TransferMap, key: &BakeKey) -> Result<Vec<u8
             })
             .collect()
     };
-    let meta = meta_attribute(&[
+    let mut fields = vec![
         (A_FORMAT, FILE_FORMAT.to_owned()),
-        (A_VERSION, FILE_VERSION.to_string()),
+        (
+            A_VERSION,
+            if map.level() == 0 {
+                FILE_VERSION
+            } else {
+                FILE_VERSION_LEVELS
+            }
+            .to_string(),
+        ),
         (A_INDEX, index.to_string()),
         (A_OFFSET, format!("{},{}", map.offset.x, map.offset.y)),
         (A_AREA, format!("0x{:016x}", map.voronoi_area.to_bits())),
@@ -164,7 +181,11 @@ pub fn encode_map(index: u32, map: &TransferMap, key: &BakeKey) -> Result<Vec<u8
         (A_RECTS, map.crops().len().to_string()),
         (A_KEY, key.as_str().to_owned()),
         (A_HASH, content_hash(index, key.as_str(), map)),
-    ]);
+    ];
+    if map.level() > 0 {
+        fields.push((A_LEVEL, map.level().to_string()));
+    }
+    let meta = meta_attribute(&fields);
     layers[0].attributes.other.insert(text(A_META), meta);
     encode_layers((map.width(), map.height()), layers).map_err(|source| {
         MapsError::from(FileError::Exr {
@@ -190,6 +211,7 @@ pub fn read_map_file(path: &Path, expected_size: Option<(u32, u32)>) -> Result<M
 /// The `ortmMeta` fields of a map file's first part, parsed.
 struct MapHeader {
     index: u32,
+    level: u32,
     offset: IVec2,
     area: f64,
     importance: f64,
@@ -241,6 +263,7 @@ pub fn decode_map(
         height,
         crops,
     )
+    .and_then(|m| m.with_level(header.level))
     .map_err(|e| bad(e.to_string()))?;
     let hash = content_hash(header.index, &header.bake_key, &map);
     if hash != header.stored_hash {
@@ -339,14 +362,28 @@ fn parse_map_header(attrs: &Meta) -> Result<MapHeader, String> {
         ));
     }
     let version = get_i32(attrs, A_VERSION)?;
-    if version != FILE_VERSION {
-        return Err(format!(
-            "file version {version} is not supported, this build reads version {FILE_VERSION}"
-        ));
-    }
+    let level = match version {
+        FILE_VERSION => 0,
+        FILE_VERSION_LEVELS => u32::try_from(get_i32(attrs, A_LEVEL)?)
+            .ok()
+            .filter(|l| (1..=crate::maps::MAX_MAP_LEVEL).contains(l))
+            .ok_or_else(|| {
+                format!(
+                    "{A_LEVEL} must be 1..={} in a version-{FILE_VERSION_LEVELS} map",
+                    crate::maps::MAX_MAP_LEVEL
+                )
+            })?,
+        _ => {
+            return Err(format!(
+                "file version {version} is not supported, this build reads versions \
+                 {FILE_VERSION} and {FILE_VERSION_LEVELS}; re-bake with this build"
+            ));
+        }
+    };
     Ok(MapHeader {
         index: u32::try_from(get_i32(attrs, A_INDEX)?)
             .map_err(|_| format!("{A_INDEX} is negative"))?,
+        level,
         offset: get_offset(attrs, A_OFFSET)?,
         area: get_f64(attrs, A_AREA)?,
         importance: get_f64(attrs, A_IMPORTANCE)?,

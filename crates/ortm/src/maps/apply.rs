@@ -49,6 +49,12 @@ fn apply_impl(
     check_lightmap("first-order lightmap", first_order)?;
     let (w, h) = (first_order.width, first_order.height);
     for (i, m) in maps.iter().enumerate() {
+        if m.level() > 0 {
+            return Err(MapsError::NeedsPyramid {
+                map: i,
+                level: m.level(),
+            });
+        }
         if (m.width(), m.height()) != (w, h) {
             return Err(MapsError::SizeMismatch {
                 what: format!(

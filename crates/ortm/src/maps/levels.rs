@@ -4,8 +4,8 @@
 //! # The form
 //! Level `ℓ` of the [`Pyramid`] holds the first-order radiosity averaged over `2^ℓ × 2^ℓ`
 //! blocks of texels, weighted by each texel's area (uncovered texels weigh 0, so gutters never
-//! darken a block): `P_ℓ(b) = Σ_{j ∈ b} A_j B_o(j) / Σ_{j ∈ b} A_j`. A [`LevelMap`] of level
-//! `ℓ` and offset `Δ` (in level-`ℓ` blocks) holds full-resolution receiver values: its value at
+//! darken a block): `P_ℓ(b) = Σ_{j ∈ b} A_j B_o(j) / Σ_{j ∈ b} A_j`. A [`TransferMap`] of level `ℓ`
+//! ([`TransferMap::level`]) and offset `Δ` (in level-`ℓ` blocks) holds full-resolution receiver values: its value at
 //! texel `t` multiplies `P_ℓ(⌊t / 2^ℓ⌋ + Δ)`,
 //!
 //! ```text
@@ -143,34 +143,28 @@ impl Pyramid {
     }
 }
 
-/// One multi-resolution map: a [`TransferMap`] whose offset is in blocks of `level`.
-#[derive(Clone, Debug, PartialEq)]
-pub struct LevelMap {
-    /// Pyramid level of the senders (0: texels).
-    pub level: u32,
-    /// The map: full-resolution receiver values, offset `Δ` in level-`level` blocks.
-    pub map: TransferMap,
-}
-
 /// The indirect light `Σ_maps map(t) · P_ℓ(⌊t/2^ℓ⌋ + Δ)` (module docs).
 ///
 /// # Errors
 /// [`MapsError::SizeMismatch`] when a map's size differs from the pyramid's level 0 or its
 /// level is beyond the pyramid.
-pub fn apply_levels_indirect(maps: &[LevelMap], pyramid: &Pyramid) -> Result<Lightmap, MapsError> {
+pub fn apply_levels_indirect(
+    maps: &[TransferMap],
+    pyramid: &Pyramid,
+) -> Result<Lightmap, MapsError> {
     let base = &pyramid.levels[0];
     let (w, h) = (base.width, base.height);
     for (i, m) in maps.iter().enumerate() {
-        if (m.map.width(), m.map.height()) != (w, h) || m.level as usize >= pyramid.levels.len() {
+        if (m.width(), m.height()) != (w, h) || m.level() as usize >= pyramid.levels.len() {
             return Err(MapsError::SizeMismatch {
                 what: format!(
                     "level-{} map {i} (offset {:?}) vs. the {}-level pyramid",
-                    m.level,
-                    m.map.offset.to_array(),
+                    m.level(),
+                    m.offset.to_array(),
                     pyramid.levels.len()
                 ),
                 expected: (w, h),
-                found: (m.map.width(), m.map.height()),
+                found: (m.width(), m.height()),
             });
         }
     }
@@ -179,19 +173,20 @@ pub fn apply_levels_indirect(maps: &[LevelMap], pyramid: &Pyramid) -> Result<Lig
         .map(|y| {
             let mut acc = vec![[0.0f64; 3]; w as usize];
             for m in maps {
-                let lv = &pyramid.levels[m.level as usize];
-                let (dx, dy) = (m.map.offset.x as i64, m.map.offset.y as i64);
-                for crop in m.map.crops() {
+                let l = m.level();
+                let lv = &pyramid.levels[l as usize];
+                let (dx, dy) = (m.offset.x as i64, m.offset.y as i64);
+                for crop in m.crops() {
                     let r = crop.rect;
                     if y < r.y || y >= r.y + r.h {
                         continue;
                     }
                     let row =
                         &crop.data[((y - r.y) * r.w) as usize..((y - r.y + 1) * r.w) as usize];
-                    let by = (y as i64 >> m.level) + dy;
+                    let by = (y as i64 >> l) + dy;
                     for (k, v) in row.iter().enumerate() {
                         let x = r.x + k as u32;
-                        let s = lv.get((x as i64 >> m.level) + dx, by);
+                        let s = lv.get((x as i64 >> l) + dx, by);
                         for c in 0..3 {
                             acc[x as usize][c] += v[c] as f64 * s[c] as f64;
                         }
@@ -214,7 +209,7 @@ pub fn apply_levels_indirect(maps: &[LevelMap], pyramid: &Pyramid) -> Result<Lig
 /// # Errors
 /// As [`Pyramid::new`] and [`apply_levels_indirect`].
 pub fn apply_levels(
-    maps: &[LevelMap],
+    maps: &[TransferMap],
     first_order: &Lightmap,
     weight: &[f32],
 ) -> Result<Lightmap, MapsError> {
@@ -230,8 +225,8 @@ pub fn apply_levels(
 }
 
 /// Map-texel contributions per frame: the stored texels of every map (the GPU's work).
-pub fn stored_texels(maps: &[LevelMap]) -> u64 {
-    maps.iter().map(|m| m.map.stored_texels()).sum()
+pub fn stored_texels(maps: &[TransferMap]) -> u64 {
+    maps.iter().map(|m| m.stored_texels()).sum()
 }
 
 #[cfg(test)]

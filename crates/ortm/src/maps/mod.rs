@@ -33,7 +33,7 @@ use std::path::PathBuf;
 
 pub use apply::{apply, apply_indirect};
 pub use crop::{CropOptions, CropRect, crop_rects};
-pub use transfer_map::{Crop, TransferMap};
+pub use transfer_map::{Crop, MAX_MAP_LEVEL, TransferMap};
 
 /// Largest lightmap (width × height, in texels) this module accepts: 2²⁸ texels, e.g. 16384²
 /// (the same value as [`crate::io::limits::MAX_TEXELS`], where every limit is listed).
@@ -42,6 +42,17 @@ pub const MAX_TEXELS: u64 = crate::io::limits::MAX_TEXELS;
 /// Everything that can go wrong while building, storing, loading or applying transfer maps.
 #[derive(Debug, thiserror::Error)]
 pub enum MapsError {
+    /// A multi-resolution map was applied without the first-order pyramid.
+    #[error(
+        "transfer map {map} reads pyramid level {level}: apply multi-resolution maps with \
+         maps::levels::apply_levels, which needs the texel areas"
+    )]
+    NeedsPyramid {
+        /// Index of the map in the list.
+        map: usize,
+        /// Its level.
+        level: u32,
+    },
     /// A lightmap's `data` does not hold `width * height` texels.
     #[error(
         "{what}: lightmap is {width}×{height} but holds {len} texels (expected {}); build it with \

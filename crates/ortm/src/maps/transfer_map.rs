@@ -41,7 +41,13 @@ pub struct TransferMap {
     width: u32,
     height: u32,
     crops: Vec<Crop>,
+    /// Pyramid level of the senders ([`crate::maps::levels`]): 0 for the paper's maps.
+    level: u32,
 }
+
+/// Largest pyramid level a map may have (blocks of `2^15` texels: beyond any lightmap side
+/// [`crate::io::limits::MAX_LIGHTMAP_SIDE`]).
+pub const MAX_MAP_LEVEL: u32 = 15;
 
 /// Checks a lightmap's size and data length; `what` names it in errors.
 pub(crate) fn check_lightmap(what: &str, map: &Lightmap) -> Result<(), MapsError> {
@@ -132,6 +138,7 @@ impl TransferMap {
             width: full.width,
             height: full.height,
             crops,
+            level: 0,
         })
     }
 
@@ -184,7 +191,31 @@ impl TransferMap {
             width,
             height,
             crops,
+            level: 0,
         })
+    }
+
+    /// The map with its senders read from pyramid level `level` ([`crate::maps::levels`]): its
+    /// offset is then in level-`level` blocks.
+    ///
+    /// # Errors
+    /// [`MapsError::InvalidValue`] when `level` exceeds [`MAX_MAP_LEVEL`].
+    pub fn with_level(mut self, level: u32) -> Result<Self, MapsError> {
+        if level > MAX_MAP_LEVEL {
+            return Err(MapsError::InvalidValue {
+                offset: (self.offset.x, self.offset.y),
+                what: format!("pyramid level {level} (at most {MAX_MAP_LEVEL})"),
+            });
+        }
+        self.level = level;
+        Ok(self)
+    }
+
+    /// Pyramid level of the senders: 0 for the paper's maps (the value at `t` multiplies
+    /// `B_o(t + Δt)`), `ℓ` for a multi-resolution map (it multiplies `P_ℓ(⌊t/2^ℓ⌋ + Δ)`,
+    /// [`crate::maps::levels`]).
+    pub fn level(&self) -> u32 {
+        self.level
     }
 
     /// Lightmap width in texels.
