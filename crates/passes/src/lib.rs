@@ -34,6 +34,7 @@ pub mod gpu;
 pub mod indirect;
 pub mod mesh;
 pub mod pairing;
+pub mod pyramid;
 pub mod schedule;
 pub mod timestamps;
 pub mod transfer;
@@ -44,4 +45,6 @@ pub mod util;
 pub use error::PassError;
 pub use frame::{FrameOptions, FrameParams, Renderer, RendererOptions};
 pub use gpu::Gpu;
-pub use types::{AlbedoMap, AtlasData, LightDesc, MeshData, TexelImage, TransferPiece};
+pub use types::{
+    AlbedoMap, AtlasData, LightDesc, MeshData, TexelImage, TexelWeights, TransferPiece,
+};
