@@ -372,7 +372,7 @@ mod tests {
                 if let Some(i) = inst {
                     assert_eq!(i.level, level);
                     assert_eq!(i.origin, level_origin(map, level));
-                    assert_eq!([i.src[0] - i.dst[0] + 4, i.src[1] - i.dst[1] + 6], [0, 0]);
+                    assert_eq!([i.dst[0] - i.src[0], i.dst[1] - i.src[1]], [4, 6]);
                 }
             }
         }

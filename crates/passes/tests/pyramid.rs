@@ -150,7 +150,15 @@ fn direct_final(c: &Case) -> TexelImage {
                 if bx < 0 || by < 0 || bx >= bw as i64 || by >= bh as i64 {
                     continue;
                 }
-                let v = pyr[l as usize].0[(by * bw as i64 + bx) as usize];
+                // P_0 is the first-order map itself (whatever the weights); P_ℓ≥1 the means.
+                let v = if l == 0 {
+                    c.first_order.get(bx as u32, by as u32)[..3]
+                        .iter()
+                        .map(|&v| v as f64)
+                        .collect::<Vec<_>>()
+                } else {
+                    pyr[l as usize].0[(by * bw as i64 + bx) as usize].to_vec()
+                };
                 for ch in 0..3 {
                     acc[ch] += a[ch] as f64 * v[ch];
                 }
