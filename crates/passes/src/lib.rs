@@ -1,11 +1,13 @@
-//! ortm's real-time wgpu passes: first-order lightmap, offset radiance transfer (paper
-//! Eq. 9, blend and compute paths), indirect light, gutter dilation and display.
+//! ortm's real-time wgpu passes: first-order lightmap, its area-weighted pyramid (for
+//! multi-resolution pieces), offset radiance transfer (paper Eq. 9, blend and compute paths),
+//! indirect light, gutter dilation and display.
 //!
 //! # Frame
 //! ```text
-//! lights ─▶ first_order ─▶ transfer (blend | compute) ─▶ [indirect] ─▶ dilate ─▶ display ─▶ RGBA8 image
-//!              ▲ mesh, albedo     ▲ atlases + pieces (from the binning stage)
+//! lights ─▶ first_order ─▶ [pyramid] ─▶ transfer (blend | compute) ─▶ [indirect] ─▶ dilate ─▶ display ─▶ RGBA8 image
+//!              ▲ mesh, albedo  ▲ texel weights  ▲ atlases + pieces (from the binning stage)
 //! ```
+//! The pyramid pass ([`pyramid`]) runs only for multi-resolution pieces (level > 0).
 //! Each pass is a struct built once with `new(&Gpu, &Options)`, given its per-scene data
 //! by `prepare`, and recorded per frame with `encode(&Gpu, encoder, &inputs) -> Output`.
 //! [`frame::Renderer`] owns one of each and is the one frame script:
