@@ -1,6 +1,7 @@
 //! Plain input and output types of the passes: meshes, albedo, lights, transfer atlases and
-//! pieces, and read-back texel images. No GPU objects here; the `ortm` CLI converts its own
-//! types into these (the `passes` crate does not depend on `ortm`).
+//! pieces, texel weights of the first-order pyramid, and read-back texel images. No GPU
+//! objects here; the `ortm` CLI converts its own types into these (the `passes` crate does
+//! not depend on `ortm`).
 //!
 //! # Conventions
 //! - Units: metres for positions, W/sr for point/spot intensities, W/m² for directional
@@ -9,7 +10,9 @@
 //! - Images are row-major, row 0 first; a `W×H` map's texel `(x, y)` has its centre at
 //!   `u = (x + 0.5)/W`, `v = 1 − (y + 0.5)/H`, so row 0 is `v = 1` (as in image files and in
 //!   wgpu framebuffers).
-//! - Offsets `Δt = (dx, dy)` are in texels, `+dy` goes *down* the image.
+//! - Offsets `Δt = (dx, dy)` are in texels (in level-`ℓ` blocks of `2^ℓ × 2^ℓ` texels for a
+//!   piece of pyramid level `ℓ`, [`TransferPiece::level`]), `+dy` goes *down* the image.
+//! - Texel weights ([`TexelWeights`]) are texel areas in m² (0 on uncovered texels).
 //! - A texel is *covered* when its centre lies inside a UV triangle of the mesh; passes store
 //!   coverage in alpha (1 covered, 0.5 filled by gutter dilation, 0 empty).
 
