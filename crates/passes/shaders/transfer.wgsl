@@ -1,23 +1,29 @@
-// Transfer pass, blend path (paper Eq. 9): final = first_order + Σ_pieces atlas · first_order(t + Δt).
+// Transfer pass, blend path (paper Eq. 9): final = first_order + Σ_pieces atlas · P_ℓ(⌊t/2^ℓ⌋ + Δ)
+// (P_0 = first_order, P_ℓ≥1 = the packed first-order pyramid, src/pyramid.rs).
 // Mirror: src/cpu/transfer.rs. Host side: src/transfer.rs.
 //
 // Bindings (bind-group order = @binding order; must match `TransferPass` layouts in transfer.rs):
-//   group 0: binding 0 = Params (uniform), binding 1 = first-order lightmap (RGBA32F)
+//   group 0: binding 0 = Params (uniform), binding 1 = first-order lightmap (RGBA32F),
+//            binding 2 = packed pyramid levels ≥ 1 (RGBA32F; a 1×1 dummy when no piece has level > 0)
 //   group 1: binding 0 = the atlas being drawn (RGBA32F)
-// The host prepends the declarations of `first_order` and `atlas` and their texel readers
-// `load_first_order(t)`, `load_atlas(t)` (`util::TexelReads::wgsl`: sampled or read-only
+// The host prepends the declarations of `first_order`, `pyramid` and `atlas` and their texel
+// readers `load_first_order(t)`, `load_pyramid(t)`, `load_atlas(t)` (`util::TexelReads::wgsl`: sampled or read-only
 // storage texture, chosen by `TransferOptions::texel_reads`).
 // Coordinates: texel (x, y), y down, row 0 = v = 1; framebuffer pixel (x, y) is lightmap texel (x, y).
 
 // Params (binding 0 of group 0), `texel_to_clip` and `quad_clip`: transfer_quad.wgsl, also
 // prepended by the host.
 
-// Per-instance attributes: must match `PieceInstance` in schedule.rs (32 bytes, locations 0–3).
+// Per-instance attributes: must match `PieceInstance` in schedule.rs (48 bytes, locations 0–5).
 struct PieceIn {
     @location(0) src: vec2<u32>,
     @location(1) dst: vec2<u32>,
     @location(2) size: vec2<u32>,
     @location(3) offset: vec2<i32>,
+    // x = pyramid level ℓ, y = padding.
+    @location(4) level: vec2<u32>,
+    // Origin of level ℓ in the packed pyramid.
+    @location(5) origin: vec2<u32>,
 }
 
 struct PieceOut {
@@ -25,6 +31,8 @@ struct PieceOut {
     // Atlas texel minus destination texel: atlas texel = lightmap texel + src_minus_dst.
     @location(0) @interpolate(flat) src_minus_dst: vec2<i32>,
     @location(1) @interpolate(flat) offset: vec2<i32>,
+    @location(2) @interpolate(flat) level: u32,
+    @location(3) @interpolate(flat) origin: vec2<i32>,
 }
 
 // One quad (two triangles, 6 vertices) per piece covering texels [dst, dst + size).
@@ -34,6 +42,8 @@ fn vs_piece(@builtin(vertex_index) vi: u32, piece: PieceIn) -> PieceOut {
     out.clip = quad_clip(vi, piece.dst, piece.size);
     out.src_minus_dst = vec2<i32>(piece.src) - vec2<i32>(piece.dst);
     out.offset = piece.offset;
+    out.level = piece.level.x;
+    out.origin = vec2<i32>(piece.origin);
     return out;
 }
 
@@ -42,8 +52,15 @@ fn vs_piece(@builtin(vertex_index) vi: u32, piece: PieceIn) -> PieceOut {
 fn fs_piece(in: PieceOut) -> @location(0) vec4<f32> {
     let t = vec2<i32>(floor(in.clip.xy));
     let a = load_atlas(t + in.src_minus_dst).rgb;
-    // Pieces are cropped so t + Δt lies in the map (schedule.rs): no bounds test here.
-    return vec4<f32>(a * load_first_order(t + in.offset).rgb, 0.0);
+    // Pieces are cropped so ⌊t/2^ℓ⌋ + Δ lies in level ℓ (schedule.rs): no bounds test here.
+    // Level 0 reads the first-order map exactly as before levels existed.
+    var f: vec3<f32>;
+    if (in.level == 0u) {
+        f = load_first_order(t + in.offset).rgb;
+    } else {
+        f = load_pyramid(in.origin + (t >> vec2<u32>(in.level)) + in.offset).rgb;
+    }
+    return vec4<f32>(a * f, 0.0);
 }
 
 // fs_copy (over `vs_fullscreen`, fullscreen.wgsl, prepended) copies the first-order map (RGB

@@ -3,12 +3,14 @@
 //
 // cs_init:    acc[t] = first_order[t]                         (one invocation per texel)
 // cs_gather:  per atlas, one workgroup per non-empty 8×8 tile: each invocation owns one texel,
-//             sums the tile's pieces containing it, adds to acc (no other workgroup writes it)
+//             sums the tile's pieces containing it, adds to acc (no other workgroup writes it);
+//             a piece of level ℓ reads P_ℓ(⌊t/2^ℓ⌋ + Δ) (level 0: the first-order map)
 // cs_resolve: final[t] = acc[t]
 //
 // Bindings (bind-group order = @binding order; must match `GatherPass` layouts in transfer_gather.rs):
 //   group 0: 0 = Params (uniform), 1 = first-order map (texture, textureLoad),
-//            2 = acc (storage, read_write, W·H vec4), 3 = final map (storage texture, write)
+//            2 = acc (storage, read_write, W·H vec4), 3 = final map (storage texture, write),
+//            4 = packed pyramid levels ≥ 1 (texture, textureLoad; 1×1 dummy when unused)
 //   group 1: 0 = atlas (texture), 1 = instances (storage, read), 2 = tiles (storage, read),
 //            3 = entries (storage, read)
 
@@ -21,12 +23,15 @@ struct Params {
     _pad: vec2<u32>,
 }
 
-// Must match `PieceInstance` in schedule.rs (32 bytes).
+// Must match `PieceInstance` in schedule.rs (48 bytes).
 struct PieceInstance {
     src: vec2<u32>,
     dst: vec2<u32>,
     size: vec2<u32>,
     offset: vec2<i32>,
+    level: u32,
+    _pad: u32,
+    origin: vec2<u32>,
 }
 
 // Must match `TileWork` in schedule.rs (16 bytes).
@@ -40,6 +45,7 @@ struct TileWork {
 @group(0) @binding(1) var first_order: texture_2d<f32>;
 @group(0) @binding(2) var<storage, read_write> acc: array<vec4<f32>>;
 @group(0) @binding(3) var final_map: texture_storage_2d<rgba32float, write>;
+@group(0) @binding(4) var pyramid: texture_2d<f32>;
 
 @group(1) @binding(0) var atlas: texture_2d<f32>;
 @group(1) @binding(1) var<storage, read> instances: array<PieceInstance>;
@@ -82,7 +88,13 @@ fn cs_gather(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_id
             continue;
         }
         let a = textureLoad(atlas, vec2<i32>(inst.src) + local, 0).rgb;
-        sum += a * first_order_at(vec2<i32>(t) + inst.offset);
+        if (inst.level == 0u) {
+            sum += a * first_order_at(vec2<i32>(t) + inst.offset);
+        } else {
+            // Cropped so the read lies in level ℓ (schedule.rs): no bounds test needed.
+            let p = vec2<i32>(inst.origin) + vec2<i32>(t >> vec2<u32>(inst.level)) + inst.offset;
+            sum += a * textureLoad(pyramid, p, 0).rgb;
+        }
     }
     let i = t.y * params.lightmap_size.x + t.x;
     acc[i] = acc[i] + vec4<f32>(sum, 0.0);

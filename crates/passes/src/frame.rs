@@ -11,9 +11,13 @@
 //! # Data flow
 //! ```text
 //! lights ─▶ FirstOrderPass ─first_order─▶ TransferPass ─final─▶ [IndirectPass: final − fo]
-//!                              │                         └─shown map─▶ DilatePass ─▶ DisplayPass ─▶ RGBA8
+//!                              │   │                      └─shown map─▶ DilatePass ─▶ DisplayPass ─▶ RGBA8
+//!                              │   └─▶ [PyramidPass] ─levels ≥ 1─▶ TransferPass
 //!                              └────────▶ DilatePass (left half in side-by-side) ───────┘
 //! ```
+//! The pyramid pass ([`crate::pyramid`]) runs only when some transfer piece has level > 0
+//! (multi-resolution maps); it needs the scene's texel weights
+//! ([`Renderer::prepare_with_weights`]) and is recorded with the transfer stage, before it.
 //! The transfer pass reads the *undilated* first-order map (first order is 0 outside
 //! coverage, as in the bake); only the display sees dilated maps. Every dilation uses one
 //! [`DilatePlan`], built at [`Renderer::prepare`] from the coverage the first-order pass
@@ -37,9 +41,12 @@ use crate::first_order::{FirstOrderInputs, FirstOrderOptions, FirstOrderPass, Fi
 use crate::gpu::Gpu;
 use crate::indirect::{IndirectInputs, IndirectPass, IndirectTargets};
 use crate::mesh::GpuMesh;
+use crate::pyramid::{PyramidInputs, PyramidPass, PyramidScene};
 use crate::timestamps::Timestamps;
 use crate::transfer::{TransferInputs, TransferOptions, TransferPass, TransferScene};
-use crate::types::{AlbedoMap, AtlasData, LightDesc, MeshData, TexelImage, TransferPiece};
+use crate::types::{
+    AlbedoMap, AtlasData, LightDesc, MeshData, TexelImage, TexelWeights, TransferPiece,
+};
 use crate::util;
 
 /// Options of every pass.
@@ -63,6 +70,7 @@ pub struct Renderer {
     dilate: DilatePass,
     display: DisplayPass,
     indirect: IndirectPass,
+    pyramid: PyramidPass,
 }
 
 /// Per-scene data of every pass.
@@ -76,6 +84,10 @@ pub struct RenderScene {
     pub first_order: FirstOrderScene,
     /// Transfer data (atlases, schedule).
     pub transfer: TransferScene,
+    /// The texel weights of the first-order pyramid (texel areas, m²), if given.
+    weights: Option<TexelWeights>,
+    /// The first-order pyramid, when some piece has level > 0.
+    pub pyramid: Option<PyramidScene>,
     /// The dilation plan, built from the first-order pass's coverage (shared by both maps;
     /// apply it with [`crate::cpu::dilate::dilate`] for a CPU reference).
     pub dilate_plan: DilatePlan,
@@ -247,6 +259,7 @@ impl Renderer {
                 options.first_order.max_shadow_layers,
             )?,
             indirect: IndirectPass::new(gpu)?,
+            pyramid: PyramidPass::new(gpu)?,
         })
     }
 
@@ -267,7 +280,8 @@ impl Renderer {
 
     /// Uploads the scene for every pass (the mesh once). The lightmap size is the albedo
     /// map's. Also renders one first-order map without lights and reads its coverage back,
-    /// for the dilation plan.
+    /// for the dilation plan. Pieces must all have level 0 (else
+    /// [`Renderer::prepare_with_weights`]).
     pub fn prepare(
         &self,
         gpu: &Gpu,
@@ -276,7 +290,31 @@ impl Renderer {
         atlases: &[AtlasData],
         pieces: &[TransferPiece],
     ) -> Result<RenderScene, PassError> {
+        self.prepare_with_weights(gpu, mesh, albedo, atlases, pieces, None)
+    }
+
+    /// [`Renderer::prepare`] with the texel weights of the first-order pyramid (texel areas
+    /// in m², 0 on uncovered texels; kept for [`Renderer::set_pieces`]). Required when some
+    /// piece has level > 0: then the scene holds a pyramid up to the highest level and every
+    /// frame's transfer stage builds it first.
+    ///
+    /// Errors: as `prepare`; [`PassError::InvalidInput`] when some piece has level > 0 and
+    /// `weights` is `None`, or the weights do not fit the lightmap.
+    pub fn prepare_with_weights(
+        &self,
+        gpu: &Gpu,
+        mesh: &MeshData,
+        albedo: &AlbedoMap,
+        atlases: &[AtlasData],
+        pieces: &[TransferPiece],
+        weights: Option<&TexelWeights>,
+    ) -> Result<RenderScene, PassError> {
         let size = [albedo.width, albedo.height];
+        if let Some(w) = weights {
+            w.validate(size)?;
+        }
+        let transfer = self.transfer.prepare(gpu, size, atlases, pieces)?;
+        let pyramid = self.pyramid_for(gpu, &transfer, weights)?;
         let mesh = GpuMesh::upload(gpu, mesh)?;
         let first_order = self.first_order.prepare_mesh(gpu, &mesh, albedo)?;
         let coverage = self.coverage(gpu, &first_order)?;
@@ -284,7 +322,9 @@ impl Renderer {
         let surface = crate::display::surface_map(gpu, albedo, None, &dilate_plan)?;
         Ok(RenderScene {
             lightmap_size: size,
-            transfer: self.transfer.prepare(gpu, size, atlases, pieces)?,
+            transfer,
+            weights: weights.cloned(),
+            pyramid,
             dilate_final: self.dilate.prepare(gpu, &dilate_plan)?,
             dilate_first_order: self.dilate.prepare(gpu, &dilate_plan)?,
             dilate_plan,
@@ -323,10 +363,35 @@ impl Renderer {
         atlases: &[AtlasData],
         pieces: &[TransferPiece],
     ) -> Result<(), PassError> {
-        scene.transfer = self
+        let transfer = self
             .transfer
             .prepare(gpu, scene.lightmap_size, atlases, pieces)?;
+        scene.pyramid = self.pyramid_for(gpu, &transfer, scene.weights.as_ref())?;
+        scene.transfer = transfer;
         Ok(())
+    }
+
+    /// The first-order pyramid the pieces of `transfer` need (`None` when all have level
+    /// 0): levels up to the highest piece level, from `weights`.
+    fn pyramid_for(
+        &self,
+        gpu: &Gpu,
+        transfer: &TransferScene,
+        weights: Option<&TexelWeights>,
+    ) -> Result<Option<PyramidScene>, PassError> {
+        let max_level = transfer.max_level();
+        if max_level == 0 {
+            return Ok(None);
+        }
+        let size = transfer.schedule.lightmap_size;
+        let weights = weights.ok_or_else(|| PassError::InvalidInput {
+            what: "texel weights".into(),
+            problem: format!(
+                "are missing but some transfer pieces read pyramid level {max_level}; give the \
+                 texel areas (Renderer::prepare_with_weights) or use level-0 pieces only"
+            ),
+        })?;
+        Ok(Some(self.pyramid.prepare(gpu, size, weights, max_level)?))
     }
 
     /// Sets the diffusion length of every lightmap texel (metres, row-major like the albedo;
@@ -392,11 +457,20 @@ impl Renderer {
         stamp(encoder, 1);
         let fo_view = util::view(scene.first_order.output());
         if stages.transfer {
+            // The pyramid of this frame's first order, when some piece reads a level > 0.
+            if let Some(pyramid) = &scene.pyramid {
+                let inputs = PyramidInputs {
+                    scene: pyramid,
+                    first_order: &fo_view,
+                };
+                self.pyramid.encode(gpu, encoder, &inputs);
+            }
             let inputs = TransferInputs {
                 scene: &scene.transfer,
                 first_order: &fo_view,
+                pyramid: scene.pyramid.as_ref(),
             };
-            self.transfer.encode(gpu, encoder, &inputs);
+            self.transfer.encode(gpu, encoder, &inputs)?;
         }
         stamp(encoder, 2);
         // Per-pixel direct light for the final and first-order views; the indirect view and

@@ -1,11 +1,13 @@
-//! ortm's real-time wgpu passes: first-order lightmap, offset radiance transfer (paper
-//! Eq. 9, blend and compute paths), indirect light, gutter dilation and display.
+//! ortm's real-time wgpu passes: first-order lightmap, its area-weighted pyramid (for
+//! multi-resolution pieces), offset radiance transfer (paper Eq. 9, blend and compute paths),
+//! indirect light, gutter dilation and display.
 //!
 //! # Frame
 //! ```text
-//! lights ─▶ first_order ─▶ transfer (blend | compute) ─▶ [indirect] ─▶ dilate ─▶ display ─▶ RGBA8 image
-//!              ▲ mesh, albedo     ▲ atlases + pieces (from the binning stage)
+//! lights ─▶ first_order ─▶ [pyramid] ─▶ transfer (blend | compute) ─▶ [indirect] ─▶ dilate ─▶ display ─▶ RGBA8 image
+//!              ▲ mesh, albedo  ▲ texel weights  ▲ atlases + pieces (from the binning stage)
 //! ```
+//! The pyramid pass ([`pyramid`]) runs only for multi-resolution pieces (level > 0).
 //! Each pass is a struct built once with `new(&Gpu, &Options)`, given its per-scene data
 //! by `prepare`, and recorded per frame with `encode(&Gpu, encoder, &inputs) -> Output`.
 //! [`frame::Renderer`] owns one of each and is the one frame script:
@@ -34,6 +36,7 @@ pub mod gpu;
 pub mod indirect;
 pub mod mesh;
 pub mod pairing;
+pub mod pyramid;
 pub mod schedule;
 pub mod timestamps;
 pub mod transfer;
@@ -44,4 +47,6 @@ pub mod util;
 pub use error::PassError;
 pub use frame::{FrameOptions, FrameParams, Renderer, RendererOptions};
 pub use gpu::Gpu;
-pub use types::{AlbedoMap, AtlasData, LightDesc, MeshData, TexelImage, TransferPiece};
+pub use types::{
+    AlbedoMap, AtlasData, LightDesc, MeshData, TexelImage, TexelWeights, TransferPiece,
+};

@@ -34,7 +34,9 @@
 //! A pair fragment costs more than a single-piece fragment (one more first-order fetch and the
 //! unpacking), about [`PAIR_FRAGMENT_COST`] of one. Two instances are paired when
 //! `area_A + area_B − PAIR_FRAGMENT_COST·area(bbox) > 0`, greedily by that saving (ties by
-//! index, deterministic). Pieces with a non-finite value stay unpaired (binary16 cannot carry
+//! index, deterministic). Only pieces of the same pyramid level are paired (a pair instance
+//! carries one level and its origin; each piece's read `⌊t/2^ℓ⌋ + Δ` is clamped into that
+//! level in the bounding box). Pieces with a non-finite value stay unpaired (binary16 cannot carry
 //! them with a per-piece scale). The search is over all instance pairs (`O(n²)`; n ≈ 130
 //! at 256²/100, ≈ 520 at 256²/400).
 //!
@@ -56,8 +58,8 @@ pub const PAIR_FRAGMENT_COST: f64 = 1.3;
 /// Widest pair page in texels (narrower when the device limit is smaller).
 pub const PAGE_WIDTH_MAX: u32 = 2048;
 
-/// One pair as the GPU sees it. 48 bytes.
-/// Must match the instance attributes (locations 0–5) of `shaders/transfer_pair.wgsl`.
+/// One pair as the GPU sees it. 64 bytes (a multiple of 16).
+/// Must match the instance attributes (locations 0–7) of `shaders/transfer_pair.wgsl`.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct PairInstance {
@@ -73,6 +75,12 @@ pub struct PairInstance {
     pub offset_b: [i32; 2],
     /// `[2^−k_A, 2^−k_B]`: multiply the decoded binary16 values by these.
     pub scale: [f32; 2],
+    /// Pyramid level `ℓ` of both pieces (only pieces of equal level are paired).
+    pub level: u32,
+    /// Padding (0).
+    pub _pad: u32,
+    /// Origin of level `ℓ` in the packed pyramid texture (`(0, 0)` at level 0).
+    pub origin: [u32; 2],
 }
 
 /// One RGBA32Uint texture of pair texels and the pairs drawn from it.
@@ -296,6 +304,9 @@ fn greedy_pairs(items: &[(u32, PieceInstance)], max_abs: &[f32]) -> Vec<(usize, 
                 continue;
             }
             let (p, q) = (&items[i].1, &items[j].1);
+            if p.level != q.level {
+                continue;
+            }
             let (_, s) = bbox(p, q);
             let saving = area(p) + area(q) - PAIR_FRAGMENT_COST * s[0] as f64 * s[1] as f64;
             if saving > 0.0 {
@@ -438,6 +449,9 @@ fn write_pair(
         offset_a: ia.offset,
         offset_b: ib.offset,
         scale: [2f32.powi(-ka), 2f32.powi(-kb)],
+        level: ia.level,
+        _pad: 0,
+        origin: ia.origin,
     });
 }
 
@@ -448,7 +462,7 @@ mod tests {
 
     #[test]
     fn pair_instance_size() {
-        assert_eq!(std::mem::size_of::<PairInstance>(), 48);
+        assert_eq!(std::mem::size_of::<PairInstance>(), 64);
     }
 
     #[test]
@@ -508,7 +522,39 @@ mod tests {
             dst,
             size,
             offset: [0, 0],
+            ..Default::default()
         }
+    }
+
+    /// Pieces of different levels are never paired; equal levels pair and carry the level.
+    #[test]
+    fn pairs_only_equal_levels() {
+        let atlas = AtlasData {
+            width: 32,
+            height: 32,
+            rgb: vec![[0.5; 3]; 32 * 32],
+        };
+        let mut a = inst([0, 0], [8, 8], [0, 0]);
+        let mut b = inst([1, 0], [8, 8], [8, 0]);
+        a.level = 2;
+        a.origin = [5, 7];
+        b.level = 1;
+        let mut s = FrameSchedule {
+            lightmap_size: [16, 16],
+            batches: vec![AtlasBatch {
+                atlas: 0,
+                instances: vec![a, b],
+            }],
+        };
+        let p = pair_schedule(&s, std::slice::from_ref(&atlas), 64).unwrap();
+        assert_eq!(p.pairs, 0);
+        b.level = 2;
+        b.origin = [5, 7];
+        s.batches[0].instances[1] = b;
+        let p = pair_schedule(&s, &[atlas], 64).unwrap();
+        assert_eq!(p.pairs, 1);
+        let pi = p.pages[0].instances[0];
+        assert_eq!((pi.level, pi.origin), (2, [5, 7]));
     }
 
     #[test]

@@ -10,27 +10,34 @@
 //! one workgroup per non-empty tile, no atomics).
 //!
 //! # Conventions
-//! Rectangles are in texels, `x` right, `y` down (row 0 = `v = 1`). Offsets `Δt` are added
-//! to the *destination* texel to find the first-order texel read.
+//! Rectangles are in texels, `x` right, `y` down (row 0 = `v = 1`). A piece of level `ℓ`
+//! reads its first-order light at block `⌊t / 2^ℓ⌋ + Δ` of pyramid level `ℓ`
+//! ([`crate::pyramid`]; level 0 = the first-order map, `t + Δt`), `t` the *destination* texel.
 //!
-//! # Limits
+//! # Cropping (no bounds test in the shaders)
 //! Pieces with `w == 0` or `h == 0` are dropped (they do nothing), and pieces are cropped to
-//! the texels whose first-order read `t + Δt` lies in the map (the rest add 0). A piece must lie inside
-//! its atlas and its destination inside the lightmap; anything else is an error (the binning
-//! stage produces such pieces only when its inputs disagree with the render's).
+//! the texels whose read `⌊t / 2^ℓ⌋ + Δ` lies inside level `ℓ`'s `⌈W/2^ℓ⌉ × ⌈H/2^ℓ⌉` blocks
+//! (the rest add exactly 0, since `P_ℓ = 0` outside). The kept texels still form a rectangle:
+//! along an axis `0 ≤ ⌊t/2^ℓ⌋ + Δ < n` ⟺ `−Δ·2^ℓ ≤ t < (n − Δ)·2^ℓ`. So the shaders read
+//! without a bounds test, which matters for levels > 0: they live side by side in one packed
+//! texture, and an out-of-level read would see another level. A piece must lie inside its
+//! atlas and its destination inside the lightmap, and its level must be at most
+//! [`MAX_PIECE_LEVEL`]; anything else is an error (the binning stage produces such pieces
+//! only when its inputs disagree with the render's).
 
 use bytemuck::{Pod, Zeroable};
 
 use crate::error::PassError;
-use crate::types::TransferPiece;
+use crate::pyramid::{level_origin, level_size};
+use crate::types::{MAX_PIECE_LEVEL, TransferPiece};
 
 /// Side of a compute-path tile in texels (= workgroup size in each dimension).
 /// Must match `TILE_SIZE` in `shaders/transfer_gather.wgsl`.
 pub const TILE_SIZE: u32 = 8;
 
-/// One piece as the GPU sees it. 32 bytes.
+/// One piece as the GPU sees it. 48 bytes (a multiple of 16).
 /// Must match `PieceInstance` in `shaders/transfer_gather.wgsl` and the instance vertex
-/// attributes (locations 0–3) of `shaders/transfer.wgsl`.
+/// attributes (locations 0–5) of `shaders/transfer.wgsl`.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Pod, Zeroable)]
 pub struct PieceInstance {
@@ -40,8 +47,15 @@ pub struct PieceInstance {
     pub dst: [u32; 2],
     /// Width and height in texels.
     pub size: [u32; 2],
-    /// `Δt` in texels (`+y` down).
+    /// `Δ` in level-`level` blocks (texels at level 0; `+y` down).
     pub offset: [i32; 2],
+    /// Pyramid level `ℓ` read (0 = the first-order map).
+    pub level: u32,
+    /// Padding (0).
+    pub _pad: u32,
+    /// Origin of level `ℓ` in the packed pyramid texture ([`crate::pyramid::level_origin`];
+    /// `(0, 0)` at level 0): the read is `origin + ⌊t / 2^ℓ⌋ + Δ`.
+    pub origin: [u32; 2],
 }
 
 /// All pieces of one atlas, drawn together.
@@ -63,6 +77,16 @@ pub struct FrameSchedule {
 }
 
 impl FrameSchedule {
+    /// The highest piece level (0 when every piece reads the first-order map, or none).
+    pub fn max_level(&self) -> u32 {
+        self.batches
+            .iter()
+            .flat_map(|b| &b.instances)
+            .map(|i| i.level)
+            .max()
+            .unwrap_or(0)
+    }
+
     /// Total texels written by all pieces (= texel blends per frame in the blend path).
     pub fn texel_blends(&self) -> u64 {
         self.batches
@@ -84,6 +108,16 @@ pub fn build_schedule(
     let [lw, lh] = lightmap_size;
     let mut per_atlas: Vec<Vec<PieceInstance>> = vec![Vec::new(); atlas_sizes.len()];
     for (i, p) in pieces.iter().enumerate() {
+        if p.level > MAX_PIECE_LEVEL {
+            return Err(PassError::InvalidInput {
+                what: format!("pieces[{i}].level"),
+                problem: format!(
+                    "is {} but pyramid levels go up to {MAX_PIECE_LEVEL}; the index is corrupt \
+                     or from a newer baker",
+                    p.level
+                ),
+            });
+        }
         if p.w == 0 || p.h == 0 {
             continue;
         }
@@ -116,12 +150,13 @@ pub fn build_schedule(
                 ),
             });
         }
-        // Crop to the texels whose source t + Δt lies in the map: first order is 0
-        // outside it (Eq. 4), so the cropped texels add exactly nothing, and the shaders
-        // need no bounds test on the first-order read.
+        // Crop to the texels whose read ⌊t/2^ℓ⌋ + Δ lies in level ℓ: first order (and so
+        // every level) is 0 outside it (Eq. 4), so the cropped texels add exactly nothing,
+        // and the shaders need no bounds test on the read.
+        let [nw, nh] = level_size(lightmap_size, p.level);
         let (Some((x0, w)), Some((y0, h))) = (
-            read_inside(p.dst_x, p.w, p.offset[0], lw),
-            read_inside(p.dst_y, p.h, p.offset[1], lh),
+            read_inside(p.dst_x, p.w, p.offset[0], nw, p.level),
+            read_inside(p.dst_y, p.h, p.offset[1], nh, p.level),
         ) else {
             continue;
         };
@@ -130,6 +165,9 @@ pub fn build_schedule(
             dst: [p.dst_x + x0, p.dst_y + y0],
             size: [w, h],
             offset: p.offset,
+            level: p.level,
+            _pad: 0,
+            origin: level_origin(lightmap_size, p.level),
         });
     }
     let batches = per_atlas
@@ -147,12 +185,14 @@ pub fn build_schedule(
     })
 }
 
-/// Along one axis: the first local index and the count of `dst + i` (`0 ≤ i < len`) whose
-/// read `dst + i + offset` lies in `[0, map)`; `None` if there is none.
-fn read_inside(dst: u32, len: u32, offset: i32, map: u32) -> Option<(u32, u32)> {
-    let (dst, len, offset, map) = (dst as i64, len as i64, offset as i64, map as i64);
-    let lo = (-offset - dst).max(0);
-    let hi = (map - offset - dst).min(len);
+/// Along one axis: the first local index and the count of `t = dst + i` (`0 ≤ i < len`) whose
+/// read `⌊t / 2^level⌋ + offset` lies in `[0, blocks)`; `None` if there is none. (`⌊t/2^ℓ⌋ ≥ k`
+/// ⟺ `t ≥ k·2^ℓ` and `⌊t/2^ℓ⌋ < k` ⟺ `t < k·2^ℓ` for integer `k`.)
+fn read_inside(dst: u32, len: u32, offset: i32, blocks: u32, level: u32) -> Option<(u32, u32)> {
+    let (dst, len, offset, blocks) = (dst as i64, len as i64, offset as i64, blocks as i64);
+    let scale = 1i64 << level;
+    let lo = (-offset * scale - dst).max(0);
+    let hi = ((blocks - offset) * scale - dst).min(len);
     (hi > lo).then_some((lo as u32, (hi - lo) as u32))
 }
 
@@ -248,12 +288,13 @@ mod tests {
             dst_x: dst[0],
             dst_y: dst[1],
             offset: off,
+            level: 0,
         }
     }
 
     #[test]
     fn shared_struct_sizes() {
-        assert_eq!(std::mem::size_of::<PieceInstance>(), 32);
+        assert_eq!(std::mem::size_of::<PieceInstance>(), 48);
         assert_eq!(std::mem::size_of::<TileWork>(), 16);
     }
 
@@ -300,6 +341,47 @@ mod tests {
                 assert_eq!(inside, kept, "texel ({x}, {y})");
             }
         }
+    }
+
+    /// Level crops keep exactly the texels whose read `⌊t/2^ℓ⌋ + Δ` lies inside level ℓ
+    /// (brute force over texels, levels and offsets on a non-power-of-two map).
+    #[test]
+    fn crops_level_pieces_to_reads_inside_their_level() {
+        let map = [37u32, 29];
+        for level in 0..4u32 {
+            let [nw, nh] = level_size(map, level);
+            for (dx, dy) in [(-3, 2), (0, 0), (5, -7), (-9, 9), (2, 3)] {
+                let mut p = piece(0, [0, 0], [30, 20], [4, 6], [dx, dy]);
+                p.level = level;
+                let s = build_schedule(map, &[[64, 64]], &[p]).unwrap();
+                let inst = s.batches.first().map(|b| b.instances[0]);
+                for y in 6..26u32 {
+                    for x in 4..34u32 {
+                        let (bx, by) = ((x >> level) as i32 + dx, (y >> level) as i32 + dy);
+                        let inside = bx >= 0 && by >= 0 && (bx as u32) < nw && (by as u32) < nh;
+                        let kept = inst.is_some_and(|i| {
+                            (i.dst[0]..i.dst[0] + i.size[0]).contains(&x)
+                                && (i.dst[1]..i.dst[1] + i.size[1]).contains(&y)
+                        });
+                        assert_eq!(
+                            inside, kept,
+                            "level {level} Δ ({dx}, {dy}) texel ({x}, {y})"
+                        );
+                    }
+                }
+                if let Some(i) = inst {
+                    assert_eq!(i.level, level);
+                    assert_eq!(i.origin, level_origin(map, level));
+                    assert_eq!([i.dst[0] - i.src[0], i.dst[1] - i.src[1]], [4, 6]);
+                }
+            }
+        }
+        let mut p = piece(0, [0, 0], [1, 1], [0, 0], [0, 0]);
+        p.level = MAX_PIECE_LEVEL + 1;
+        let e = build_schedule(map, &[[4, 4]], &[p])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("pieces[0].level"), "{e}");
     }
 
     #[test]

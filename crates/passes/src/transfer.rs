@@ -1,12 +1,20 @@
 //! Transfer pass: the final lightmap from the first-order one (paper Eq. 9),
-//! `final[t] = first_order[t] + Σ_pieces atlas[src + (t − dst)] · first_order[t + Δt]`.
+//! `final[t] = first_order[t] + Σ_pieces atlas[src + (t − dst)] · P_ℓ(⌊t / 2^ℓ⌋ + Δ)`, where a
+//! piece of level `ℓ` ([`TransferPiece::level`]) reads block `⌊t/2^ℓ⌋ + Δ` of level `ℓ` of the
+//! first-order pyramid ([`crate::pyramid`]); level 0 is the first-order map itself
+//! (`first_order[t + Δt]`, the paper's form).
 //!
 //! # Data flow
 //! Once: [`TransferPass::new`] builds pipelines for the chosen [`TransferPath`];
 //! [`TransferPass::prepare`] uploads the atlases and turns the pieces into plain per-atlas
 //! work with [`crate::schedule::build_schedule`] (blend) and
 //! [`crate::schedule::build_tiles`] (compute). Per frame: [`TransferPass::encode`] records
-//! the work reading the first-order texture and writing [`TransferOutput::final_lightmap_tex`].
+//! the work reading the first-order texture (and, when some piece has level > 0, the packed
+//! pyramid the pyramid pass wrote this frame, [`TransferInputs::pyramid`]) and writing
+//! [`TransferOutput::final_lightmap_tex`]. Every path branches per piece (a flat value) between
+//! the first-order read (level 0, unchanged) and the pyramid read at
+//! `origin_ℓ + ⌊t/2^ℓ⌋ + Δ`; pieces are cropped so that read stays inside level `ℓ`
+//! ([`crate::schedule`]).
 //!
 //! - **Blend path** (`shaders/transfer.wgsl`, the paper's method): a full-screen draw copies
 //!   first-order RGBA (alpha = coverage) into the accumulation target; then per atlas one
@@ -43,6 +51,7 @@ use bytemuck::{Pod, Zeroable};
 use crate::error::PassError;
 use crate::gpu::Gpu;
 use crate::pairing::{PairInstance, PairedSchedule, pair_schedule};
+use crate::pyramid::PyramidScene;
 use crate::schedule::{FrameSchedule, build_schedule};
 use crate::transfer_gather::{GatherPass, GatherScene};
 use crate::types::{AtlasData, TransferPiece};
@@ -178,6 +187,8 @@ pub struct TransferScene {
     /// Paired path: views of the pair pages, instance buffers per page, instance buffers of
     /// the unpaired pieces per batch of `paired.singles`.
     pair_gpu: Option<PairGpu>,
+    /// A 1×1 texture bound as the pyramid when no piece has level > 0 (never read).
+    dummy_pyramid: wgpu::TextureView,
     final_tex: wgpu::Texture,
 }
 
@@ -185,6 +196,11 @@ impl TransferScene {
     /// The final lightmap the last `encode` wrote (accumulation format).
     pub fn output(&self) -> &wgpu::Texture {
         &self.final_tex
+    }
+
+    /// The highest piece level (0: no pyramid needed).
+    pub fn max_level(&self) -> u32 {
+        self.schedule.max_level()
     }
 }
 
@@ -203,6 +219,10 @@ pub struct TransferInputs<'a> {
     pub scene: &'a TransferScene,
     /// First-order lightmap (RGBA, alpha = coverage), the size given to `prepare`.
     pub first_order: &'a wgpu::TextureView,
+    /// The first-order pyramid (written this frame by [`crate::pyramid::PyramidPass`] from
+    /// `first_order`), holding at least the highest piece level; required when some piece has
+    /// level > 0, ignored otherwise.
+    pub pyramid: Option<&'a PyramidScene>,
 }
 
 /// Output of the pass.
@@ -282,9 +302,10 @@ impl TransferPass {
             device,
             "ortm.transfer.shader",
             &format!(
-                "{}{}{}{QUAD_WGSL}{}",
+                "{}{}{}{}{QUAD_WGSL}{}",
                 util::FULLSCREEN_WGSL,
                 reads.wgsl(0, 1, "first_order", f32x4),
+                reads.wgsl(0, 2, "pyramid", f32x4),
                 reads.wgsl(1, 0, "atlas", f32x4),
                 include_str!("../shaders/transfer.wgsl")
             ),
@@ -296,6 +317,7 @@ impl TransferPass {
             entries: &[
                 util::uniform_entry(0, wgpu::ShaderStages::VERTEX_FRAGMENT),
                 reads.entry(1, fs, f32x4),
+                reads.entry(2, fs, f32x4),
             ],
         });
         let atlas_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
@@ -333,7 +355,8 @@ impl TransferPass {
                     array_stride: std::mem::size_of::<crate::schedule::PieceInstance>() as u64,
                     step_mode: wgpu::VertexStepMode::Instance,
                     attributes: &wgpu::vertex_attr_array![
-                        0 => Uint32x2, 1 => Uint32x2, 2 => Uint32x2, 3 => Sint32x2
+                        0 => Uint32x2, 1 => Uint32x2, 2 => Uint32x2, 3 => Sint32x2,
+                        4 => Uint32x2, 5 => Uint32x2
                     ],
                 })],
             ),
@@ -362,8 +385,9 @@ impl TransferPass {
             device,
             "ortm.transfer.pair_shader",
             &format!(
-                "{}{}{QUAD_WGSL}{}",
+                "{}{}{}{QUAD_WGSL}{}",
                 reads.wgsl(0, 1, "first_order", wgpu::TextureFormat::Rgba32Float),
+                reads.wgsl(0, 2, "pyramid", wgpu::TextureFormat::Rgba32Float),
                 reads.wgsl(1, 0, "page", page_format),
                 include_str!("../shaders/transfer_pair.wgsl")
             ),
@@ -390,7 +414,7 @@ impl TransferPass {
                     step_mode: wgpu::VertexStepMode::Instance,
                     attributes: &wgpu::vertex_attr_array![
                         0 => Uint32x2, 1 => Uint32x2, 2 => Uint32x2, 3 => Sint32x2,
-                        4 => Sint32x2, 5 => Float32x2
+                        4 => Sint32x2, 5 => Float32x2, 6 => Uint32x2, 7 => Uint32x2
                     ],
                 })],
             ),
@@ -450,6 +474,13 @@ impl TransferPass {
             }
         };
         let (paired, pair_gpu) = self.prepare_pairs(gpu, &schedule, atlases)?;
+        let dummy_pyramid = util::view(&gpu.create_rgba32f_texture(
+            "ortm.transfer.dummy_pyramid",
+            1,
+            1,
+            &[[0.0; 4]],
+            wgpu::TextureUsages::TEXTURE_BINDING | self.options.texel_reads.usage(),
+        )?);
         gpu.check("ortm.transfer.prepare")?;
         Ok(TransferScene {
             schedule,
@@ -459,6 +490,7 @@ impl TransferPass {
             gather,
             paired,
             pair_gpu,
+            dummy_pyramid,
             final_tex,
         })
     }
@@ -560,21 +592,62 @@ impl TransferPass {
 
     /// Records the frame's transfer work into `encoder`. `inputs.scene` must come from
     /// this pass's [`TransferPass::prepare`] (a scene of the other path records nothing).
+    ///
+    /// Errors: [`PassError::InvalidInput`] when some piece has level > 0 and
+    /// `inputs.pyramid` is missing, of another lightmap size, or lacks that level.
     pub fn encode(
         &self,
         gpu: &Gpu,
         encoder: &mut wgpu::CommandEncoder,
         inputs: &TransferInputs<'_>,
-    ) -> TransferOutput {
+    ) -> Result<TransferOutput, PassError> {
         let device = &gpu.device;
         let scene = inputs.scene;
+        let pyramid = Self::pyramid_view(inputs)?;
         if let (Some(g), Some(gs)) = (&self.gather, &scene.gather) {
-            g.encode(device, encoder, gs, inputs.first_order, &scene.atlas_views);
+            g.encode(
+                device,
+                encoder,
+                gs,
+                (inputs.first_order, pyramid),
+                &scene.atlas_views,
+            );
         } else if let Some(bp) = &self.blend {
-            self.encode_blend(bp, device, encoder, inputs);
+            self.encode_blend(bp, device, encoder, inputs, pyramid);
         }
-        TransferOutput {
+        Ok(TransferOutput {
             final_lightmap_tex: scene.final_tex.clone(),
+        })
+    }
+
+    /// The pyramid view to bind: the scene's dummy when every piece has level 0, else
+    /// `inputs.pyramid`'s after checking it holds the pieces' levels.
+    fn pyramid_view<'a>(inputs: &TransferInputs<'a>) -> Result<&'a wgpu::TextureView, PassError> {
+        let scene = inputs.scene;
+        let need = scene.max_level();
+        if need == 0 {
+            return Ok(&scene.dummy_pyramid);
+        }
+        let size = scene.schedule.lightmap_size;
+        match inputs.pyramid {
+            Some(p) if p.max_level() >= need && p.lightmap_size() == size => Ok(p.view()),
+            Some(p) => Err(PassError::InvalidInput {
+                what: "TransferInputs.pyramid".into(),
+                problem: format!(
+                    "holds levels 1..={} of a {:?} lightmap but the pieces need level {need} of \
+                     a {size:?} one; prepare the pyramid for these pieces",
+                    p.max_level(),
+                    p.lightmap_size()
+                ),
+            }),
+            None => Err(PassError::InvalidInput {
+                what: "TransferInputs.pyramid".into(),
+                problem: format!(
+                    "is missing but some pieces read pyramid level {need}; pieces of level > 0 \
+                     need the first-order pyramid (give texel weights, e.g. \
+                     `Renderer::prepare_with_weights`)"
+                ),
+            }),
         }
     }
 
@@ -584,6 +657,7 @@ impl TransferPass {
         device: &wgpu::Device,
         encoder: &mut wgpu::CommandEncoder,
         inputs: &TransferInputs<'_>,
+        pyramid: &wgpu::TextureView,
     ) {
         let scene = inputs.scene;
         // Order = @binding order in transfer.wgsl.
@@ -598,6 +672,10 @@ impl TransferPass {
                 wgpu::BindGroupEntry {
                     binding: 1,
                     resource: wgpu::BindingResource::TextureView(inputs.first_order),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 2,
+                    resource: wgpu::BindingResource::TextureView(pyramid),
                 },
             ],
         });

@@ -6,7 +6,8 @@
 //! `cs_init` copies the first-order map into an RGBA32F storage buffer `acc` (one `vec4`
 //! per texel, row-major). Then per atlas one dispatch of `cs_gather`: one 8×8 workgroup
 //! per non-empty tile of [`crate::schedule::build_tiles`]; each invocation owns one texel,
-//! sums the tile's pieces that contain it and adds the sum into `acc` — no two invocations
+//! sums the tile's pieces that contain it (a piece of level ℓ > 0 reading the packed pyramid
+//! at `origin_ℓ + ⌊t/2^ℓ⌋ + Δ`) and adds the sum into `acc` — no two invocations
 //! of a dispatch write the same texel, and dispatches are ordered, so no atomics are needed.
 //! `cs_resolve` writes `acc` to the RGBA32F final texture (alpha = coverage, untouched).
 //!
@@ -63,6 +64,7 @@ impl GatherPass {
                     util::texture_entry(1, cs),
                     util::storage_entry(2, cs, false),
                     util::storage_texture_entry(3, wgpu::TextureFormat::Rgba32Float),
+                    util::texture_entry(4, cs),
                 ],
             });
             let atlas_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
@@ -178,13 +180,14 @@ impl GatherPass {
         ))
     }
 
-    /// Records init, one gather dispatch per atlas, and resolve.
+    /// Records init, one gather dispatch per atlas, and resolve. `pyramid` is the packed
+    /// first-order pyramid (levels ≥ 1) or any RGBA32F texture when every piece has level 0.
     pub fn encode(
         &self,
         device: &wgpu::Device,
         encoder: &mut wgpu::CommandEncoder,
         scene: &GatherScene,
-        first_order: &wgpu::TextureView,
+        (first_order, pyramid): (&wgpu::TextureView, &wgpu::TextureView),
         atlas_views: &[wgpu::TextureView],
     ) {
         // Order = @binding order in transfer_gather.wgsl.
@@ -207,6 +210,10 @@ impl GatherPass {
                 wgpu::BindGroupEntry {
                     binding: 3,
                     resource: wgpu::BindingResource::TextureView(&scene.final_view),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 4,
+                    resource: wgpu::BindingResource::TextureView(pyramid),
                 },
             ],
         });

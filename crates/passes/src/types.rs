@@ -1,6 +1,7 @@
 //! Plain input and output types of the passes: meshes, albedo, lights, transfer atlases and
-//! pieces, and read-back texel images. No GPU objects here; the `ortm` CLI converts its own
-//! types into these (the `passes` crate does not depend on `ortm`).
+//! pieces, texel weights of the first-order pyramid, and read-back texel images. No GPU
+//! objects here; the `ortm` CLI converts its own types into these (the `passes` crate does
+//! not depend on `ortm`).
 //!
 //! # Conventions
 //! - Units: metres for positions, W/sr for point/spot intensities, W/m² for directional
@@ -9,7 +10,9 @@
 //! - Images are row-major, row 0 first; a `W×H` map's texel `(x, y)` has its centre at
 //!   `u = (x + 0.5)/W`, `v = 1 − (y + 0.5)/H`, so row 0 is `v = 1` (as in image files and in
 //!   wgpu framebuffers).
-//! - Offsets `Δt = (dx, dy)` are in texels, `+dy` goes *down* the image.
+//! - Offsets `Δt = (dx, dy)` are in texels (in level-`ℓ` blocks of `2^ℓ × 2^ℓ` texels for a
+//!   piece of pyramid level `ℓ`, [`TransferPiece::level`]), `+dy` goes *down* the image.
+//! - Texel weights ([`TexelWeights`]) are texel areas in m² (0 on uncovered texels).
 //! - A texel is *covered* when its centre lies inside a UV triangle of the mesh; passes store
 //!   coverage in alpha (1 covered, 0.5 filled by gutter dilation, 0 empty).
 
@@ -274,9 +277,20 @@ pub struct AtlasData {
     pub rgb: Vec<[f32; 3]>,
 }
 
-/// A rectangle of an atlas and where it applies (paper Eq. 9):
-/// `final[dst + (i,j)] += atlas[src + (i,j)] · first_order[dst + (i,j) + Δt]` for
-/// `0 ≤ i < w`, `0 ≤ j < h`, with `first_order = 0` outside the map.
+/// A rectangle of an atlas and where it applies (paper Eq. 9, with multi-resolution senders):
+/// for every texel `t = dst + (i,j)`, `0 ≤ i < w`, `0 ≤ j < h`,
+///
+/// ```text
+/// final[t] += atlas[src + (i,j)] · P_ℓ(⌊t / 2^ℓ⌋ + Δ)
+/// ```
+///
+/// where `ℓ = level`, `⌊t / 2^ℓ⌋` is taken per component (a shift right; `t ≥ 0`), `Δ =
+/// offset` is in level-`ℓ` blocks, and `P_ℓ` is level `ℓ` of the area-weighted pyramid of the
+/// first-order lightmap ([`crate::pyramid`]): `P_0` is the first-order map itself (so level 0
+/// is `final[t] += atlas[src + (i,j)] · first_order[t + Δt]`, Δt in texels), and `P_ℓ` is 0
+/// outside level `ℓ`'s size `⌈W/2^ℓ⌉ × ⌈H/2^ℓ⌉` (W×H = the lightmap). Level 0 pieces are
+/// exactly the original single-resolution form. `level ≤` [`MAX_PIECE_LEVEL`]; pieces of
+/// level > 0 need [`TexelWeights`] to build the pyramid.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct TransferPiece {
     /// Index into the atlas list.
@@ -293,8 +307,66 @@ pub struct TransferPiece {
     pub dst_x: u32,
     /// Lightmap row receiving the rectangle's top row.
     pub dst_y: u32,
-    /// Offset `Δt = (dx, dy)` in texels (`+dy` down): where first-order light is read.
+    /// Offset `Δ = (dx, dy)` in level-`level` blocks (texels at level 0; `+dy` down): where
+    /// first-order light is read.
     pub offset: [i32; 2],
+    /// Pyramid level `ℓ` of the first-order light read (0 = the first-order map itself);
+    /// at most [`MAX_PIECE_LEVEL`].
+    pub level: u32,
+}
+
+/// The largest [`TransferPiece::level`] (blocks of `2^15 × 2^15` texels: one block covers
+/// any lightmap the device can hold).
+pub const MAX_PIECE_LEVEL: u32 = 15;
+
+/// Per-texel weights of the first-order pyramid ([`crate::pyramid`]): each texel's surface
+/// area in m², 0 on texels no triangle covers (so gutters never darken a block). Static per
+/// scene; same layout as the lightmap.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TexelWeights {
+    /// Width in texels (= lightmap width).
+    pub width: u32,
+    /// Height in texels (= lightmap height).
+    pub height: u32,
+    /// `width·height` non-negative finite weights (m²), row-major, row 0 first.
+    pub weights: Vec<f32>,
+}
+
+impl TexelWeights {
+    /// Checks that the weights are `width·height` finite non-negative values of a
+    /// `lightmap_size` lightmap.
+    pub fn validate(&self, lightmap_size: [u32; 2]) -> Result<(), PassError> {
+        if [self.width, self.height] != lightmap_size {
+            return Err(PassError::InvalidInput {
+                what: "TexelWeights".into(),
+                problem: format!(
+                    "are {}×{} but the lightmap is {}×{}; give one weight per lightmap texel",
+                    self.width, self.height, lightmap_size[0], lightmap_size[1]
+                ),
+            });
+        }
+        let n = self.width as usize * self.height as usize;
+        if self.weights.len() != n {
+            return Err(PassError::BadLength {
+                what: "TexelWeights.weights".into(),
+                expected: n,
+                got: self.weights.len(),
+                hint: "width·height texel areas (m², 0 where uncovered)".into(),
+            });
+        }
+        if let Some((i, w)) = self
+            .weights
+            .iter()
+            .enumerate()
+            .find(|(_, w)| !w.is_finite() || **w < 0.0)
+        {
+            return Err(PassError::InvalidInput {
+                what: format!("TexelWeights.weights[{i}]"),
+                problem: format!("is {w}; weights are texel areas, finite and ≥ 0"),
+            });
+        }
+        Ok(())
+    }
 }
 
 /// An RGBA float image read back from the GPU (or produced by a CPU mirror). RGB in the

@@ -57,6 +57,7 @@ fn random_case(seed: u64) -> Case {
             dst_x: r.range(0, (size[0] - w) as i64) as u32,
             dst_y: r.range(0, (size[1] - h) as i64) as u32,
             offset: [r.range(-30, 30) as i32, r.range(-30, 30) as i32],
+            level: 0,
         });
     }
     Case {
@@ -132,14 +133,17 @@ fn run_gpu_paired(c: &Case, options: TransferOptions) -> (TexelImage, Option<Pai
         .unwrap();
     let fo_view = fo_tex.create_view(&Default::default());
     let mut enc = gpu.device.create_command_encoder(&Default::default());
-    let out = pass.encode(
-        &gpu,
-        &mut enc,
-        &TransferInputs {
-            scene: &scene,
-            first_order: &fo_view,
-        },
-    );
+    let out = pass
+        .encode(
+            &gpu,
+            &mut enc,
+            &TransferInputs {
+                scene: &scene,
+                first_order: &fo_view,
+                pyramid: None,
+            },
+        )
+        .unwrap();
     gpu.submit_and_wait("test.transfer", enc).unwrap();
     let img = gpu
         .read_texel_image("test.final", &out.final_lightmap_tex)
@@ -217,6 +221,7 @@ fn exact_single_piece() {
             dst_x: 1,
             dst_y: 0,
             offset: [-1, 1],
+            level: 0,
         },
         TransferPiece {
             atlas: 0,
@@ -227,6 +232,7 @@ fn exact_single_piece() {
             dst_x: 0,
             dst_y: 0,
             offset: [0, 5],
+            level: 0,
         },
     ];
     let c = Case {
@@ -485,6 +491,7 @@ fn paired_partial_overlap_reads_outside_own_rect() {
             dst_x: 2,
             dst_y: 0,
             offset: [-2, 2],
+            level: 0,
         },
         TransferPiece {
             atlas: 0,
@@ -495,6 +502,7 @@ fn paired_partial_overlap_reads_outside_own_rect() {
             dst_x: 0,
             dst_y: 4,
             offset: [4, -4],
+            level: 0,
         },
     ];
     let c = Case {

@@ -225,6 +225,7 @@ mod tests {
             dst_x: 0,
             dst_y: 0,
             offset,
+            level: 0,
         };
         let albedo = AlbedoMap::uniform(size, size, [0.5; 3]);
         (

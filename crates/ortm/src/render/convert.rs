@@ -125,6 +125,7 @@ pub fn transfer_piece(p: &AtlasPiece) -> TransferPiece {
         dst_x: p.dst_x,
         dst_y: p.dst_y,
         offset: p.offset,
+        level: 0,
     }
 }
 

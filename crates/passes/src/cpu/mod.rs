@@ -7,5 +7,6 @@ pub mod dilate;
 pub mod display;
 pub mod first_order;
 pub mod indirect;
+pub mod pyramid;
 pub mod transfer;
 pub mod transfer_gather;

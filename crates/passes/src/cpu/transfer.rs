@@ -2,21 +2,36 @@
 //!
 //! Same order of operations as the GPU: the final map starts as a copy of the first-order
 //! map (`fs_copy`), then every atlas batch in order, every piece in order, every texel of
-//! the piece adds `atlas[src + (i,j)] · first_order[dst + (i,j) + Δt]` (`fs_piece`), with
-//! first-order light read as zero outside the map. Alpha (coverage) is copied, never added
-//! to. Arithmetic is `f32`; the RGBA16F accumulation option of the GPU rounds after every
+//! the piece adds `atlas[src + (i,j)] · P_ℓ(⌊t / 2^ℓ⌋ + Δ)` (`fs_piece`; `t = dst + (i,j)`,
+//! `P_0` = the first-order map, `P_ℓ` for `ℓ ≥ 1` the given pyramid levels, see
+//! [`super::pyramid::read`]), read as zero outside the level. Alpha (coverage) is copied, never
+//! added to. Arithmetic is `f32`; the RGBA16F accumulation option of the GPU rounds after every
 //! blend and is compared against this mirror with a derived bound.
 
+use super::pyramid::read;
 use crate::gpu::f16_to_f32;
 use crate::pairing::PairedSchedule;
+use crate::pyramid::level_size;
 use crate::schedule::FrameSchedule;
 use crate::types::{AtlasData, TexelImage};
 
-/// `final = first_order + Σ pieces` in blend order.
+/// `final = first_order + Σ pieces` in blend order, every piece of level 0.
 pub fn transfer(
     schedule: &FrameSchedule,
     atlases: &[AtlasData],
     first_order: &TexelImage,
+) -> TexelImage {
+    transfer_levels(schedule, atlases, first_order, &[])
+}
+
+/// [`transfer`] with pieces of any level: `levels[ℓ − 1]` is pyramid level `ℓ` (as
+/// [`super::pyramid::pyramid`] returns or read back from the GPU, e.g. with
+/// [`crate::pyramid::unpack_levels`]). Panics when a piece's level is beyond `levels`.
+pub fn transfer_levels(
+    schedule: &FrameSchedule,
+    atlases: &[AtlasData],
+    first_order: &TexelImage,
+    levels: &[TexelImage],
 ) -> TexelImage {
     // fs_copy: the accumulation target starts as the first-order map (alpha = coverage).
     let mut out = first_order.clone();
@@ -29,8 +44,13 @@ pub fn transfer(
                     let t = [inst.dst[0] + i, inst.dst[1] + j];
                     let s = [inst.src[0] + i, inst.src[1] + j];
                     let a = atlas.rgb[(s[1] * atlas.width + s[0]) as usize];
-                    let fo = first_order
-                        .get_or_zero(t[0] as i32 + inst.offset[0], t[1] as i32 + inst.offset[1]);
+                    let fo = read(
+                        first_order,
+                        levels,
+                        inst.level,
+                        (t[0] >> inst.level) as i32 + inst.offset[0],
+                        (t[1] >> inst.level) as i32 + inst.offset[1],
+                    );
                     // Additive blend, alpha untouched.
                     let o = out.at_mut(t[0], t[1]);
                     for c in 0..3 {
@@ -45,19 +65,30 @@ pub fn transfer(
 
 /// Mirror of the paired blend path (`shaders/transfer_pair.wgsl`): the copy, the unpaired
 /// pieces of `paired.singles` as in [`transfer`], then every page's pairs in order, each
-/// texel adding `â·f(t + Δt_A) + b̂·f(t + Δt_B)` with the binary16 values decoded and scaled
-/// as the shader does and the reads clamped into the map.
+/// texel adding `â·P_ℓ(⌊t/2^ℓ⌋ + Δ_A) + b̂·P_ℓ(⌊t/2^ℓ⌋ + Δ_B)` (both pieces of a pair have the
+/// same level `ℓ`) with the binary16 values decoded and scaled as the shader does and the
+/// reads clamped into level `ℓ`. Every piece of level 0.
 pub fn transfer_paired(
     paired: &PairedSchedule,
     atlases: &[AtlasData],
     first_order: &TexelImage,
 ) -> TexelImage {
-    let mut out = transfer(&paired.singles, atlases, first_order);
-    let [w, h] = paired.lightmap_size;
-    let read = |t: [u32; 2], off: [i32; 2]| {
-        let x = (t[0] as i32 + off[0]).clamp(0, w as i32 - 1) as u32;
-        let y = (t[1] as i32 + off[1]).clamp(0, h as i32 - 1) as u32;
-        first_order.get(x, y)
+    transfer_paired_levels(paired, atlases, first_order, &[])
+}
+
+/// [`transfer_paired`] with pieces of any level (`levels` as in [`transfer_levels`]).
+pub fn transfer_paired_levels(
+    paired: &PairedSchedule,
+    atlases: &[AtlasData],
+    first_order: &TexelImage,
+    levels: &[TexelImage],
+) -> TexelImage {
+    let mut out = transfer_levels(&paired.singles, atlases, first_order, levels);
+    let read = |t: [u32; 2], off: [i32; 2], level: u32| {
+        let [w, h] = level_size(paired.lightmap_size, level);
+        let x = ((t[0] >> level) as i32 + off[0]).clamp(0, w as i32 - 1);
+        let y = ((t[1] >> level) as i32 + off[1]).clamp(0, h as i32 - 1);
+        read(first_order, levels, level, x, y)
     };
     for page in &paired.pages {
         for inst in &page.instances {
@@ -70,7 +101,10 @@ pub fn transfer_paired(
                     let hi = |v: u32| f16_to_f32((v >> 16) as u16);
                     let a = [lo(p[0]), hi(p[0]), lo(p[1])].map(|v| v * inst.scale[0]);
                     let b = [hi(p[1]), lo(p[2]), hi(p[2])].map(|v| v * inst.scale[1]);
-                    let (fa, fb) = (read(t, inst.offset_a), read(t, inst.offset_b));
+                    let (fa, fb) = (
+                        read(t, inst.offset_a, inst.level),
+                        read(t, inst.offset_b, inst.level),
+                    );
                     let o = out.at_mut(t[0], t[1]);
                     for c in 0..3 {
                         o[c] += a[c] * fa[c] + b[c] * fb[c];

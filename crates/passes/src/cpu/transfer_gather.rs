@@ -3,17 +3,31 @@
 //!
 //! `cs_init` copies first-order RGBA into an accumulation buffer; then per atlas, per
 //! non-empty tile, per texel of the tile, the texel sums the contributions of the tile's
-//! pieces that contain it (in list order) and adds the sum to the buffer (`cs_gather`);
+//! pieces that contain it (in list order; a piece of level `ℓ` reads `P_ℓ(⌊t/2^ℓ⌋ + Δ)`,
+//! level 0 the first-order map) and adds the sum to the buffer (`cs_gather`);
 //! `cs_resolve` writes the buffer to the final texture.
 
+use super::pyramid::read;
 use crate::schedule::{AtlasTiles, TILE_SIZE};
 use crate::types::{AtlasData, TexelImage};
 
-/// `final = first_order + Σ pieces` in gather order.
+/// `final = first_order + Σ pieces` in gather order, every piece of level 0.
 pub fn transfer_gather(
     tiles: &[AtlasTiles],
     atlases: &[AtlasData],
     first_order: &TexelImage,
+) -> TexelImage {
+    transfer_gather_levels(tiles, atlases, first_order, &[])
+}
+
+/// [`transfer_gather`] with pieces of any level: a piece of level `ℓ` reads
+/// `P_ℓ(⌊t / 2^ℓ⌋ + Δ)`, `levels[ℓ − 1]` being pyramid level `ℓ` (see
+/// [`super::transfer::transfer_levels`]).
+pub fn transfer_gather_levels(
+    tiles: &[AtlasTiles],
+    atlases: &[AtlasData],
+    first_order: &TexelImage,
+    levels: &[TexelImage],
 ) -> TexelImage {
     // cs_init
     let mut acc = first_order.clone();
@@ -41,9 +55,12 @@ pub fn transfer_gather(
                         }
                         let s = [inst.src[0] + li as u32, inst.src[1] + lj as u32];
                         let a = atlas.rgb[(s[1] * atlas.width + s[0]) as usize];
-                        let fo = first_order.get_or_zero(
-                            t[0] as i32 + inst.offset[0],
-                            t[1] as i32 + inst.offset[1],
+                        let fo = read(
+                            first_order,
+                            levels,
+                            inst.level,
+                            (t[0] >> inst.level) as i32 + inst.offset[0],
+                            (t[1] >> inst.level) as i32 + inst.offset[1],
                         );
                         for c in 0..3 {
                             sum[c] += a[c] * fo[c];

@@ -123,6 +123,7 @@ pub fn blur_transfer(
                     dst_x: x0,
                     dst_y: y0,
                     offset: [dx, dy],
+                    level: 0,
                 });
             }
             dx += step;
