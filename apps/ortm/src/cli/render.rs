@@ -279,8 +279,14 @@ pub fn run(a: Args) -> Result<()> {
     let options = renderer_options(&a, &gpu, &lights, (img_w, img_h));
     let renderer = Renderer::new(&gpu, &options)?;
     let mesh = render::mesh_data(&scene.mesh);
-    let mut rscene =
-        renderer.prepare(&gpu, &mesh, &render::albedo_map(&grid), &atlases, &pieces)?;
+    let mut rscene = renderer.prepare_with_weights(
+        &gpu,
+        &mesh,
+        &render::albedo_map(&grid),
+        &atlases,
+        &pieces,
+        Some(&render::texel_weights(&grid)),
+    )?;
     if let Some(lengths) = diffusion_lengths(&scene, &grid) {
         renderer.set_diffusion_lengths(&gpu, &mut rscene, &lengths)?;
     }

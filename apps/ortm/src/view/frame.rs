@@ -82,12 +82,13 @@ impl ViewRenderer {
         options: &RendererOptions,
         mesh: MeshData,
         albedo: &passes::AlbedoMap,
+        weights: &passes::TexelWeights,
         atlases: Vec<AtlasData>,
         pieces: &[TransferPiece],
     ) -> Result<Self> {
         let renderer = Renderer::new(&gpu, options).context("creating the render passes")?;
         let scene = renderer
-            .prepare(&gpu, &mesh, albedo, &atlases, pieces)
+            .prepare_with_weights(&gpu, &mesh, albedo, &atlases, pieces, Some(weights))
             .context("uploading the scene to the GPU")?;
         let timer = gpu
             .supports_timestamps()

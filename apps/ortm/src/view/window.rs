@@ -878,6 +878,7 @@ fn view_renderer(gpu: Gpu, data: &ViewerInput) -> Result<ViewRenderer> {
         &options,
         ortm::render::mesh_data(&data.scene.mesh),
         &ortm::render::albedo_map(&data.grid),
+        &ortm::render::texel_weights(&data.grid),
         data.atlases.clone(),
         &all_pieces,
     )?;

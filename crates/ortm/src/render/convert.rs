@@ -18,7 +18,7 @@
 use std::collections::HashMap;
 
 use glam::Vec3;
-use passes::{AlbedoMap, AtlasData, LightDesc, MeshData, TexelImage, TransferPiece};
+use passes::{AlbedoMap, AtlasData, LightDesc, MeshData, TexelImage, TexelWeights, TransferPiece};
 
 use super::RenderError;
 use crate::Lightmap;
@@ -65,6 +65,16 @@ pub fn albedo_map(grid: &TexelGrid) -> AlbedoMap {
         width: m.width,
         height: m.height,
         rgb: m.data,
+    }
+}
+
+/// The texel areas of the grid (m², 0 on uncovered texels) as the weights of the first-order
+/// pyramid that multi-resolution maps read ([`crate::maps::levels`]).
+pub fn texel_weights(grid: &TexelGrid) -> TexelWeights {
+    TexelWeights {
+        width: grid.width,
+        height: grid.height,
+        weights: grid.area_map(),
     }
 }
 
@@ -125,7 +135,7 @@ pub fn transfer_piece(p: &AtlasPiece) -> TransferPiece {
         dst_x: p.dst_x,
         dst_y: p.dst_y,
         offset: p.offset,
-        level: 0,
+        level: p.level,
     }
 }
 
