@@ -252,6 +252,68 @@ pub fn transport_row(tr: &Transport) -> impl Fn(u32, &mut [[f32; 3]]) + Sync + '
     }
 }
 
+/// Rows of the hierarchical transport ([`Transport::build_hierarchical`], `ortm bake
+/// --tolerance`), `None` without its operator: the first bounce of the operator's links (every
+/// link into the receiver's leaf or an ancestor spread over its sender node by area, as
+/// [`crate::bake::cells`] bins it), the subsurface term of its walk (each visited node's
+/// profile value times its texels' weights, and the point mass `−1` at the receiver) and the
+/// coarse higher-order remainder by area. No visibility ray per pair: `O(n)` per row.
+pub fn hierarchical_row(tr: &Transport) -> Option<impl Fn(u32, &mut [[f32; 3]]) + Sync + '_> {
+    use crate::bake::transport::hier::tree::NO_CHILD;
+    let op = tr.links.as_ref()?;
+    let tree = op.tree();
+    let mut parent = vec![u32::MAX; tree.nodes.len()];
+    for (id, n) in tree.nodes.iter().enumerate() {
+        if n.children[0] != NO_CHILD {
+            for c in n.children {
+                parent[c as usize] = id as u32;
+            }
+        }
+    }
+    let members = |s: u32| {
+        let n = &tree.nodes[s as usize];
+        &tree.order[n.first as usize..(n.first + n.count) as usize]
+    };
+    Some(move |i: u32, out: &mut [[f32; 3]]| {
+        for (j, o) in out.iter_mut().enumerate() {
+            *o = tr.remainder.r(i, j as u32, tr.patches[j].area_m2);
+        }
+        let p = &tr.patches[i as usize];
+        let mut node = tree.leaf_of[i as usize];
+        while node != u32::MAX {
+            for l in op.links_of(node) {
+                let k = l.irradiance_per_radiosity(p.normal);
+                if k <= 0.0 {
+                    continue;
+                }
+                let inv_area = 1.0 / tree.nodes[l.send as usize].area_m2;
+                for &j in members(l.send) {
+                    let f = k * tr.patches[j as usize].area_m2 * inv_area;
+                    for c in 0..3 {
+                        out[j as usize][c] += p.rho[c] * f;
+                    }
+                }
+            }
+            node = parent[node as usize];
+        }
+        if let Some(walk) = op.subsurface_walk() {
+            walk.walk(tree, &tr.patches, &tr.kernels, i as usize, |s, rd, me| {
+                for &j in members(s) {
+                    let w = walk.weight(tree.leaf_of[j as usize]);
+                    for c in 0..3 {
+                        out[j as usize][c] += (rd[c] * w[c] as f64) as f32;
+                    }
+                }
+                if me {
+                    for c in 0..3 {
+                        out[i as usize][c] -= 1.0;
+                    }
+                }
+            });
+        }
+    })
+}
+
 /// Groups the receivers' entries into maps, one per `(level, offset)`, ordered by level then
 /// offset (row-major).
 ///

@@ -816,7 +816,9 @@ fn write_maps(
 }
 
 /// The multi-resolution maps at `tolerance` ([`crate::bake::multires`]): every receiver's row
-/// from the pair evaluator ([`Transport::r`], `n²` evaluations), partitioned, grouped into one
+/// from the hierarchical transport when the bake has one
+/// ([`crate::bake::multires::hierarchical_row`], `--tolerance`), else from the pair evaluator
+/// ([`Transport::r`], `n²` evaluations with a visibility ray each), partitioned, grouped into one
 /// map per level and offset, and written like [`write_maps`] (in parallel, each atomically;
 /// a finished map of the same bake key, index, offset, level and rectangles is kept: the rows
 /// are deterministic).
@@ -841,12 +843,15 @@ fn write_level_maps(
         tolerance,
         ..MultiresSettings::default()
     };
-    let entries = multires::partition_rows(
-        grid,
-        multires::transport_row(transport),
-        &[settings],
-        &progress,
-    )
+    let entries = match multires::hierarchical_row(transport) {
+        Some(row) => multires::partition_rows(grid, row, &[settings], &progress),
+        None => multires::partition_rows(
+            grid,
+            multires::transport_row(transport),
+            &[settings],
+            &progress,
+        ),
+    }
     .map_err(|_| BakeError::Interrupted { done: 0, total: 0 })?
     .remove(0);
     let maps = multires::to_maps(grid, &entries)?;
