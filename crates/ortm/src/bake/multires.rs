@@ -289,8 +289,9 @@ pub fn hierarchical_row(tr: &Transport) -> Option<impl Fn(u32, &mut [[f32; 3]]) 
                 let inv_area = 1.0 / tree.nodes[l.send as usize].area_m2;
                 for &j in members(l.send) {
                     let f = k * tr.patches[j as usize].area_m2 * inv_area;
-                    for c in 0..3 {
-                        out[j as usize][c] += p.rho[c] * f;
+                    let o = &mut out[j as usize];
+                    for (c, v) in o.iter_mut().enumerate() {
+                        *v += p.rho[c] * f;
                     }
                 }
             }
@@ -305,8 +306,8 @@ pub fn hierarchical_row(tr: &Transport) -> Option<impl Fn(u32, &mut [[f32; 3]]) 
                     }
                 }
                 if me {
-                    for c in 0..3 {
-                        out[i as usize][c] -= 1.0;
+                    for v in out[i as usize].iter_mut() {
+                        *v -= 1.0;
                     }
                 }
             });
