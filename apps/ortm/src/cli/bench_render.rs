@@ -324,6 +324,7 @@ fn bench_job(a: &Args, gpu: &Gpu, (img_w, img_h): (u32, u32), job: Job) -> Resul
     let lights: Vec<_> = scene.lights.iter().map(render::light_desc).collect();
     let mesh = render::mesh_data(&scene.mesh);
     let albedo = render::albedo_map(&grid);
+    let weights = render::texel_weights(&grid);
     let aspect = img_w as f32 / img_h as f32;
     let params = FrameParams {
         lights: &lights,
@@ -338,7 +339,8 @@ fn bench_job(a: &Args, gpu: &Gpu, (img_w, img_h): (u32, u32), job: Job) -> Resul
     let time_path = |path: TransferPath, pair_pieces: bool| -> Result<BenchReport> {
         let options = renderer_options(a, gpu, &scene, (img_w, img_h), path, pair_pieces);
         let renderer = Renderer::new(gpu, &options)?;
-        let rs = renderer.prepare(gpu, &mesh, &albedo, &atlases, &pieces)?;
+        let rs =
+            renderer.prepare_with_weights(gpu, &mesh, &albedo, &atlases, &pieces, Some(&weights))?;
         Ok(bench_frame(
             gpu,
             &renderer,
