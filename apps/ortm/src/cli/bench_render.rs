@@ -339,8 +339,14 @@ fn bench_job(a: &Args, gpu: &Gpu, (img_w, img_h): (u32, u32), job: Job) -> Resul
     let time_path = |path: TransferPath, pair_pieces: bool| -> Result<BenchReport> {
         let options = renderer_options(a, gpu, &scene, (img_w, img_h), path, pair_pieces);
         let renderer = Renderer::new(gpu, &options)?;
-        let rs =
-            renderer.prepare_with_weights(gpu, &mesh, &albedo, &atlases, &pieces, Some(&weights))?;
+        let rs = renderer.prepare_with_weights(
+            gpu,
+            &mesh,
+            &albedo,
+            &atlases,
+            &pieces,
+            Some(&weights),
+        )?;
         Ok(bench_frame(
             gpu,
             &renderer,
