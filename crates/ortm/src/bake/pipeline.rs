@@ -637,16 +637,7 @@ pub fn bake(
         let t_rows = written.seconds;
         let maps = written.entries.len();
         let (reused, stored_texels) = (written.reused, written.stored_texels);
-        let index = BakeIndex::new(
-            LightmapSize {
-                width: w,
-                height: h,
-            },
-            hash,
-            settings_json,
-            written.entries,
-        );
-        index.write(dir)?;
+        bake_index((w, h), hash, settings_json, written.entries).write(dir)?;
         return Ok(BakeSummary {
             maps,
             reused,
@@ -667,15 +658,7 @@ pub fn bake(
     let plan = MapPlan::new(&grid, &offset_list, settings.cell_rule)?;
     let written = write_maps(dir, &key, &transport, &grid, plan, events, cancel)?;
     let importance: Vec<f64> = written.entries.iter().map(|e| e.importance).collect();
-    let index = BakeIndex::new(
-        LightmapSize {
-            width: w,
-            height: h,
-        },
-        hash,
-        settings_json,
-        written.entries,
-    );
+    let index = bake_index((w, h), hash, settings_json, written.entries);
     crate::bake::report::write_bake_report(dir, &grid, &offset_list, &importance, &points)
         .map_err(|e| BakeError::Io {
             path: dir.join("report"),
@@ -693,6 +676,16 @@ pub fn bake(
         texels: grid.texels.len(),
         stored_texels: written.stored_texels,
     })
+}
+
+/// The index of a finished bake of a `width × height` lightmap.
+fn bake_index(
+    (width, height): (u32, u32),
+    scene_hash: String,
+    settings: serde_json::Value,
+    maps: Vec<bake_dir::MapEntry>,
+) -> BakeIndex {
+    BakeIndex::new(LightmapSize { width, height }, scene_hash, settings, maps)
 }
 
 /// The offsets and importance data points of the bake `key`: those saved in `dir`'s
@@ -783,18 +776,42 @@ fn write_maps(
         }
         plan.prepare(transport, grid, events);
     }
+    write_each(
+        total,
+        |k| {
+            scan.finished
+                .get(&(k as u32))
+                .filter(|e| e.offset == offset_list[k].to_array())
+        },
+        |k| {
+            let map = plan.map_prepared(transport, grid, k)?;
+            let entry = bake_dir::write_map_file(dir, k as u32, &map, key)?;
+            Ok((entry, map.stored_texels()))
+        },
+        events,
+        cancel,
+    )
+}
+
+/// Writes maps `0..total` in parallel, each atomically by `write(k)` (its index entry and stored
+/// texels), except those `finished(k)` keeps from an earlier run; reports one step per map and
+/// stops at `cancel`. An interruption leaves only whole maps behind, whatever the order.
+fn write_each<'a>(
+    total: usize,
+    finished: impl Fn(usize) -> Option<&'a bake_dir::MapEntry> + Sync,
+    write: impl Fn(usize) -> Result<(bake_dir::MapEntry, u64), BakeError> + Sync,
+    events: &(dyn Fn(BakeEvent) + Sync),
+    cancel: &AtomicBool,
+) -> Result<WrittenMaps, BakeError> {
     events(BakeEvent::Phase {
         name: "writing transfer maps",
         total: total as u64,
     });
     let written = std::sync::atomic::AtomicUsize::new(0);
-    let results: Vec<Result<(bake_dir::MapEntry, bool, u64), BakeError>> = offset_list
-        .par_iter()
-        .enumerate()
-        .map(|(k, &offset)| {
-            if let Some(e) = scan.finished.get(&(k as u32))
-                && e.offset == offset.to_array()
-            {
+    let results: Vec<Result<(bake_dir::MapEntry, bool, u64), BakeError>> = (0..total)
+        .into_par_iter()
+        .map(|k| {
+            if let Some(e) = finished(k) {
                 let stored = e.rects.iter().map(|r| r.area()).sum::<u64>();
                 events(BakeEvent::Advance(1));
                 return Ok((e.clone(), true, stored));
@@ -805,11 +822,10 @@ fn write_maps(
                     total,
                 });
             }
-            let map = plan.map_prepared(transport, grid, k)?;
-            let entry = bake_dir::write_map_file(dir, k as u32, &map, key)?;
+            let (entry, stored) = write(k)?;
             written.fetch_add(1, Ordering::Relaxed);
             events(BakeEvent::Advance(1));
-            Ok((entry, false, map.stored_texels()))
+            Ok((entry, false, stored))
         })
         .collect();
     gather_written(results, written.load(Ordering::Relaxed), total)
@@ -869,38 +885,21 @@ fn write_level_maps(
     for p in &scan.stale_temp {
         let _ = std::fs::remove_file(p);
     }
-    let total = maps.len();
-    events(BakeEvent::Phase {
-        name: "writing transfer maps",
-        total: total as u64,
-    });
-    let written = std::sync::atomic::AtomicUsize::new(0);
-    let results: Vec<Result<(bake_dir::MapEntry, bool, u64), BakeError>> = maps
-        .par_iter()
-        .enumerate()
-        .map(|(k, map)| {
-            let stored = map.stored_texels();
-            if let Some(e) = scan.finished.get(&(k as u32))
-                && e.offset == map.offset.to_array()
-                && e.level == map.level()
-                && e.rects == map.rects()
-            {
-                events(BakeEvent::Advance(1));
-                return Ok((e.clone(), true, stored));
-            }
-            if cancel.load(Ordering::Relaxed) {
-                return Err(BakeError::Interrupted {
-                    done: written.load(Ordering::Relaxed),
-                    total,
-                });
-            }
-            let entry = bake_dir::write_map_file(dir, k as u32, map, key)?;
-            written.fetch_add(1, Ordering::Relaxed);
-            events(BakeEvent::Advance(1));
-            Ok((entry, false, stored))
-        })
-        .collect();
-    let w = gather_written(results, written.load(Ordering::Relaxed), total)?;
+    let w = write_each(
+        maps.len(),
+        |k| {
+            scan.finished.get(&(k as u32)).filter(|e| {
+                let m = &maps[k];
+                e.offset == m.offset.to_array() && e.level == m.level() && e.rects == m.rects()
+            })
+        },
+        |k| {
+            let entry = bake_dir::write_map_file(dir, k as u32, &maps[k], key)?;
+            Ok((entry, maps[k].stored_texels()))
+        },
+        events,
+        cancel,
+    )?;
     Ok(LevelMapsWritten {
         entries: w.entries,
         reused: w.reused,
