@@ -130,18 +130,20 @@ pub fn to_lightmap(img: &TexelImage) -> Lightmap {
     ortm::render::to_lightmap(img)
 }
 
-/// The transfer term of one map (`Σ pieces of map m: atlas · B_o(t + Δt)`, W/m²) for the
-/// first-order lightmap `first_order`.
+/// The transfer term of one map (`Σ pieces of map m: atlas · B_o(t + Δt)`, or the pyramid
+/// level's block for a multi-resolution map; W/m²) for the first-order lightmap `first_order`
+/// and the grid's texel areas `weights`.
 pub fn map_contribution(
     set: &AtlasSet,
     map_index: u32,
     first_order: &Lightmap,
+    weights: &[f32],
 ) -> Result<Lightmap, ortm::atlas::AtlasError> {
     let with = apply_atlas_pieces(
         set,
         |p: &AtlasPiece| p.map_index == map_index,
         first_order,
-        None,
+        Some(weights),
     )?;
     Ok(difference(&with, first_order))
 }

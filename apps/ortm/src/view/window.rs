@@ -716,7 +716,7 @@ impl Running {
             let (fo, _) = self.view.lightmaps(&self.light_descs())?;
             debug::to_lightmap(&fo)
         };
-        let c = debug::map_contribution(&self.data.set, m, &fo)?;
+        let c = debug::map_contribution(&self.data.set, m, &fo, &self.data.grid.area_map())?;
         let (dx, dy) = self.data.offset_of(m);
         let mut img = debug::with_coverage(&self.data.grid, &c);
         let gain = ortm::render::auto_exposure(&img) / self.app.exposure;
