@@ -1,5 +1,5 @@
-//! `ortm bench accuracy` measures what a user's own commands make, and its Cornell 64² rows
-//! guard the bake's accuracy: a change that makes them worse than their bound fails here.
+//! `ortm bench accuracy` measures what a user's own commands make (offsets and
+//! multi-resolution maps), and its Cornell 64² rows guard the bake's accuracy: a change that makes them worse than their bound fails here.
 //!
 //! The check of the table's numbers goes through other code than the bench's: `ortm bake`
 //! (its defaults must be the bench's bake), the bake directory read back and applied on the CPU
@@ -72,11 +72,17 @@ fn the_cornell_rows_match_bake_solve_and_compare_and_stay_within_their_bounds() 
             "cornell-64",
             "--offsets",
             "50",
+            "--levels",
+            "3e-3",
         ],
         dir,
     ));
     let rows = table_rows(&table);
-    assert_eq!(rows.len(), 3, "evaluator + two cell rules:\n{table}");
+    assert_eq!(
+        rows.len(),
+        4,
+        "evaluator + multi-resolution maps + two cell rules:\n{table}"
+    );
     assert!(table.contains("reference: exact dense solve"), "{table}");
 
     // The integrated row, rebuilt from the user's commands.
@@ -141,6 +147,49 @@ fn the_cornell_rows_match_bake_solve_and_compare_and_stay_within_their_bounds() 
         );
     }
 
+    // The multi-resolution row, rebuilt from `ortm bake --levels` (the bench's default clusters)
+    // and the CPU reference of the level maps.
+    ok(ortm(
+        &[
+            "bake", "cornell", "--size", "64", "--levels", "3e-3", "-o", "lbake",
+        ],
+        dir,
+    ));
+    let lmaps = BakeIndex::read(&dir.join("lbake"))
+        .unwrap()
+        .load_maps(&dir.join("lbake"))
+        .unwrap();
+    let applied = ortm::maps::levels::apply_levels(&lmaps, &first, &grid.area_map()).unwrap();
+    let applied = to_lightmap(&grid, &from_lightmap(&grid, &applied));
+    write_lightmap_exr(&dir.join("lbake_final.exr"), &applied).unwrap();
+    let cmp = ok(ortm(
+        &[
+            "compare",
+            "exact/final.exr",
+            "lbake_final.exr",
+            "--first",
+            "exact/first_order.exr",
+            "exact/first_order.exr",
+            "--scene",
+            "cornell",
+            "--size",
+            "64",
+        ],
+        dir,
+    ));
+    let levels = rows
+        .iter()
+        .find(|r| r.method.contains("multi-resolution"))
+        .unwrap();
+    assert_eq!(levels.offsets, lmaps.len().to_string(), "maps of the bake");
+    for (label, table_value) in [("total", levels.total), ("indirect", levels.indirect)] {
+        let by_hand = compare_figure(&cmp, label);
+        assert!(
+            (by_hand - table_value).abs() <= 0.00051,
+            "{label}: table {table_value}, bake --levels + solve + compare {by_hand}"
+        );
+    }
+
     // Guards: the values measured when the table was introduced (Cornell 64², scene light,
     // seed 1) — evaluator 1.6 % / 13.4 %, integrated cells 25.9 % / 210.9 %, Eq. 10 18.2 % /
     // 148.4 % (total / indirect), energy ratios 0.963 / 0.932 / 0.831 — may grow by 25 % (the
@@ -158,6 +207,9 @@ fn the_cornell_rows_match_bake_solve_and_compare_and_stay_within_their_bounds() 
         );
     };
     bound("evaluator", 0.016, 0.134, 0.963);
+    // Multi-resolution maps at ε = 3e-3, measured when they were added: 1.8 % / 14.9 %, 0.957
+    // (they converge to the evaluator above, whose 8×8 clusters set the floor).
+    bound("multi-resolution", 0.018, 0.149, 0.957);
     bound("integrated", 0.259, 2.109, 0.932);
     bound("Eq. 10", 0.182, 1.484, 0.831);
 }
