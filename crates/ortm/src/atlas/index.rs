@@ -381,18 +381,15 @@ fn check_bake(dir: &Path, atlas_index: &Path, index: &AtlasIndex) -> Result<(), 
                 return Err(AtlasError::BadIndex {
                     path: atlas_index.to_owned(),
                     reason: format!(
-                        "piece {i} is map {} with offset {:?} at level {}, but the bake index {} \
-                         has {}; the atlases were packed from another bake: re-run `ortm bin`",
+                        "piece {i} is map {} with {}, but the bake index {} has {}; the \
+                         atlases were packed from another bake: re-run `ortm bin`",
                         p.map_index,
-                        p.offset,
-                        p.level,
+                        offset_text(p.offset, p.level),
                         path.display(),
                         match found {
                             None => format!("{} maps", offsets.len()),
-                            Some(o) => match o {
-                                Some((o, l)) => format!("offset {o:?} at level {l} for that map"),
-                                None => "no readable offset for that map".into(),
-                            },
+                            Some(Some((o, l))) => format!("{} for that map", offset_text(*o, *l)),
+                            Some(None) => "no readable offset for that map".into(),
                         }
                     ),
                 });
@@ -481,4 +478,13 @@ pub fn read_atlas_set(dir: &Path) -> Result<AtlasSet, AtlasError> {
         atlases: atlases.into_iter().collect::<Result<_, _>>()?,
         pieces: index.pieces,
     })
+}
+
+/// `offset [dx, dy]`, with ` at level ℓ` for a multi-resolution map.
+fn offset_text(offset: [i32; 2], level: u32) -> String {
+    if level == 0 {
+        format!("offset {offset:?}")
+    } else {
+        format!("offset {offset:?} at level {level}")
+    }
 }
