@@ -60,6 +60,33 @@ fn compare_figure(text: &str, label: &str) -> f64 {
         .unwrap_or_else(|| panic!("no figure in '{line}'"))
 }
 
+/// `ortm compare` of a bake's final lightmap `applied` (kept over covered texels only, gutters
+/// 0 as the solve writes them; saved as `name`) against `exact/` (same first order).
+fn compare_with_exact(
+    dir: &std::path::Path,
+    grid: &TexelGrid,
+    applied: &ortm::Lightmap,
+    name: &str,
+) -> String {
+    let applied = to_lightmap(grid, &from_lightmap(grid, applied));
+    write_lightmap_exr(&dir.join(name), &applied).unwrap();
+    ok(ortm(
+        &[
+            "compare",
+            "exact/final.exr",
+            name,
+            "--first",
+            "exact/first_order.exr",
+            "exact/first_order.exr",
+            "--scene",
+            "cornell",
+            "--size",
+            "64",
+        ],
+        dir,
+    ))
+}
+
 #[test]
 fn the_cornell_rows_match_bake_solve_and_compare_and_stay_within_their_bounds() {
     let tmp = tempfile::tempdir().unwrap();
@@ -109,27 +136,8 @@ fn the_cornell_rows_match_bake_solve_and_compare_and_stay_within_their_bounds() 
         .unwrap()
         .load_maps(&dir.join("bake"))
         .unwrap();
-    // The bake's final lightmap over covered texels only (gutters 0, as the solve writes).
     let applied = ortm::maps::apply(&maps, &first).unwrap();
-    let applied = to_lightmap(&grid, &from_lightmap(&grid, &applied));
-    write_lightmap_exr(&dir.join("bake_final.exr"), &applied).unwrap();
-    let cmp = ok(ortm(
-        &[
-            "compare",
-            "exact/final.exr",
-            "bake_final.exr",
-            "--first",
-            "exact/first_order.exr",
-            "exact/first_order.exr",
-            "--scene",
-            "cornell",
-            "--size",
-            "64",
-            "-o",
-            "error.png",
-        ],
-        dir,
-    ));
+    let cmp = compare_with_exact(dir, &grid, &applied, "bake_final.exr");
     let integrated = rows
         .iter()
         .find(|r| r.method.contains("integrated"))
@@ -160,23 +168,7 @@ fn the_cornell_rows_match_bake_solve_and_compare_and_stay_within_their_bounds() 
         .load_maps(&dir.join("lbake"))
         .unwrap();
     let applied = ortm::maps::levels::apply_levels(&lmaps, &first, &grid.area_map()).unwrap();
-    let applied = to_lightmap(&grid, &from_lightmap(&grid, &applied));
-    write_lightmap_exr(&dir.join("lbake_final.exr"), &applied).unwrap();
-    let cmp = ok(ortm(
-        &[
-            "compare",
-            "exact/final.exr",
-            "lbake_final.exr",
-            "--first",
-            "exact/first_order.exr",
-            "exact/first_order.exr",
-            "--scene",
-            "cornell",
-            "--size",
-            "64",
-        ],
-        dir,
-    ));
+    let cmp = compare_with_exact(dir, &grid, &applied, "lbake_final.exr");
     let levels = rows
         .iter()
         .find(|r| r.method.contains("multi-resolution"))
