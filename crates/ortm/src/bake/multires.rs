@@ -29,7 +29,7 @@ use rayon::prelude::*;
 use crate::Lightmap;
 use crate::bake::texels::TexelGrid;
 use crate::bake::transport::{Cancelled, SetupProgress, Transport};
-use crate::maps::levels::level_count;
+use crate::maps::levels::{add3, halve, level_count};
 use crate::maps::{MapsError, TransferMap};
 
 /// How the receivers' rows are partitioned.
@@ -70,10 +70,9 @@ struct RowSums {
 /// Level geometry and the texel weights shared by every row.
 struct Layout {
     dims: Vec<(u32, u32)>,
-    /// Per level, per block: summed texel area (m²).
+    /// Per level, per block: summed texel area (m²); level 0 is each texel's area (0 where
+    /// uncovered), row-major.
     weight: Vec<Vec<f64>>,
-    /// Level 0 weights (texel area, 0 where uncovered), row-major.
-    area: Vec<f64>,
 }
 
 impl Layout {
@@ -81,41 +80,22 @@ impl Layout {
         let (w, h) = (grid.width, grid.height);
         let area: Vec<f64> = grid.area_map().iter().map(|&a| a as f64).collect();
         let mut dims = vec![(w, h)];
-        let mut weight = vec![area.clone()];
+        let mut weight = vec![area];
         for l in 1..levels as usize {
-            let (pw, ph) = dims[l - 1];
-            let (nw, nh) = (pw.div_ceil(2), ph.div_ceil(2));
-            let mut nwt = vec![0.0; (nw * nh) as usize];
-            for y in 0..ph {
-                for x in 0..pw {
-                    nwt[((y / 2) * nw + x / 2) as usize] += weight[l - 1][(y * pw + x) as usize];
-                }
-            }
-            dims.push((nw, nh));
-            weight.push(nwt);
+            let d = dims[l - 1];
+            weight.push(halve(d, &weight[l - 1], 0.0, |a, b| *a += b));
+            dims.push((d.0.div_ceil(2), d.1.div_ceil(2)));
         }
-        Self { dims, weight, area }
+        Self { dims, weight }
     }
 
     fn sums(&self, row: &[[f64; 3]]) -> RowSums {
         let mut sum = vec![row.to_vec()];
         let mut abs = vec![row.iter().map(|v| v.map(f64::abs)).collect::<Vec<_>>()];
         for l in 1..self.dims.len() {
-            let (pw, ph) = self.dims[l - 1];
-            let (nw, nh) = self.dims[l];
-            let mut ns = vec![[0.0f64; 3]; (nw * nh) as usize];
-            let mut na = vec![[0.0f64; 3]; (nw * nh) as usize];
-            for y in 0..ph {
-                for x in 0..pw {
-                    let (i, o) = ((y * pw + x) as usize, ((y / 2) * nw + x / 2) as usize);
-                    for c in 0..3 {
-                        ns[o][c] += sum[l - 1][i][c];
-                        na[o][c] += abs[l - 1][i][c];
-                    }
-                }
-            }
-            sum.push(ns);
-            abs.push(na);
+            let d = self.dims[l - 1];
+            sum.push(halve(d, &sum[l - 1], [0.0; 3], add3));
+            abs.push(halve(d, &abs[l - 1], [0.0; 3], add3));
         }
         RowSums { sum, abs }
     }
@@ -169,7 +149,7 @@ fn partition(
             'scan: for y in y0..y1 {
                 for x in x0..x1 {
                     let j = (y * w0 + x) as usize;
-                    let f = layout.area[j] / wb;
+                    let f = layout.weight[0][j] / wb;
                     for c in 0..3 {
                         delta[c] += (row[j][c] - s[c] * f).abs();
                     }
@@ -216,7 +196,12 @@ pub fn partition_rows(
     let per_receiver: Vec<Vec<Vec<Entry>>> = (0..n as u32)
         .into_par_iter()
         .map_init(
-            || (vec![[0.0f32; 3]; n], vec![[0.0f64; 3]; layout.area.len()]),
+            || {
+                (
+                    vec![[0.0f32; 3]; n],
+                    vec![[0.0f64; 3]; layout.weight[0].len()],
+                )
+            },
             |(r, full), i| {
                 progress.check()?;
                 row(i, r);
@@ -259,35 +244,24 @@ pub fn transport_row(tr: &Transport) -> impl Fn(u32, &mut [[f32; 3]]) + Sync + '
 /// profile value times its texels' weights, and the point mass `−1` at the receiver) and the
 /// coarse higher-order remainder by area. No visibility ray per pair: `O(n)` per row.
 pub fn hierarchical_row(tr: &Transport) -> Option<impl Fn(u32, &mut [[f32; 3]]) + Sync + '_> {
-    use crate::bake::transport::hier::tree::NO_CHILD;
+    use crate::bake::transport::hier::tree::NO_PARENT;
     let op = tr.links.as_ref()?;
     let tree = op.tree();
-    let mut parent = vec![u32::MAX; tree.nodes.len()];
-    for (id, n) in tree.nodes.iter().enumerate() {
-        if n.children[0] != NO_CHILD {
-            for c in n.children {
-                parent[c as usize] = id as u32;
-            }
-        }
-    }
-    let members = |s: u32| {
-        let n = &tree.nodes[s as usize];
-        &tree.order[n.first as usize..(n.first + n.count) as usize]
-    };
+    let parent = tree.parents();
     Some(move |i: u32, out: &mut [[f32; 3]]| {
         for (j, o) in out.iter_mut().enumerate() {
             *o = tr.remainder.r(i, j as u32, tr.patches[j].area_m2);
         }
         let p = &tr.patches[i as usize];
         let mut node = tree.leaf_of[i as usize];
-        while node != u32::MAX {
+        while node != NO_PARENT {
             for l in op.links_of(node) {
                 let k = l.irradiance_per_radiosity(p.normal);
                 if k <= 0.0 {
                     continue;
                 }
                 let inv_area = 1.0 / tree.nodes[l.send as usize].area_m2;
-                for &j in members(l.send) {
+                for &j in tree.members(l.send) {
                     let f = k * tr.patches[j as usize].area_m2 * inv_area;
                     let o = &mut out[j as usize];
                     for (c, v) in o.iter_mut().enumerate() {
@@ -299,7 +273,7 @@ pub fn hierarchical_row(tr: &Transport) -> Option<impl Fn(u32, &mut [[f32; 3]]) 
         }
         if let Some(walk) = op.subsurface_walk() {
             walk.walk(tree, &tr.patches, &tr.kernels, i as usize, |s, rd, me| {
-                for &j in members(s) {
+                for &j in tree.members(s) {
                     let w = walk.weight(tree.leaf_of[j as usize]);
                     for c in 0..3 {
                         out[j as usize][c] += (rd[c] * w[c] as f64) as f32;

@@ -66,25 +66,43 @@ impl PyramidLevel {
 /// One level's block sums: width, height, `Σ value · weight` and `Σ weight` per block.
 type Sums = (u32, u32, Vec<[f64; 3]>, Vec<f64>);
 
-/// Block sums of `value · weight` and `weight` at every level up to `levels − 1`, by successive
-/// 2×2 reductions (exactly the sums over each block's texels).
+/// One level up: the `⌈w/2⌉ × ⌈h/2⌉` sums of the 2×2 blocks of a `w × h` row-major image
+/// (`add` adds a value into a sum that starts at `zero`). Repeated, it gives exactly the sums
+/// over each level's blocks of texels; the bake's partition uses it too.
+pub(crate) fn halve<T: Copy>(
+    (w, h): (u32, u32),
+    data: &[T],
+    zero: T,
+    add: impl Fn(&mut T, &T),
+) -> Vec<T> {
+    let nw = w.div_ceil(2);
+    let mut out = vec![zero; (nw * h.div_ceil(2)) as usize];
+    for y in 0..h {
+        for x in 0..w {
+            add(
+                &mut out[((y / 2) * nw + x / 2) as usize],
+                &data[(y * w + x) as usize],
+            );
+        }
+    }
+    out
+}
+
+/// Adds RGB sums.
+pub(crate) fn add3(a: &mut [f64; 3], b: &[f64; 3]) {
+    for c in 0..3 {
+        a[c] += b[c];
+    }
+}
+
+/// Block sums of `value · weight` and `weight` at every level up to `levels − 1`.
 fn reduce(first: Sums, levels: u32) -> Vec<Sums> {
     let mut out = vec![first];
     for _ in 1..levels {
         let (w, h, s, a) = out.last().unwrap();
-        let (nw, nh) = (w.div_ceil(2), h.div_ceil(2));
-        let mut ns = vec![[0.0f64; 3]; (nw * nh) as usize];
-        let mut na = vec![0.0f64; (nw * nh) as usize];
-        for y in 0..*h {
-            for x in 0..*w {
-                let (i, o) = ((y * w + x) as usize, ((y / 2) * nw + x / 2) as usize);
-                for c in 0..3 {
-                    ns[o][c] += s[i][c];
-                }
-                na[o] += a[i];
-            }
-        }
-        out.push((nw, nh, ns, na));
+        let ns = halve((*w, *h), s, [0.0; 3], add3);
+        let na = halve((*w, *h), a, 0.0, |x, y| *x += y);
+        out.push((w.div_ceil(2), h.div_ceil(2), ns, na));
     }
     out
 }

@@ -74,7 +74,23 @@ pub struct Tree {
     pub leaf_of: Vec<u32>,
 }
 
+/// No parent: the root's entry in [`Tree::parents`].
+pub const NO_PARENT: u32 = u32::MAX;
+
 impl Tree {
+    /// The parent of every node ([`NO_PARENT`] for the root), in node order.
+    pub fn parents(&self) -> Vec<u32> {
+        let mut parent = vec![NO_PARENT; self.nodes.len()];
+        for (id, n) in self.nodes.iter().enumerate() {
+            if n.children[0] != NO_CHILD {
+                for c in n.children {
+                    parent[c as usize] = id as u32;
+                }
+            }
+        }
+        parent
+    }
+
     /// Builds the tree over `patches` (at least one).
     pub fn build(patches: &[Patch]) -> Self {
         assert!(
