@@ -32,9 +32,10 @@ fn figure_lights(id: &str) -> Vec<Light> {
 /// channel, 0.436 / 0.227 / 0.131), and interreflection only returns some of the escaping light
 /// to the skin, where it again leaves at most ρ̄ times; so the power escaping the head is at
 /// most ρ̄ × the entering power, per channel (tolerance 1e-3 for f32 sums). Measured
-/// escaping/entering: with radiosity 0.408–0.418 (R), 0.215–0.221 (G), 0.124–0.127 (B);
-/// subsurface alone 0.4246–0.4262, 0.2261–0.2265, 0.13094–0.13098 (ρ̄ less the sub-texel and
-/// neck-edge losses of the discrete profile). The lower bounds are the smallest measured ratio
+/// escaping/entering: with radiosity 0.4148–0.4240 (R), 0.2157–0.2214 (G), 0.1239–0.1274 (B);
+/// subsurface alone 0.4317–0.4318, 0.2268–0.2269, 0.13096–0.13097 (ρ̄ less what the discrete
+/// profile loses where the texels' footprints do not tile the curved surface, and at the neck's
+/// edge). The lower bounds are the smallest measured ratio
 /// less 25%.
 #[test]
 fn head_outgoing_power_never_exceeds_incoming_per_channel() {
@@ -43,7 +44,7 @@ fn head_outgoing_power_never_exceeds_incoming_per_channel() {
     let vis = Visibility::new(&scene.mesh);
     let skin = scene.materials[0].subsurface.as_ref().expect("skin");
     let rho_bar = ortm::scene::subsurface::Profile::new(skin).total_reflectance();
-    let lowest_measured = Vec3::new(0.408, 0.215, 0.124);
+    let lowest_measured = Vec3::new(0.4148, 0.2157, 0.1239);
     let area: Vec<f32> = grid.texels.iter().map(|t| t.area_m2).collect();
     let sum_a = |v: &[Vec3]| -> Vec3 { v.iter().zip(&area).map(|(b, a)| *b * *a).sum() };
     for effects in [
@@ -107,10 +108,11 @@ fn head_outgoing_power_never_exceeds_incoming_per_channel() {
 /// subsurface weights were normalised per sender (`ortm::bake::transport`, "Subsurface
 /// weights") the head at 48² re-emitted 1.0008 / 1.008 / 1.025 (R/G/B) × the first order under
 /// the Fig. 5 light and 1.016 / 1.033 / 1.080 under the Fig. 4 light (overlapping texel
-/// footprints: stretched texels, and texel centres of two charts nearly coinciding on seams). Now (both solvers agree to 1e-6): Fig. 5
-/// 0.9740 / 0.9958 / 0.99984, Fig. 4 0.9761 / 0.9963 / 0.99985 — the discrete profile loses a
-/// little light (the midpoint rule between 8 mm texels, the neck's edge); the lower bound allows
-/// 25% more than the largest loss per channel.
+/// footprints: stretched texels, and texel centres of two charts nearly coinciding on seams). Now
+/// (both solvers agree to 1e-6): Fig. 5 0.99036 / 0.99784 / 0.99977, Fig. 4 0.99018 / 0.99803 /
+/// 0.99979 — the discrete profile loses a little light (where the 8 mm texels' footprints do
+/// not tile the curved surface, and at the neck's edge); the lower bound allows 25 % more than
+/// the largest loss per channel.
 #[test]
 fn subsurface_alone_reemits_no_more_than_the_first_order() {
     let scene = head(48);
@@ -138,7 +140,7 @@ fn subsurface_alone_reemits_no_more_than_the_first_order() {
                 ratio.cmple(Vec3::splat(1.0 + 1e-3)).all(),
                 "{fig} {label}: subsurface re-emits {ratio} of the first order"
             );
-            let largest_loss = Vec3::new(0.0260, 0.00423, 0.000165);
+            let largest_loss = Vec3::new(0.00982, 0.00216, 0.000232);
             assert!(
                 ratio.cmpgt(Vec3::ONE - largest_loss * 1.25).all(),
                 "{fig} {label}: subsurface re-emits only {ratio} of the first order"
@@ -154,14 +156,15 @@ fn subsurface_alone_reemits_no_more_than_the_first_order() {
 /// the CPU first order) summed over texels (mean of R, G, B per texel, as the `energy:` line
 /// of `ortm render` sums it) against the first order's sum.
 ///
-/// Measured (figures 3, 4, 5, 6a, 6b): dipole 0.9732 / 0.9656 / 0.9647 / 0.9681 / 0.9640,
-/// exponential 0.9961 / 0.9904 / 0.9890 / 0.9874 / 0.9886 — the interreflected light is
-/// outweighed by what the discrete profile loses between texels (the midpoint rule's shortfall,
-/// see `regular_grid_keeps_the_profile` in `ortm::bake::transport`) and at the neck's edge;
-/// the long-reaching exponential falloff loses less to the near field. Each falloff's band
-/// bounds the deficit `1 − ratio` between 0.75 × its smallest and 1.25 × its largest measured
-/// value. Before the subsurface weights were normalised the seams created light: 0.98–0.99
-/// (dipole) and 1.00–1.04 (exponential) in the GPU render's `energy:` lines.
+/// Measured (figures 3, 4, 5, 6a, 6b): dipole 1.0043 / 1.0053 / 1.0050 / 1.0018 / 1.0000,
+/// exponential 1.0045 / 1.0060 / 1.0050 / 1.0022 / 1.0015 — the interreflected light (a few
+/// tenths of a percent on a convex head) slightly outweighs what the discrete profile loses
+/// where the texels' footprints do not tile the curved surface. The band: no figure may lose
+/// more than 0.2 % (the measured least is 1.0000), nor gain more than 1.25 × the largest
+/// measured gain (0.60 %). Before the subsurface weights were integrated over each texel's
+/// footprint the midpoint rule lost 2.7–3.6 % (dipole) and 0.4–1.3 % (exponential); before
+/// they were normalised the seams created light: 0.98–0.99 (dipole) and 1.00–1.04
+/// (exponential) in the GPU render's `energy:` lines.
 #[test]
 fn face_bake_final_energy_stays_near_the_first_order() {
     let t0 = std::time::Instant::now();
@@ -171,11 +174,7 @@ fn face_bake_final_energy_stays_near_the_first_order() {
             .map(|p| (p[0] + p[1] + p[2]) as f64 / 3.0)
             .sum()
     };
-    // (falloff, smallest and largest measured deficit 1 − final/first order)
-    for (falloff, (least, most)) in [
-        (faces::Falloff::Dipole, (0.0268, 0.0360)),
-        (faces::Falloff::Exponential, (0.0039, 0.0126)),
-    ] {
+    for falloff in [faces::Falloff::Dipole, faces::Falloff::Exponential] {
         let scene = ortm::scene::head::head_scene_with(falloff).expect("head scene");
         let settings = BakeSettings {
             size: scene.lightmap_size,
@@ -203,7 +202,7 @@ fn face_bake_final_energy_stays_near_the_first_order() {
             faces::FIGURES.iter().map(|f| f.id).collect::<Vec<_>>(),
             t0.elapsed().as_secs_f64()
         );
-        let (lo, hi) = (1.0 - 1.25 * most, 1.0 - 0.75 * least);
+        let (lo, hi) = (1.0 - 0.002, 1.0 + 1.25 * 0.0060);
         for (f, r) in faces::FIGURES.iter().zip(&ratios) {
             assert!(
                 (lo..=hi).contains(r),
@@ -256,11 +255,12 @@ fn backlit_ear_glows_with_subsurface_scattering() {
          radiosity only {rgb_rad} (luminance {without:.4e}); factor {factor:.2}"
     );
     assert!(without > 0.0, "interreflection alone reaches the ear");
-    // Measured: 120.4 (56 unlit ear-rim texels at 128², 0.88 m per model unit; 152.7 before the
+    // Measured: 114.7 (56 unlit ear-rim texels at 128², 0.88 m per model unit; 152.7 before the
     // subsurface weights were normalised per sender, which scales down the senders of the thin
-    // ear, whose profile reaches both of its sides). Bounds: ±25%.
+    // ear, whose profile reaches both of its sides; 120.4 with the midpoint rule before the
+    // weights were integrated over each texel's footprint). Bounds: ±25%.
     assert!(
-        (90.0..=150.5).contains(&factor),
+        (86.0..=143.4).contains(&factor),
         "SSS / no SSS luminance factor {factor}"
     );
     // The glow is warm: skin carries red furthest.

@@ -20,6 +20,7 @@ use common::{final_at, luminance, senders};
 use glam::{Vec2, Vec3};
 use ortm::bake::lighting;
 use ortm::bake::texels::TexelGrid;
+use ortm::bake::transport::footprint::gauss_legendre;
 use ortm::bake::transport::{Effects, Transport};
 use ortm::bake::{self, BakeSettings};
 use ortm::scene::{Albedo, Light, Material, Mesh, MeshTriangle, Scene, Subsurface};
@@ -68,31 +69,6 @@ fn dipoles(s: &Subsurface) -> [Dipole; 3] {
             s.eta as f64,
         )
     })
-}
-
-/// Gauss–Legendre nodes and weights on [−1, 1] (Newton on P_n).
-fn gauss_legendre(n: usize) -> Vec<(f64, f64)> {
-    (0..n)
-        .map(|i| {
-            let mut x = (PI * (i as f64 + 0.75) / (n as f64 + 0.5)).cos();
-            let mut dp = 1.0;
-            for _ in 0..100 {
-                let (mut p0, mut p1) = (1.0, x);
-                for k in 2..=n {
-                    let p2 = ((2 * k - 1) as f64 * x * p1 - (k - 1) as f64 * p0) / k as f64;
-                    p0 = p1;
-                    p1 = p2;
-                }
-                dp = n as f64 * (x * p1 - p0) / (x * x - 1.0);
-                let dx = p1 / dp;
-                x -= dx;
-                if dx.abs() < 1e-15 {
-                    break;
-                }
-            }
-            (x, 2.0 / ((1.0 - x * x) * dp * dp))
-        })
-        .collect()
 }
 
 /// `∫_rect R_d(|p − x'|) E(x') dA'` per channel over the axis-aligned rectangle

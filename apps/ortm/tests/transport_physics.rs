@@ -33,6 +33,7 @@ fn cube_patches(n: usize, rho: Vec3) -> Vec<Patch> {
                     rho,
                     material: 0,
                     subsurface_scale: Vec3::ONE,
+                    footprint_m: None,
                 });
             }
         }

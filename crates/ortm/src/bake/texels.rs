@@ -52,6 +52,10 @@ pub struct Texel {
     pub face_normal: Vec3,
     /// Surface area the texel represents, m².
     pub area_m2: f32,
+    /// The texel's footprint on its triangle's plane: the 3D steps (metres) of one texel in x
+    /// and in y (`∂P/∂x`, `∂P/∂y` in texel units), so the footprint is the parallelogram
+    /// `position_m + s·f[0] + t·f[1]`, `s, t ∈ [−½, ½]`, of area `|f[0] × f[1]| = area_m2`.
+    pub footprint_m: [Vec3; 2],
     /// Effective diffuse albedo ρ (RGB).
     pub albedo: Vec3,
     /// Material index.
@@ -330,8 +334,13 @@ fn texel_patch(
         .try_normalize()
         .unwrap_or(face_normal);
     let t: [Vec2; 3] = std::array::from_fn(|k| uv_to_texel_space(uvs[k], width, height));
-    let texel_area = 0.5 * ((t[1] - t[0]).perp_dot(t[2] - t[0])).abs();
+    let (d1, d2) = (t[1] - t[0], t[2] - t[0]);
+    let det = d1.perp_dot(d2);
+    let texel_area = 0.5 * det.abs();
     let area_m2 = world_area / texel_area;
+    // P(t) = p0 + a(p1 − p0) + b(p2 − p0) with t − t0 = a·d1 + b·d2: the columns of ∂P/∂t.
+    let (e1, e2) = (pos[1] - pos[0], pos[2] - pos[0]);
+    let footprint_m = [(e1 * d2.y - e2 * d1.y) / det, (e2 * d1.x - e1 * d2.x) / det];
     let uv = uvs[0] * b[0] + uvs[1] * b[1] + uvs[2] * b[2];
     let material = tri.material;
     let albedo = match &profiles[material as usize] {
@@ -345,6 +354,7 @@ fn texel_patch(
         normal,
         face_normal,
         area_m2,
+        footprint_m,
         albedo,
         material,
         chart,

@@ -76,6 +76,9 @@ pub fn cluster_texels(grid: &TexelGrid, patches: &[Patch], block: u32) -> (Vec<u
     let mut ids: HashMap<(u32, u32, u32, u32), u32> = HashMap::new();
     let mut cluster_of = Vec::with_capacity(grid.texels.len());
     let mut acc: Vec<(f64, Vec3, Vec3, Vec3, Vec3, u32)> = Vec::new();
+    // Per cluster: its members' count and the first member's footprint (a cluster of one
+    // texel keeps it, so that at `block` = 1 the clusters' weights are the texels').
+    let mut single: Vec<(u32, Option<[Vec3; 2]>)> = Vec::new();
     for (t, p) in grid.texels.iter().zip(patches) {
         let key = cluster_key(t, block);
         let n = ids.len() as u32;
@@ -88,9 +91,11 @@ pub fn cluster_texels(grid: &TexelGrid, patches: &[Patch], block: u32) -> (Vec<u
                 Vec3::ZERO,
                 t.material,
             ));
+            single.push((0, p.footprint_m));
             n
         });
         cluster_of.push(id);
+        single[id as usize].0 += 1;
         let a = &mut acc[id as usize];
         let w = p.area_m2;
         a.0 += w as f64;
@@ -101,18 +106,22 @@ pub fn cluster_texels(grid: &TexelGrid, patches: &[Patch], block: u32) -> (Vec<u
     }
     let clusters = acc
         .into_iter()
-        .map(|(area, pos, nrm, lift, rho, material)| {
-            let a = area as f32;
-            Patch {
-                position_m: pos / a,
-                normal: nrm.try_normalize().unwrap_or(Vec3::Z),
-                lift_normal: lift.try_normalize().unwrap_or(Vec3::Z),
-                area_m2: a,
-                rho: rho / a,
-                material,
-                subsurface_scale: Vec3::ONE,
-            }
-        })
+        .zip(single)
+        .map(
+            |((area, pos, nrm, lift, rho, material), (members, footprint))| {
+                let a = area as f32;
+                Patch {
+                    position_m: pos / a,
+                    normal: nrm.try_normalize().unwrap_or(Vec3::Z),
+                    lift_normal: lift.try_normalize().unwrap_or(Vec3::Z),
+                    area_m2: a,
+                    rho: rho / a,
+                    material,
+                    subsurface_scale: Vec3::ONE,
+                    footprint_m: if members == 1 { footprint } else { None },
+                }
+            },
+        )
         .collect();
     (cluster_of, clusters)
 }

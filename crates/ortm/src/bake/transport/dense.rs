@@ -293,6 +293,7 @@ mod tests {
             rho,
             material: 0,
             subsurface_scale: Vec3::ONE,
+            footprint_m: None,
         };
         let patches = [
             patch(0.0, Vec3::Z, Vec3::new(0.8, 0.5, 0.2)),

@@ -14,6 +14,17 @@ pub struct RdTable {
     r_max_m: f64,
     inv_step: f64,
     values: Vec<[f64; 3]>,
+    /// `∫₀^r R_d(s) s ds = disk_integral(r) / 2π` at the same samples (the primitive that
+    /// [`super::footprint`] integrates the profile with).
+    primitive: Vec<[f64; 3]>,
+    /// The largest effective transport coefficient σ_tr over the channels, m⁻¹.
+    decay_per_m: f64,
+    /// σ_tr per channel, m⁻¹.
+    decay_per_channel: [f64; 3],
+    /// The total diffuse reflectance ρ̄ per channel.
+    reflectance: [f64; 3],
+    /// `H(∞)` in the largest channel (the profile's total reflectance / 2π).
+    primitive_total: f64,
 }
 
 impl RdTable {
@@ -27,12 +38,73 @@ impl RdTable {
         let values = (0..Self::SAMPLES)
             .map(|n| profile.rd(n as f64 * step))
             .collect();
+        let primitive = (0..Self::SAMPLES)
+            .map(|n| {
+                profile
+                    .disk_integral(n as f64 * step)
+                    .map(|v| v / std::f64::consts::TAU)
+            })
+            .collect();
+        let decay_per_m = profile
+            .channels
+            .iter()
+            .map(|c| c.sigma_tr)
+            .fold(0.0f64, f64::max);
+        let primitive_total = profile
+            .channels
+            .iter()
+            .map(|c| c.total_reflectance() / std::f64::consts::TAU)
+            .fold(0.0f64, f64::max);
         Self {
             profile: *profile,
             r_max_m,
             inv_step: 1.0 / step,
             values,
+            primitive,
+            decay_per_m,
+            decay_per_channel: profile.channels.map(|c| c.sigma_tr),
+            reflectance: profile.channels.map(|c| c.total_reflectance()),
+            primitive_total,
         }
+    }
+
+    /// The largest effective transport coefficient σ_tr of the profile's channels (m⁻¹): the
+    /// profile falls by `e` within `1/σ_tr` in its tail.
+    pub fn decay_per_m(&self) -> f64 {
+        self.decay_per_m
+    }
+
+    /// σ_tr per channel (m⁻¹).
+    pub fn decay_per_channel(&self) -> [f64; 3] {
+        self.decay_per_channel
+    }
+
+    /// The profile's total diffuse reflectance ρ̄ per channel.
+    pub fn reflectance(&self) -> [f64; 3] {
+        self.reflectance
+    }
+
+    /// `H(∞)` in the profile's largest channel: its total reflectance ρ̄ / 2π.
+    pub fn primitive_total(&self) -> f64 {
+        self.primitive_total
+    }
+
+    /// `H(r) = ∫₀^r R_d(s) s ds` per channel (dimensionless): the profile gathered from a disk
+    /// of radius `r` metres is `2π·H(r)`. Tabulated like [`RdTable::rd`]; closed form beyond
+    /// the table.
+    #[inline]
+    pub fn primitive(&self, r: f64) -> [f64; 3] {
+        if r >= self.r_max_m {
+            return self
+                .profile
+                .disk_integral(r)
+                .map(|v| v / std::f64::consts::TAU);
+        }
+        let x = r.max(0.0) * self.inv_step;
+        let n = (x as usize).min(Self::SAMPLES - 2);
+        let f = x - n as f64;
+        let (a, b) = (self.primitive[n], self.primitive[n + 1]);
+        [0, 1, 2].map(|c| a[c] + (b[c] - a[c]) * f)
     }
 
     /// `R_d(r)` per channel at `r` metres (m⁻²).

@@ -21,28 +21,32 @@
 //! diagonal is negative: light that entered at `t` and leaves elsewhere).
 //!
 //! # Subsurface weights
-//! `S_ij = R_d(r_ij)·A_j` is the midpoint rule of the convolution (`R_d` in m⁻², so `S` is
-//! dimensionless); the self term `S_jj = ∫₀^a R_d(r) 2πr dr` integrates the profile's
-//! near-singular peak over a disk of the texel's area (`πa² = A_j`). Sender `j`'s incident
-//! power `E_j A_j` (W) leaves as `Σ_i S_ij E_j A_i = Q_j E_j A_j`, with
-//! `Q_j = Σ_i S_ij A_i / A_j` a quadrature of `∫_S R_d(|x − x_j|) dA` over the surface: ρ̄ on
-//! a plane (Jensen's total diffuse reflectance, the first order's albedo), less near an edge of
-//! the surface. The quadrature assumes that the texels' footprints tile the surface. They
-//! overlap where a texel is stretched (its neighbour along the short axis of its UV
-//! parallelogram lies within ~0.75 √A_j, next to or inside its disk: most of the head's
-//! excess) and where the centres of two charts' texels nearly coincide on a UV seam (both at
-//! the profile's peak, each standing for its own whole area); there `Q_j` exceeds ρ̄ — on the
-//! head up to 6.1× (256²) and 73× (48²) — and the discrete operator creates light (the head at
-//! 48², subsurface alone, Fig. 4 light: 1.016 / 1.033 / 1.080 × the first order's power,
-//! R/G/B). So every sender's column is scaled per channel by
-//! `min(1, ρ̄ / Q_j)` ([`Patch::subsurface_scale`], set by [`Kernels::normalise_subsurface`]):
-//! no sender re-emits more than ρ̄ of the power it receives, overlapping samples share the
-//! light of the surface they both stand for, and where the quadrature does not overcount
-//! (`Q_j ≤ ρ̄`: every texel of a square grid) the profile is kept exactly. There the midpoint
-//! rule falls short of the integral instead (up to 2% of ρ̄ on 0.5 mm texels, 10% on 2 mm
-//! ones; tested below), light that the cap does not restore. The scale belongs to the sender, so
-//! [`Kernels::subsurface`] — the only source of `S` for the dense solve, the coarse level
-//! and the pair evaluator — applies it, and each of them normalises the patches it is given.
+//! `S_ij = ∫_{P_j} R_d(|x_i − y|) dA(y)` (`R_d` in m⁻², so `S` is dimensionless): the profile
+//! seen from receiver point `x_i`, integrated over sender texel `j`'s footprint `P_j`, the
+//! parallelogram its texel maps to on its triangle's plane ([`footprint`]; polar integration
+//! for near pairs and the self pair, Gauss–Legendre for far ones). So a sender's light spreads
+//! over the surface it stands for, not from a point: the midpoint rule `R_d(r_ij)·A_j` is off
+//! wherever the profile changes across a texel (skin's blue channel falls by `e` in 0.7 mm; the
+//! head's texels are 1.8 mm at 256², 7 mm at 64²). Sender `j`'s incident power `E_j A_j` (W)
+//! leaves as `Σ_i S_ij E_j A_i = Q_j E_j A_j`, with `Q_j = Σ_i S_ij A_i / A_j`. Where the
+//! footprints tile the surface (a chart's interior, any texel size) `Q_j` is the profile's
+//! integral over the plane, ρ̄ (Jensen's total diffuse reflectance, the first order's albedo;
+//! tested to 0.1 %), and less near an edge of the surface.
+//!
+//! Footprints overlap where the centres of two charts' texels nearly coincide on a UV seam
+//! (each stands for its own whole footprint) and where a curved surface folds its tangent
+//! planes together; there `Q_j` exceeds ρ̄ and the discrete operator would create light. So
+//! every sender's column is scaled per channel by `min(1, ρ̄ / Q_j)`
+//! ([`Patch::subsurface_scale`], set by [`Kernels::normalise_subsurface`]): no sender re-emits
+//! more than ρ̄ of the power it receives, and where the footprints do not overlap the profile
+//! is kept exactly. The continuous model (the path-traced reference's) has no cap: where a fold
+//! brings more surface within the profile's Euclidean reach than a plane holds, it re-emits more
+//! than ρ̄, so the cap also removes light the model keeps (3 % of the red power on the head at
+//! 256², README "Transport model"). The scale belongs to the sender, so [`Kernels::subsurface`] — the only
+//! source of `S` for the dense solve, the coarse level, the hierarchical operator and the pair
+//! evaluator — applies it, and each of them normalises the patches it is given. Clusters and
+//! tree nodes, which have no footprint, use the midpoint rule (a disk of their area for the
+//! self pair).
 //!
 //! # Evaluating R for any pair
 //! The offset stage needs `R(t, t')` for arbitrary pairs of texels of lightmaps far too large to
@@ -61,6 +65,7 @@
 pub mod coarse;
 pub mod dense;
 pub mod dipole;
+pub mod footprint;
 pub mod form_factor;
 pub mod hier;
 
@@ -169,6 +174,10 @@ pub struct Patch {
     /// [`Kernels::normalise_subsurface`] (see the module docs, "Subsurface weights"); 1 until
     /// then, and for opaque patches.
     pub subsurface_scale: Vec3,
+    /// A texel's footprint ([`crate::bake::texels::Texel::footprint_m`]): the profile is
+    /// integrated over it as a sender (module docs, "Subsurface weights"). `None` for clusters
+    /// and tree nodes, which use the midpoint rule.
+    pub footprint_m: Option<[Vec3; 2]>,
 }
 
 impl Patch {
@@ -196,6 +205,7 @@ pub fn texel_patches(grid: &TexelGrid) -> Vec<Patch> {
             rho: t.albedo,
             material: t.material,
             subsurface_scale: Vec3::ONE,
+            footprint_m: Some(t.footprint_m),
         })
         .collect()
 }
@@ -285,24 +295,40 @@ impl Kernels {
         Some([s[0] * k.x as f64, s[1] * k.y as f64, s[2] * k.z as f64])
     }
 
-    /// The profile weights before normalisation: `R_d(|x_i − x_j|)·A_j`, 0 beyond the
-    /// profile's support; for `self_pair` the profile integrated over a disk of the patch's
-    /// area, `∫₀^a R_d(r) 2πr dr` with `πa² = A_j`. `None` between different materials.
+    /// The profile weights before normalisation. For a texel (a patch with a footprint):
+    /// `∫_{P_j} R_d(|x_i − y|) dA(y)` over its footprint ([`footprint`]), the self pair
+    /// included. For clusters and tree nodes, the midpoint rule `R_d(|x_i − x_j|)·A_j`, and for
+    /// `self_pair` the profile integrated over a disk of the patch's area,
+    /// `∫₀^a R_d(r) 2πr dr` with `πa² = A_j`. 0 beyond the profile's support (centre distance);
+    /// `None` between different materials.
     #[inline]
     pub fn subsurface_raw(&self, a: &Patch, b: &Patch, self_pair: bool) -> Option<[f64; 3]> {
         if a.material != b.material {
             return None;
         }
-        let p = self.profiles[a.material as usize].as_ref()?;
+        let m = a.material as usize;
+        let p = self.profiles[m].as_ref()?;
+        let table = self.tables[m].as_ref();
+        if let (Some(f), Some(table)) = (b.footprint_m, table) {
+            if !self_pair && (a.position_m - b.position_m).length() as f64 > self.support_m[m] {
+                return Some([0.0; 3]);
+            }
+            return Some(footprint::footprint_weight(
+                table,
+                a.position_m,
+                b.position_m,
+                f,
+            ));
+        }
         if self_pair {
             let radius = (a.area_m2 as f64 / std::f64::consts::PI).sqrt();
             return Some(p.disk_integral(radius));
         }
         let r = (a.position_m - b.position_m).length() as f64;
-        if r > self.support_m[a.material as usize] {
+        if r > self.support_m[m] {
             return Some([0.0; 3]);
         }
-        let rd = match &self.tables[a.material as usize] {
+        let rd = match table {
             Some(t) => t.rd(r),
             None => p.rd(r),
         };
@@ -648,6 +674,7 @@ mod tests {
                     rho: Vec3::ONE,
                     material: 0,
                     subsurface_scale: Vec3::ONE,
+                    footprint_m: None,
                 });
             }
         }

@@ -25,9 +25,10 @@
 //! fractions of a sender's power per unit area at the receiver, like a form factor.
 //!
 //! # Uses
-//! - Normalisation ([`SubsurfaceWalk::normalise`]): `Q_j = Σ_i S_ij^raw A_i / A_j`; the profile
-//!   depends only on distance, so `Q_j = Σ_i R_d(|x_j − x_i|) A_i`: the walk from `j` with each
-//!   visit's area. Then `min(1, ρ̄/Q_j)` per channel, as [`Kernels::normalise_subsurface`].
+//! - Normalisation ([`SubsurfaceWalk::normalise`]): `Q_j = Σ_i S_ij^raw A_i / A_j`; the midpoint
+//!   rule depends only on distance, so for a node `Q_j` takes `R_d(|x_j − c_s|) A_s`: the walk
+//!   from `j` with each visit's area. A visited texel with a footprint adds its own
+//!   `S_ij^raw A_i / A_j` (`j`'s footprint seen from `i`: the footprint rule is not symmetric). Then `min(1, ρ̄/Q_j)` per channel, as [`Kernels::normalise_subsurface`].
 //! - The bake's cell integration ([`crate::bake::cells`]): a visit adds
 //!   `R·W_s` to the receiver's transfer, `W_s = Σ_{j ∈ s} A_j k_j / ρ_j` per channel
 //!   ([`SubsurfaceWalk::weight`]; `k_j` the sender scale, `ρ_j` its albedo), and the self visit
@@ -186,10 +187,22 @@ impl SubsurfaceWalk {
                     if progress.check().is_err() {
                         return q;
                     }
-                    self.walk(tree, patches, kernels, j, |s, rd, _| {
-                        let area = tree.nodes[s as usize].area_m2 as f64;
+                    let b = &patches[j];
+                    let inv_area = 1.0 / b.area_m2.max(f32::MIN_POSITIVE) as f64;
+                    self.walk(tree, patches, kernels, j, |s, rd, me| {
+                        let node = &tree.nodes[s as usize];
+                        let a = &patches[tree.order[node.first as usize] as usize];
+                        // A texel with a footprint: its weight as the receiver of `j`
+                        // (the footprint rule is not symmetric in the pair).
+                        let w = match (node.is_leaf(), b.footprint_m) {
+                            (true, Some(_)) => kernels
+                                .subsurface_raw(a, b, me)
+                                .map(|w| w.map(|x| x * a.area_m2 as f64 * inv_area)),
+                            _ => None,
+                        };
+                        let w = w.unwrap_or_else(|| rd.map(|x| x * node.area_m2 as f64));
                         for c in 0..3 {
-                            q[c] += rd[c] * area;
+                            q[c] += w[c];
                         }
                     });
                     q
@@ -217,7 +230,9 @@ mod tests {
 
     /// A bumpy `n × n` sheet of `pitch`-metre texels (heights of a few texels, so distances
     /// are 3D), materials 0 and 1 in two halves (both skin).
-    fn sheet(n: usize, pitch: f32) -> Vec<Patch> {
+    /// With `footprints`, each texel carries its square footprint (side `√area`, in the sheet's
+    /// xy plane).
+    fn sheet(n: usize, pitch: f32, footprints: bool) -> Vec<Patch> {
         let mut v = Vec::new();
         for y in 0..n {
             for x in 0..n {
@@ -231,6 +246,10 @@ mod tests {
                     rho: Vec3::new(0.8, 0.5, 0.4),
                     material: u32::from(x >= 3 * n / 4),
                     subsurface_scale: Vec3::ONE,
+                    footprint_m: footprints.then(|| {
+                        let side = pitch * (1.0 + 0.3 * fx).sqrt();
+                        [Vec3::X * side, Vec3::Y * side]
+                    }),
                 });
             }
         }
@@ -256,7 +275,7 @@ mod tests {
     #[test]
     fn walk_covers_the_support_once_and_bounds_its_error() {
         let (n, pitch) = (64usize, 0.6e-3f32);
-        let patches = sheet(n, pitch);
+        let patches = sheet(n, pitch, false);
         let k = kernels();
         let exact = k.subsurface_reemission(&patches);
         let tree = Tree::build(&patches);
@@ -311,10 +330,17 @@ mod tests {
         }
     }
 
-    /// The walk's normalisation scales as the pairwise one does, to its tolerance.
+    /// The walk's normalisation scales as the pairwise one does, to its tolerance, with the
+    /// midpoint rule and with footprints.
     #[test]
     fn walk_normalisation_matches_the_pairwise_one() {
-        let patches = sheet(48, 2e-3);
+        for footprints in [false, true] {
+            normalisation_matches(footprints);
+        }
+    }
+
+    fn normalisation_matches(footprints: bool) {
+        let patches = sheet(48, 2e-3, footprints);
         let k = kernels();
         let mut exact = patches.clone();
         let scaled = k.normalise_subsurface(&mut exact);
@@ -325,14 +351,12 @@ mod tests {
             .normalise(&tree, &mut walked, &k, &SetupProgress::none())
             .unwrap();
         assert!(scaled > 0, "2 mm texels: some senders are scaled");
-        assert_eq!(n, scaled);
+        assert_eq!(n, scaled, "footprints {footprints}");
         for (a, b) in exact.iter().zip(&walked) {
-            assert!(
-                (a.subsurface_scale - b.subsurface_scale)
-                    .abs()
-                    .max_element()
-                    < 1e-5
-            );
+            let d = (a.subsurface_scale - b.subsurface_scale)
+                .abs()
+                .max_element();
+            assert!(d < 1e-5, "footprints {footprints}: scales differ by {d}");
         }
         // The node weights follow the scales.
         let root = walk.weight(0);
