@@ -22,29 +22,57 @@ fn head(size: u32) -> Scene {
     s
 }
 
+/// `Q̂_j` per texel: what the continuous surface re-emits per unit of power entering at the
+/// texel's centre ([`ortm::bake::transport::surface`]), 0 for opaque texels.
+fn surface_reemission(tr: &Transport, grid: &TexelGrid) -> Vec<Vec3> {
+    let k = &tr.kernels;
+    let surface = k.surface.as_ref().expect("a translucent head");
+    grid.texels
+        .par_iter()
+        .map(|t| {
+            let m = t.material as usize;
+            match &k.tables[m] {
+                Some(table) => {
+                    let q = surface.at(table, t.material, t.position_m, k.support_m[m]);
+                    Vec3::new(q[0] as f32, q[1] as f32, q[2] as f32)
+                }
+                None => Vec3::ZERO,
+            }
+        })
+        .collect()
+}
+
+/// `Σ Q̂_j E_j A_j / Σ E_j A_j`: the continuous surface's re-emission under irradiance `e`.
+fn continuous_ratio(q: &[Vec3], e: &[Vec3], area: &[f32]) -> Vec3 {
+    let (mut num, mut den) = (Vec3::ZERO, Vec3::ZERO);
+    for ((q, e), a) in q.iter().zip(e).zip(area) {
+        num += *q * *e * *a;
+        den += *e * *a;
+    }
+    num / den
+}
+
 fn figure_lights(id: &str) -> Vec<Light> {
     ortm::scene::head::figure_lights(faces::figures::figure(id).expect("figure"))
 }
 
 /// Power balance of the whole head at 48² (Figs. 4, 5, 6b lights; radiosity + subsurface, and
-/// subsurface alone; pair evaluator and exact solve). Every watt that enters the skin leaves it
-/// through the profile at most ρ̄ times (ρ̄ = the profile's total diffuse reflectance per
-/// channel, 0.436 / 0.227 / 0.131), and interreflection only returns some of the escaping light
-/// to the skin, where it again leaves at most ρ̄ times; so the power escaping the head is at
-/// most ρ̄ × the entering power, per channel (tolerance 1e-3 for f32 sums). Measured
-/// escaping/entering: with radiosity 0.4148–0.4240 (R), 0.2157–0.2214 (G), 0.1239–0.1274 (B);
-/// subsurface alone 0.4317–0.4318, 0.2268–0.2269, 0.13096–0.13097 (ρ̄ less what the discrete
-/// profile loses where the texels' footprints do not tile the curved surface, and at the neck's
-/// edge). The lower bounds are the smallest measured ratio
-/// less 25%.
+/// subsurface alone; pair evaluator and exact solve). Every watt that enters the skin at `x`
+/// leaves it through the profile at most `Q̂(x)` times — what the continuous surface re-emits,
+/// ρ̄ on a plane (0.436 / 0.227 / 0.131 per channel), more in folds, as the model's Euclidean
+/// distances make it ([`ortm::bake::transport::surface`]) — and interreflection only returns
+/// some of the escaping light to the skin, where it again leaves at most `Q̂ < 1` times; so the
+/// power escaping the head is at most `Σ Q̂ E A` over the entering `Σ E A`, per channel
+/// (tolerance 1e-3 for f32 sums). Measured escaping/entering: with radiosity 0.4184–0.4248 (R),
+/// 0.2161–0.2216 (G), 0.1239–0.1274 (B); subsurface alone 0.4329–0.4367, 0.2271–0.2274,
+/// 0.1310 (the bound: 0.4371–0.4434, 0.2277–0.2285, 0.1311–0.1313). The lower bounds are the
+/// smallest measured ratio less 25%.
 #[test]
 fn head_outgoing_power_never_exceeds_incoming_per_channel() {
     let scene = head(48);
     let grid = TexelGrid::build(&scene).unwrap();
     let vis = Visibility::new(&scene.mesh);
-    let skin = scene.materials[0].subsurface.as_ref().expect("skin");
-    let rho_bar = ortm::scene::subsurface::Profile::new(skin).total_reflectance();
-    let lowest_measured = Vec3::new(0.4148, 0.2157, 0.1239);
+    let lowest_measured = Vec3::new(0.4184, 0.2161, 0.1239);
     let area: Vec<f32> = grid.texels.iter().map(|t| t.area_m2).collect();
     let sum_a = |v: &[Vec3]| -> Vec3 { v.iter().zip(&area).map(|(b, a)| *b * *a).sum() };
     for effects in [
@@ -56,6 +84,7 @@ fn head_outgoing_power_never_exceeds_incoming_per_channel() {
     ] {
         let tr = Transport::new(&scene, &grid, effects, 8);
         let dense = DenseTransport::new(&texel_patches(&grid), &tr.kernels);
+        let q = surface_reemission(&tr, &grid);
         // Fraction of each texel's radiosity that reaches no other texel (escapes the head).
         let escape: Vec<f32> = dense
             .form_factor_row_sums()
@@ -71,6 +100,7 @@ fn head_outgoing_power_never_exceeds_incoming_per_channel() {
             let e = lighting::irradiance(&grid, &lights, &vis);
             let b_o = exitance(&grid, &e);
             let p_in = sum_a(&e);
+            let bound = continuous_ratio(&q, &e, &area);
             for (label, b) in [
                 ("evaluator", final_all(&tr, &b_o)),
                 ("exact", dense.solve(&b_o)),
@@ -83,18 +113,21 @@ fn head_outgoing_power_never_exceeds_incoming_per_channel() {
                     .map(|((b, a), f)| *b * *a * *f)
                     .sum();
                 let ratio = p_out / p_in;
-                println!("{effects:?} {fig} {label}: in {p_in} W, out {p_out} W, out/in {ratio}");
+                println!(
+                    "{effects:?} {fig} {label}: in {p_in} W, out {p_out} W, out/in {ratio}, \
+                     bound ΣQ̂EA/ΣEA {bound}"
+                );
                 assert!(
-                    ratio.cmple(rho_bar * (1.0 + 1e-3)).all()
+                    ratio.cmple(bound * (1.0 + 1e-3)).all()
                         && ratio.cmpgt(lowest_measured * 0.75).all(),
-                    "{effects:?} {fig} {label}: outgoing/incoming power {ratio}, ρ̄ {rho_bar}"
+                    "{effects:?} {fig} {label}: outgoing/incoming power {ratio}, bound {bound}"
                 );
                 if !effects.radiosity {
                     // No surface-to-surface exchange: all exitance leaves the head.
                     let r = sum_a(&b) / p_in;
                     assert!(
-                        r.cmple(rho_bar * (1.0 + 1e-3)).all(),
-                        "{fig} {label}: ΣB·A / ΣE·A = {r}, ρ̄ {rho_bar}"
+                        r.cmple(bound * (1.0 + 1e-3)).all(),
+                        "{fig} {label}: ΣB·A / ΣE·A = {r}, bound {bound}"
                     );
                 }
             }
@@ -103,16 +136,18 @@ fn head_outgoing_power_never_exceeds_incoming_per_channel() {
 }
 
 /// Stricter: subsurface scattering alone only *redistributes* the first-order light, so the
-/// power it re-emits, `Σ B·A`, cannot exceed the first order's `Σ B_o·A = Σ ρ̄·E·A` (ρ̄ = the
-/// profile's total diffuse reflectance), in the pair evaluator nor in the exact solve. Before the
-/// subsurface weights were normalised per sender (`ortm::bake::transport`, "Subsurface
-/// weights") the head at 48² re-emitted 1.0008 / 1.008 / 1.025 (R/G/B) × the first order under
-/// the Fig. 5 light and 1.016 / 1.033 / 1.080 under the Fig. 4 light (overlapping texel
-/// footprints: stretched texels, and texel centres of two charts nearly coinciding on seams). Now
-/// (both solvers agree to 1e-6): Fig. 5 0.99036 / 0.99784 / 0.99977, Fig. 4 0.99018 / 0.99803 /
-/// 0.99979 — the discrete profile loses a little light (where the 8 mm texels' footprints do
-/// not tile the curved surface, and at the neck's edge); the lower bound allows 25 % more than
-/// the largest loss per channel.
+/// power it re-emits, `Σ B·A`, cannot exceed what the continuous surface re-emits of the
+/// entering light, `Σ Q̂·E·A` (see `head_outgoing_power_never_exceeds_incoming_per_channel`;
+/// ρ̄·E·A on a plane, the first order's `Σ B_o·A`), in the pair evaluator nor in the exact
+/// solve. Before the subsurface weights were normalised per sender (`ortm::bake::transport`,
+/// "Subsurface weights") the head at 48² re-emitted 1.016 / 1.033 / 1.080 × the first order
+/// under the Fig. 4 light (overlapping texel footprints: stretched texels, and texel centres of
+/// two charts nearly coinciding on seams). Now (both solvers agree to 1e-6), as a fraction of
+/// the first order: Fig. 5 1.0017 / 1.00003 / 1.00018 against the bound 1.0171 / 1.0049 /
+/// 1.0021, Fig. 4 0.9991 / 1.0004 / 1.0003 against 1.0137 / 1.0049 / 1.0023: the fold excess
+/// of the Euclidean profile, less what the discrete profile loses where the 8 mm texels'
+/// footprints do not tile the curved surface and at the neck's edge. The lower bound allows
+/// 25 % more than the largest measured shortfall below the bound per channel.
 #[test]
 fn subsurface_alone_reemits_no_more_than_the_first_order() {
     let scene = head(48);
@@ -126,23 +161,26 @@ fn subsurface_alone_reemits_no_more_than_the_first_order() {
     let dense = DenseTransport::new(&texel_patches(&grid), &tr.kernels);
     let area: Vec<f32> = grid.texels.iter().map(|t| t.area_m2).collect();
     let sum_a = |v: &[Vec3]| -> Vec3 { v.iter().zip(&area).map(|(b, a)| *b * *a).sum() };
+    let q = surface_reemission(&tr, &grid);
     for fig in ["fig5_point_light", "fig4_first_order_vs_global"] {
         let lights = figure_lights(fig);
         let e = lighting::irradiance(&grid, &lights, &vis);
         let b_o = exitance(&grid, &e);
+        // The continuous surface's re-emission over the first order's.
+        let bound = continuous_ratio(&q, &e, &area) * sum_a(&e) / sum_a(&b_o);
         for (label, b) in [
             ("evaluator", final_all(&tr, &b_o)),
             ("exact", dense.solve(&b_o)),
         ] {
             let ratio = sum_a(&b) / sum_a(&b_o);
-            println!("{fig} {label}: ΣB·A / ΣB_o·A = {ratio}");
+            println!("{fig} {label}: ΣB·A / ΣB_o·A = {ratio}, bound ΣQ̂EA/ΣB_oA {bound}");
             assert!(
-                ratio.cmple(Vec3::splat(1.0 + 1e-3)).all(),
-                "{fig} {label}: subsurface re-emits {ratio} of the first order"
+                ratio.cmple(bound * (1.0 + 1e-3)).all(),
+                "{fig} {label}: subsurface re-emits {ratio} of the first order, bound {bound}"
             );
-            let largest_loss = Vec3::new(0.00982, 0.00216, 0.000232);
+            let largest_shortfall = Vec3::new(0.0154, 0.0049, 0.00203);
             assert!(
-                ratio.cmpgt(Vec3::ONE - largest_loss * 1.25).all(),
+                ratio.cmpgt(bound - largest_shortfall * 1.25).all(),
                 "{fig} {label}: subsurface re-emits only {ratio} of the first order"
             );
         }
@@ -156,15 +194,17 @@ fn subsurface_alone_reemits_no_more_than_the_first_order() {
 /// the CPU first order) summed over texels (mean of R, G, B per texel, as the `energy:` line
 /// of `ortm render` sums it) against the first order's sum.
 ///
-/// Measured (figures 3, 4, 5, 6a, 6b): dipole 1.0043 / 1.0053 / 1.0050 / 1.0018 / 1.0000,
-/// exponential 1.0045 / 1.0060 / 1.0050 / 1.0022 / 1.0015 — the interreflected light (a few
-/// tenths of a percent on a convex head) slightly outweighs what the discrete profile loses
-/// where the texels' footprints do not tile the curved surface. The band: no figure may lose
-/// more than 0.2 % (the measured least is 1.0000), nor gain more than 1.25 × the largest
-/// measured gain (0.60 %). Before the subsurface weights were integrated over each texel's
-/// footprint the midpoint rule lost 2.7–3.6 % (dipole) and 0.4–1.3 % (exponential); before
-/// they were normalised the seams created light: 0.98–0.99 (dipole) and 1.00–1.04
-/// (exponential) in the GPU render's `energy:` lines.
+/// Measured (figures 3, 4, 5, 6a, 6b): dipole 1.0095 / 1.0128 / 1.0147 / 1.0048 / 1.0021,
+/// exponential 1.0259 / 1.0419 / 1.0507 / 1.0162 / 1.0105 — the interreflected light (a few
+/// tenths of a percent on a convex head) and the folds, where the Euclidean profile re-emits
+/// more than ρ̄ (`ortm::bake::transport::surface`; the exponential falloff reaches furthest, so
+/// it gains most), outweigh what the discrete profile loses where the texels' footprints do not
+/// tile the curved surface. The band: no figure may lose more than 0.2 % (the measured least
+/// is 1.0021), nor gain more than 1.25 × the largest measured gain (5.07 %). With the senders
+/// capped at ρ̄ instead of the surface's re-emission: 1.000–1.005 (dipole), 1.002–1.006
+/// (exponential); with the midpoint rule before the weights were integrated over each texel's
+/// footprint: 0.964–0.973 and 0.987–0.996; before they were normalised the seams created
+/// light: 0.98–0.99 (dipole) and 1.00–1.04 (exponential) in the GPU render's `energy:` lines.
 #[test]
 fn face_bake_final_energy_stays_near_the_first_order() {
     let t0 = std::time::Instant::now();
@@ -202,7 +242,7 @@ fn face_bake_final_energy_stays_near_the_first_order() {
             faces::FIGURES.iter().map(|f| f.id).collect::<Vec<_>>(),
             t0.elapsed().as_secs_f64()
         );
-        let (lo, hi) = (1.0 - 0.002, 1.0 + 1.25 * 0.0060);
+        let (lo, hi) = (1.0 - 0.002, 1.0 + 1.25 * 0.0507);
         for (f, r) in faces::FIGURES.iter().zip(&ratios) {
             assert!(
                 (lo..=hi).contains(r),
@@ -255,12 +295,13 @@ fn backlit_ear_glows_with_subsurface_scattering() {
          radiosity only {rgb_rad} (luminance {without:.4e}); factor {factor:.2}"
     );
     assert!(without > 0.0, "interreflection alone reaches the ear");
-    // Measured: 114.7 (56 unlit ear-rim texels at 128², 0.88 m per model unit; 152.7 before the
+    // Measured: 128.8 (56 unlit ear-rim texels at 128², 0.88 m per model unit; 152.7 before the
     // subsurface weights were normalised per sender, which scales down the senders of the thin
-    // ear, whose profile reaches both of its sides; 120.4 with the midpoint rule before the
-    // weights were integrated over each texel's footprint). Bounds: ±25%.
+    // ear, whose profile reaches both of its sides; 120.4 with the midpoint rule, 114.7 with
+    // footprints and the senders capped at ρ̄ rather than the surface's re-emission). Bounds:
+    // ±25%.
     assert!(
-        (86.0..=143.4).contains(&factor),
+        (96.6..=161.0).contains(&factor),
         "SSS / no SSS luminance factor {factor}"
     );
     // The glow is warm: skin carries red furthest.

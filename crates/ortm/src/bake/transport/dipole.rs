@@ -107,6 +107,17 @@ impl RdTable {
         [0, 1, 2].map(|c| a[c] + (b[c] - a[c]) * f)
     }
 
+    /// `R_d(r)` within the table's range, 0 beyond it (the support's truncation, as the pair
+    /// weights make it).
+    #[inline]
+    pub fn rd_within(&self, r: f64) -> [f64; 3] {
+        if r >= self.r_max_m {
+            [0.0; 3]
+        } else {
+            self.rd(r)
+        }
+    }
+
     /// `R_d(r)` per channel at `r` metres (m⁻²).
     #[inline]
     pub fn rd(&self, r: f64) -> [f64; 3] {

@@ -35,14 +35,16 @@
 //!
 //! Footprints overlap where the centres of two charts' texels nearly coincide on a UV seam
 //! (each stands for its own whole footprint) and where a curved surface folds its tangent
-//! planes together; there `Q_j` exceeds ρ̄ and the discrete operator would create light. So
-//! every sender's column is scaled per channel by `min(1, ρ̄ / Q_j)`
-//! ([`Patch::subsurface_scale`], set by [`Kernels::normalise_subsurface`]): no sender re-emits
-//! more than ρ̄ of the power it receives, and where the footprints do not overlap the profile
-//! is kept exactly. The continuous model (the path-traced reference's) has no cap: where a fold
-//! brings more surface within the profile's Euclidean reach than a plane holds, it re-emits more
-//! than ρ̄, so the cap also removes light the model keeps (3 % of the red power on the head at
-//! 256², README "Transport model"). The scale belongs to the sender, so [`Kernels::subsurface`] — the only
+//! planes together; there `Q_j` exceeds what the continuous model re-emits and the discrete
+//! operator would create light. That model's own re-emission at the texel,
+//! `Q̂_j = ∫_S R_d(|x_j − y|) dA(y)` over the mesh's triangles of its material
+//! ([`surface`]), is ρ̄ on a plane, more than ρ̄ where a fold brings more surface within the
+//! profile's Euclidean reach, and less at an open edge. So every sender's column is scaled per
+//! channel by `min(1, Q̂_j / Q_j)` ([`Patch::subsurface_scale`], set by
+//! [`Kernels::normalise_subsurface`]): no texel re-emits more than the continuous surface
+//! does, and where the footprints do not overlap the profile is kept exactly. Clusters, tree
+//! nodes and kernels built without a mesh ([`Kernels::from_parts`]) are capped at ρ̄, the
+//! plane's value. The scale belongs to the sender, so [`Kernels::subsurface`] — the only
 //! source of `S` for the dense solve, the coarse level, the hierarchical operator and the pair
 //! evaluator — applies it, and each of them normalises the patches it is given. Clusters and
 //! tree nodes, which have no footprint, use the midpoint rule (a disk of their area for the
@@ -68,6 +70,7 @@ pub mod dipole;
 pub mod footprint;
 pub mod form_factor;
 pub mod hier;
+pub mod surface;
 
 use std::collections::HashMap;
 use std::sync::Arc;
@@ -223,6 +226,9 @@ pub struct Kernels {
     pub tables: Vec<Option<RdTable>>,
     /// Ray caster over the scene.
     pub visibility: Arc<Visibility>,
+    /// The mesh's translucent triangles, whose integral of the profile caps what a texel
+    /// re-emits ([`Kernels::scale_subsurface`]); `None` for kernels built from parts alone.
+    pub surface: Option<surface::SurfaceReemission>,
 }
 
 impl Kernels {
@@ -233,7 +239,12 @@ impl Kernels {
             .iter()
             .map(|m| m.subsurface.as_ref().map(Profile::new))
             .collect();
-        Self::from_parts(effects, profiles, visibility)
+        let mut k = Self::from_parts(effects, profiles, visibility);
+        if k.profiles.iter().any(Option::is_some) {
+            let translucent = |m: u32| k.is_translucent(m);
+            k.surface = Some(surface::SurfaceReemission::new(&scene.mesh, translucent));
+        }
+        k
     }
 
     /// Kernels from parts: `profiles` per material index (`None` = opaque).
@@ -261,6 +272,7 @@ impl Kernels {
             support_m,
             tables,
             visibility,
+            surface: None,
         }
     }
 
@@ -387,8 +399,9 @@ impl Kernels {
     }
 
     /// Sets every patch's [`Patch::subsurface_scale`] so that no sender re-emits more than
-    /// its material's total diffuse reflectance ρ̄: `min(1, ρ̄ / Q_j)` per channel, with `Q_j`
-    /// from [`Kernels::subsurface_reemission`] (module docs, "Subsurface weights"). Depends
+    /// the continuous surface does: `min(1, Q̂_j / Q_j)` per channel
+    /// ([`Kernels::scale_subsurface`]), with `Q_j` from [`Kernels::subsurface_reemission`]
+    /// (module docs, "Subsurface weights"). Depends
     /// only on the patches' geometry (any earlier scale is replaced), so it may be applied
     /// again. Returns the number of patches scaled in some channel.
     pub fn normalise_subsurface(&self, patches: &mut [Patch]) -> usize {
@@ -407,25 +420,35 @@ impl Kernels {
         Ok(self.scale_subsurface(patches, &q))
     }
 
-    /// Sets every patch's [`Patch::subsurface_scale`] to `min(1, ρ̄ / Q_j)` per channel from its
-    /// re-emission `q[j]` (1 for opaque patches). Returns the number of patches scaled in some
-    /// channel.
+    /// Sets every patch's [`Patch::subsurface_scale`] to `min(1, Q̂_j / Q_j)` per channel from its
+    /// re-emission `q[j]` (1 for opaque patches), where `Q̂_j` is what the continuous surface
+    /// re-emits at the patch ([`surface::SurfaceReemission`]) for a texel of kernels built
+    /// from a scene, else ρ̄ (clusters, tree nodes, kernels from parts: the plane's value).
+    /// Returns the number of patches scaled in some channel.
     pub fn scale_subsurface(&self, patches: &mut [Patch], q: &[[f64; 3]]) -> usize {
-        let mut scaled = 0;
-        for (p, q) in patches.iter_mut().zip(q) {
-            p.subsurface_scale = Vec3::ONE;
-            let Some(profile) = self.profiles[p.material as usize].as_ref() else {
-                continue;
-            };
-            for (c, ch) in profile.channels.iter().enumerate() {
-                let rho = ch.total_reflectance();
-                if q[c] > rho {
-                    p.subsurface_scale[c] = (rho / q[c]) as f32;
+        patches
+            .par_iter_mut()
+            .zip(q)
+            .map(|(p, q)| {
+                p.subsurface_scale = Vec3::ONE;
+                let m = p.material as usize;
+                let Some(profile) = self.profiles[m].as_ref() else {
+                    return 0;
+                };
+                let cap = match (&self.surface, &self.tables[m], p.footprint_m) {
+                    (Some(s), Some(table), Some(_)) => {
+                        s.at(table, p.material, p.position_m, self.support_m[m])
+                    }
+                    _ => std::array::from_fn(|c| profile.channels[c].total_reflectance()),
+                };
+                for c in 0..3 {
+                    if q[c] > cap[c] {
+                        p.subsurface_scale[c] = (cap[c] / q[c]) as f32;
+                    }
                 }
-            }
-            scaled += usize::from(p.subsurface_scale != Vec3::ONE);
-        }
-        scaled
+                usize::from(p.subsurface_scale != Vec3::ONE)
+            })
+            .sum()
     }
 
     /// True when material `m` scatters under the surface.

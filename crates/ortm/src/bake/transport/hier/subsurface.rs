@@ -28,7 +28,9 @@
 //! - Normalisation ([`SubsurfaceWalk::normalise`]): `Q_j = Σ_i S_ij^raw A_i / A_j`; the midpoint
 //!   rule depends only on distance, so for a node `Q_j` takes `R_d(|x_j − c_s|) A_s`: the walk
 //!   from `j` with each visit's area. A visited texel with a footprint adds its own
-//!   `S_ij^raw A_i / A_j` (`j`'s footprint seen from `i`: the footprint rule is not symmetric). Then `min(1, ρ̄/Q_j)` per channel, as [`Kernels::normalise_subsurface`].
+//!   `S_ij^raw A_i / A_j` (`j`'s footprint seen from `i`: the footprint rule is not
+//!   symmetric). Then the same per-channel scale as [`Kernels::normalise_subsurface`]
+//!   ([`Kernels::scale_subsurface`]).
 //! - The bake's cell integration ([`crate::bake::cells`]): a visit adds
 //!   `R·W_s` to the receiver's transfer, `W_s = Σ_{j ∈ s} A_j k_j / ρ_j` per channel
 //!   ([`SubsurfaceWalk::weight`]; `k_j` the sender scale, `ρ_j` its albedo), and the self visit
