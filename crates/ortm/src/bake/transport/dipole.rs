@@ -107,6 +107,34 @@ impl RdTable {
         [0, 1, 2].map(|c| a[c] + (b[c] - a[c]) * f)
     }
 
+    /// `R_d(d)` (m⁻², per channel) for a cluster of `area_m2` whose members lie within
+    /// `radius_m` of its centroid, `d > radius_m` away, when the profile varies little enough
+    /// across it to be taken whole: `(|R_d(d − r) − R_d(d)| + |R_d(d) − R_d(d + r)|)·A ≤
+    /// tolerance` in every channel (the profile falls monotonically, so this bounds the error of
+    /// every member's weight, summed by area; truncated at the table's range as
+    /// [`RdTable::rd_within`]). `None` where the cluster must be refined. The Barnes–Hut walks
+    /// of the subsurface term ([`super::hier::subsurface`]) and of the surface's re-emission
+    /// ([`super::surface`]) share it.
+    pub fn cluster_value(
+        &self,
+        d: f64,
+        radius_m: f64,
+        area_m2: f64,
+        tolerance: f64,
+    ) -> Option<[f64; 3]> {
+        if d <= radius_m {
+            return None;
+        }
+        let (near, mid, far) = (
+            self.rd_within(d - radius_m),
+            self.rd_within(d),
+            self.rd_within(d + radius_m),
+        );
+        (0..3)
+            .all(|c| ((near[c] - mid[c]).abs() + (mid[c] - far[c]).abs()) * area_m2 <= tolerance)
+            .then_some(mid)
+    }
+
     /// `R_d(r)` within the table's range, 0 beyond it (the support's truncation, as the pair
     /// weights make it).
     #[inline]

@@ -74,8 +74,8 @@ fn polar(table: &RdTable, d: DVec3, f0: DVec3, f1: DVec3) -> [f64; 3] {
 
 /// `∫_P R_d(|x − y|) dA(y)` per channel over the planar convex polygon `P` with `corners`
 /// (metres, in order around it), seen from the point `receiver`: the polar form of the module
-/// docs, exact for a receiver anywhere up to the `φ` quadrature ([`TOLERANCE`]). The
-/// continuous surface's integral of the profile ([`super::surface`]) sums it over triangles.
+/// docs, exact for a receiver anywhere up to the `φ` quadrature ([`TOLERANCE`]);
+/// [`triangle_weight`] uses this form for near triangles.
 pub fn polygon_weight(table: &RdTable, receiver: Vec3, corners: &[Vec3]) -> [f64; 3] {
     let Some(&origin) = corners.first() else {
         return [0.0; 3];

@@ -121,19 +121,11 @@ impl SurfaceReemission {
                 )
             } else {
                 let area = n.area_m2 as f64;
-                let whole = (mat == material && d > r).then(|| {
-                    let (near, mid, far) = (
-                        table.rd_within(d - r),
-                        table.rd_within(d),
-                        table.rd_within(d + r),
-                    );
-                    let ok = (0..3).all(|c| {
-                        ((near[c] - mid[c]).abs() + (mid[c] - far[c]).abs()) * area <= TOLERANCE
-                    });
-                    ok.then(|| mid.map(|v| v * area))
-                });
-                match whole.flatten() {
-                    Some(w) => w,
+                let whole = (mat == material)
+                    .then(|| table.cluster_value(d, r, area, TOLERANCE))
+                    .flatten();
+                match whole {
+                    Some(mid) => mid.map(|v| v * area),
                     None => {
                         stack.extend(n.children);
                         continue;
@@ -149,13 +141,8 @@ impl SurfaceReemission {
 
     /// `Q(x)` summed over every triangle of `material` within the support one by one (what
     /// [`Self::at`] approximates; for tests).
-    pub fn every_triangle(
-        &self,
-        table: &RdTable,
-        material: u32,
-        x: Vec3,
-        support_m: f64,
-    ) -> [f64; 3] {
+    #[cfg(test)]
+    fn every_triangle(&self, table: &RdTable, material: u32, x: Vec3, support_m: f64) -> [f64; 3] {
         let mut q = [0.0f64; 3];
         for (c, m) in &self.triangles {
             let centroid = (c[0] + c[1] + c[2]) / 3.0;

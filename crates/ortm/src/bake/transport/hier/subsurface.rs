@@ -125,8 +125,6 @@ impl SubsurfaceWalk {
         ) else {
             return;
         };
-        // The profile within its support (0 beyond it, as the pair weights).
-        let rd = |r: f64| if r < support { table.rd(r) } else { [0.0; 3] };
         let mut stack = vec![0u32];
         while let Some(s) = stack.pop() {
             let mat = self.material[s as usize];
@@ -150,16 +148,11 @@ impl SubsurfaceWalk {
                 }
                 continue;
             }
-            if mat == m && d > r {
-                let (near, mid, far) = (rd(d - r), rd(d), rd(d + r));
-                let area = n.area_m2 as f64;
-                let ok = (0..3).all(|c| {
-                    ((near[c] - mid[c]).abs() + (mid[c] - far[c]).abs()) * area <= self.tolerance
-                });
-                if ok {
-                    visit(s, mid, false);
-                    continue;
-                }
+            if mat == m
+                && let Some(mid) = table.cluster_value(d, r, n.area_m2 as f64, self.tolerance)
+            {
+                visit(s, mid, false);
+                continue;
             }
             stack.extend(n.children);
         }
