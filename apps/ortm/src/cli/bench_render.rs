@@ -336,10 +336,11 @@ fn bench_job(a: &Args, gpu: &Gpu, (img_w, img_h): (u32, u32), job: Job) -> Resul
         Stat::Median => Statistic::Median,
         Stat::Min => Statistic::Min,
     };
+    let diffusion = super::render::diffusion_lengths(&scene, &grid);
     let time_path = |path: TransferPath, pair_pieces: bool| -> Result<BenchReport> {
         let options = renderer_options(a, gpu, &scene, (img_w, img_h), path, pair_pieces);
         let renderer = Renderer::new(gpu, &options)?;
-        let rs = renderer.prepare_with_weights(
+        let mut rs = renderer.prepare_with_weights(
             gpu,
             &mesh,
             &albedo,
@@ -347,6 +348,11 @@ fn bench_job(a: &Args, gpu: &Gpu, (img_w, img_h): (u32, u32), job: Job) -> Resul
             &pieces,
             Some(&weights),
         )?;
+        // The display `ortm render` shows: subsurface texels keep their diffused light where
+        // it spreads over more than a pixel.
+        if let Some(lengths) = &diffusion {
+            renderer.set_diffusion_lengths(gpu, &mut rs, lengths)?;
+        }
         Ok(bench_frame(
             gpu,
             &renderer,
