@@ -56,13 +56,25 @@ const MIN_DEPTH: u32 = 1;
 pub fn footprint_weight(table: &RdTable, receiver: Vec3, centre: Vec3, f: [Vec3; 2]) -> [f64; 3] {
     let d = (receiver - centre).as_dvec3();
     let (f0, f1) = (f[0].as_dvec3(), f[1].as_dvec3());
-    let size = f0.length() + f1.length();
     let r = d.length();
-    if r < NEAR_SIZES * size {
+    if near(r, f0, f1) {
         polar(table, d, f0, f1)
     } else {
         gauss(table, d, f0, f1, r)
     }
+}
+
+/// True when [`footprint_weight`] integrates the pair in polar form (the costly near pairs:
+/// centres closer than [`NEAR_SIZES`] footprint sizes, and the self pair).
+pub fn is_near(receiver: Vec3, centre: Vec3, f: [Vec3; 2]) -> bool {
+    let d = (receiver - centre).as_dvec3();
+    near(d.length(), f[0].as_dvec3(), f[1].as_dvec3())
+}
+
+/// The near test of [`footprint_weight`] for centres `r` metres apart.
+#[inline]
+fn near(r: f64, f0: DVec3, f1: DVec3) -> bool {
+    r < NEAR_SIZES * (f0.length() + f1.length())
 }
 
 /// The polar form (module docs) for a receiver at `d` from the footprint's centre.
