@@ -61,7 +61,7 @@ pub const FAR_ABSOLUTE: f64 = 1e-6;
 pub const FAR_SAFETY: f64 = 0.25;
 /// Absolute tolerance of the polar quadrature per edge, relative to the profile's total
 /// `H(∞)` in its largest channel.
-pub const TOLERANCE: f64 = 1e-7;
+pub const TOLERANCE: f64 = 1e-6;
 /// [`TOLERANCE`] of [`triangle_weight`]'s polar form: the continuous surface's integral caps
 /// the discrete weights, for which 10⁻⁵ of the profile's total per edge is ample.
 pub const TRIANGLE_TOLERANCE: f64 = 1e-5;
