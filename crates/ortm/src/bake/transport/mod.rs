@@ -381,7 +381,7 @@ impl Kernels {
         }
         progress.phase("transport: subsurface weights", patches.len() as u64);
         let grid = SupportGrid::new(patches, self);
-        type Near = Vec<(u32, [f64; 3])>;
+        type Near = Vec<(u32, [f32; 3])>;
         let per_sender: Vec<([f64; 3], Near)> = patches
             .par_iter()
             .enumerate()
@@ -402,7 +402,7 @@ impl Kernels {
                             && b.footprint_m
                                 .is_some_and(|f| footprint::is_near(a.position_m, b.position_m, f))
                         {
-                            near.push((i, s));
+                            near.push((i, s.map(|x| x as f32)));
                         }
                         let w = a.area_m2 as f64 * inv_area;
                         for c in 0..3 {
@@ -558,22 +558,24 @@ impl Kernels {
 /// within [`footprint::NEAR_SIZES`] footprint sizes, and the self pairs), per receiver: a
 /// dozen pairs per texel, but the polar form costs far more than the Gauss rule of the others.
 /// The normalisation computes them ([`Kernels::normalise_subsurface_keeping_near`]) and the
-/// cell integration reads them back ([`Transport::subsurface_raw`]), so each is integrated
-/// once. Values as computed (f64), 32 bytes per pair.
+/// cell integration reads them back ([`Transport::r_subsurface`]), so each is integrated
+/// once. Stored as f32 (16 bytes per pair: 200 MB for the head's 961,180 texels at 1024²;
+/// the normalisation itself sums the f64 values), so a kept weight differs from the one
+/// integrated anew by its rounding, ≤ 6·10⁻⁸ relative.
 #[derive(Clone, Debug, Default)]
 pub struct NearWeights {
     /// Receiver `i`'s pairs are `entries[start[i]..start[i + 1]]`, sorted by sender (empty
     /// when nothing is kept).
     start: Vec<usize>,
     /// `(sender j, S_ij^raw)` per channel.
-    entries: Vec<(u32, [f64; 3])>,
+    entries: Vec<(u32, [f32; 3])>,
 }
 
 impl NearWeights {
     /// From each sender's list of `(receiver, weight)`, senders in index order.
     fn by_receiver<'a>(
         n: usize,
-        per_sender: impl Iterator<Item = &'a Vec<(u32, [f64; 3])>> + Clone,
+        per_sender: impl Iterator<Item = &'a Vec<(u32, [f32; 3])>> + Clone,
     ) -> Self {
         let mut start = vec![0usize; n + 1];
         for list in per_sender.clone() {
@@ -585,7 +587,7 @@ impl NearWeights {
             start[i + 1] += start[i];
         }
         let mut fill = start.clone();
-        let mut entries = vec![(0u32, [0.0f64; 3]); start[n]];
+        let mut entries = vec![(0u32, [0.0f32; 3]); start[n]];
         for (j, list) in per_sender.enumerate() {
             for &(i, s) in list {
                 entries[fill[i as usize]] = (j as u32, s);
@@ -602,7 +604,7 @@ impl NearWeights {
         let list = &self.entries[a..b];
         list.binary_search_by_key(&j, |e| e.0)
             .ok()
-            .map(|k| list[k].1)
+            .map(|k| list[k].1.map(f64::from))
     }
 
     /// Pairs kept.

@@ -194,7 +194,7 @@ impl SubsurfaceWalk {
         progress: &SetupProgress,
     ) -> Result<usize, Cancelled> {
         progress.phase("transport: subsurface weights", patches.len() as u64);
-        type Near = Vec<(u32, [f64; 3])>;
+        type Near = Vec<(u32, [f32; 3])>;
         let per_sender: Vec<([f64; 3], Near)> = {
             let patches: &[Patch] = patches;
             (0..patches.len())
@@ -219,7 +219,7 @@ impl SubsurfaceWalk {
                         };
                         if let Some(w) = kernels.subsurface_raw(a, walker, i == j) {
                             if footprint::is_near(a.position_m, walker.position_m, f) {
-                                near.push((i as u32, w));
+                                near.push((i as u32, w.map(|x| x as f32)));
                             }
                             for c in 0..3 {
                                 q_texels[c] += w[c] * a.area_m2 as f64 * inv_area;
