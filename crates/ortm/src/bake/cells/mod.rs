@@ -749,7 +749,7 @@ impl Integration<'_> {
                     }
                     st.near_texel_pairs += 1;
                     let cell = self.place(cell, pj.position_m, sites, &mut st.rehomed);
-                    let mut e = kern.r_subsurface(pi, pj, i == j);
+                    let mut e = transport.r_subsurface(i, j);
                     if in_ff {
                         let b = kern.r_bounce(pi, pj, i == j);
                         let share = pj.area_m2 as f64 * inv_area;

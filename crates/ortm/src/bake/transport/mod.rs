@@ -364,38 +364,58 @@ impl Kernels {
         patches: &[Patch],
         progress: &SetupProgress,
     ) -> Result<Vec<[f64; 3]>, Cancelled> {
+        Ok(self.reemission(patches, progress, false)?.0)
+    }
+
+    /// `Q_j` of every patch ([`Kernels::subsurface_reemission`]) and, with `keep_near`, the
+    /// raw weights of the texel pairs integrated in polar form ([`NearWeights`]; empty without).
+    fn reemission(
+        &self,
+        patches: &[Patch],
+        progress: &SetupProgress,
+        keep_near: bool,
+    ) -> Result<(Vec<[f64; 3]>, NearWeights), Cancelled> {
         let cell = self.support_m.iter().copied().fold(0.0f64, f64::max);
         if cell <= 0.0 || !patches.iter().any(|p| self.is_translucent(p.material)) {
-            return Ok(vec![[0.0; 3]; patches.len()]);
+            return Ok((vec![[0.0; 3]; patches.len()], NearWeights::default()));
         }
         progress.phase("transport: subsurface weights", patches.len() as u64);
         let grid = SupportGrid::new(patches, self);
-        let q: Vec<[f64; 3]> = patches
+        type Near = Vec<(u32, [f32; 3])>;
+        let per_sender: Vec<([f64; 3], Near)> = patches
             .par_iter()
             .enumerate()
             .map(|(j, b)| {
                 let mut q = [0.0f64; 3];
+                let mut near: Near = Vec::new();
                 if j % 1024 == 0 {
                     progress.advance(1024.min(patches.len() - j) as u64);
                 }
                 if !self.is_translucent(b.material) || progress.check().is_err() {
-                    return q;
+                    return (q, near);
                 }
                 let inv_area = 1.0 / b.area_m2 as f64;
                 grid.for_each_near(b.position_m, |i| {
                     let a = &patches[i as usize];
                     if let Some(s) = self.subsurface_raw(a, b, i as usize == j) {
+                        if keep_near
+                            && b.footprint_m
+                                .is_some_and(|f| footprint::is_near(a.position_m, b.position_m, f))
+                        {
+                            near.push((i, s.map(|x| x as f32)));
+                        }
                         let w = a.area_m2 as f64 * inv_area;
                         for c in 0..3 {
                             q[c] += s[c] * w;
                         }
                     }
                 });
-                q
+                (q, near)
             })
             .collect();
         progress.check()?;
-        Ok(q)
+        let near = NearWeights::by_receiver(patches.len(), per_sender.iter().map(|(_, n)| n));
+        Ok((per_sender.into_iter().map(|(q, _)| q).collect(), near))
     }
 
     /// Sets every patch's [`Patch::subsurface_scale`] so that no sender re-emits more than
@@ -418,6 +438,19 @@ impl Kernels {
     ) -> Result<usize, Cancelled> {
         let q = self.subsurface_reemission_with(patches, progress)?;
         Ok(self.scale_subsurface(patches, &q))
+    }
+
+    /// [`Kernels::normalise_subsurface_with`] that also returns the raw weights of the texel
+    /// pairs it integrated in polar form ([`NearWeights`]), the costly ones, for the cell
+    /// integration to reuse instead of integrating them again.
+    pub fn normalise_subsurface_keeping_near(
+        &self,
+        patches: &mut [Patch],
+        progress: &SetupProgress,
+    ) -> Result<NearWeights, Cancelled> {
+        let (q, near) = self.reemission(patches, progress, true)?;
+        self.scale_subsurface(patches, &q);
+        Ok(near)
     }
 
     /// Sets every patch's [`Patch::subsurface_scale`] to `min(1, Q̂_j / Q_j)` per channel from its
@@ -470,9 +503,30 @@ impl Kernels {
     /// translucent material, else 0. No ray is cast.
     #[inline]
     pub fn r_subsurface(&self, a: &Patch, b: &Patch, same: bool) -> [f64; 3] {
+        self.r_subsurface_raw(a, b, same, None)
+    }
+
+    /// [`Kernels::r_subsurface`] with the pair's raw weight `raw`
+    /// ([`Kernels::subsurface_raw`]) when it is known (e.g. from [`NearWeights`]); computed
+    /// when `None`.
+    #[inline]
+    pub fn r_subsurface_raw(
+        &self,
+        a: &Patch,
+        b: &Patch,
+        same: bool,
+        raw: Option<[f64; 3]>,
+    ) -> [f64; 3] {
         let mut out = [0.0f64; 3];
+        let scaled = |s: [f64; 3]| {
+            let k = b.subsurface_scale;
+            [s[0] * k.x as f64, s[1] * k.y as f64, s[2] * k.z as f64]
+        };
         if self.is_translucent(a.material)
-            && let Some(s) = self.subsurface(a, b, same)
+            && let Some(s) = raw
+                .filter(|_| a.material == b.material)
+                .map(scaled)
+                .or_else(|| self.subsurface(a, b, same))
         {
             for (c, o) in out.iter_mut().enumerate() {
                 let rho = b.rho[c] as f64;
@@ -496,6 +550,71 @@ impl Kernels {
             }
         }
         out
+    }
+}
+
+/// The raw subsurface weights ([`Kernels::subsurface_raw`]) of the texel pairs that
+/// [`footprint::footprint_weight`] integrates in polar form ([`footprint::is_near`]: centres
+/// within [`footprint::NEAR_SIZES`] footprint sizes, and the self pairs), per receiver: a
+/// dozen pairs per texel, but the polar form costs far more than the Gauss rule of the others.
+/// The normalisation computes them ([`Kernels::normalise_subsurface_keeping_near`]) and the
+/// cell integration reads them back ([`Transport::r_subsurface`]), so each is integrated
+/// once. Stored as f32 (16 bytes per pair: 200 MB for the head's 961,180 texels at 1024²;
+/// the normalisation itself sums the f64 values), so a kept weight differs from the one
+/// integrated anew by its rounding, ≤ 6·10⁻⁸ relative.
+#[derive(Clone, Debug, Default)]
+pub struct NearWeights {
+    /// Receiver `i`'s pairs are `entries[start[i]..start[i + 1]]`, sorted by sender (empty
+    /// when nothing is kept).
+    start: Vec<usize>,
+    /// `(sender j, S_ij^raw)` per channel.
+    entries: Vec<(u32, [f32; 3])>,
+}
+
+impl NearWeights {
+    /// From each sender's list of `(receiver, weight)`, senders in index order.
+    fn by_receiver<'a>(
+        n: usize,
+        per_sender: impl Iterator<Item = &'a Vec<(u32, [f32; 3])>> + Clone,
+    ) -> Self {
+        let mut start = vec![0usize; n + 1];
+        for list in per_sender.clone() {
+            for &(i, _) in list {
+                start[i as usize + 1] += 1;
+            }
+        }
+        for i in 0..n {
+            start[i + 1] += start[i];
+        }
+        let mut fill = start.clone();
+        let mut entries = vec![(0u32, [0.0f32; 3]); start[n]];
+        for (j, list) in per_sender.enumerate() {
+            for &(i, s) in list {
+                entries[fill[i as usize]] = (j as u32, s);
+                fill[i as usize] += 1;
+            }
+        }
+        Self { start, entries }
+    }
+
+    /// The raw weight that sender `j` gives receiver `i`, when it is kept.
+    #[inline]
+    pub fn get(&self, i: u32, j: u32) -> Option<[f64; 3]> {
+        let (a, b) = (*self.start.get(i as usize)?, self.start[i as usize + 1]);
+        let list = &self.entries[a..b];
+        list.binary_search_by_key(&j, |e| e.0)
+            .ok()
+            .map(|k| list[k].1.map(f64::from))
+    }
+
+    /// Pairs kept.
+    pub fn len(&self) -> usize {
+        self.entries.len()
+    }
+
+    /// True when no pair is kept.
+    pub fn is_empty(&self) -> bool {
+        self.entries.is_empty()
     }
 }
 
@@ -563,6 +682,9 @@ pub struct Transport {
     /// ([`Transport::build_hierarchical`]): the cell integration takes the first bounce from
     /// its links ([`crate::bake::cells`]) instead of from the coarse clusters and texel pairs.
     pub links: Option<hier::Operator>,
+    /// The raw subsurface weights of the texel pairs integrated in polar form, kept from the
+    /// normalisation ([`NearWeights`]; empty with the hierarchical operator).
+    pub near: NearWeights,
 }
 
 impl Transport {
@@ -586,8 +708,10 @@ impl Transport {
         let visibility = Arc::new(Visibility::new(&scene.mesh));
         let kernels = Kernels::new(scene, effects, visibility);
         let mut patches = texel_patches(grid);
-        kernels.normalise_subsurface_with(&mut patches, progress)?;
-        Self::with_remainder(grid, patches, kernels, block, None, progress)
+        let near = kernels.normalise_subsurface_keeping_near(&mut patches, progress)?;
+        let mut t = Self::with_remainder(grid, patches, kernels, block, None, progress)?;
+        t.near = near;
+        Ok(t)
     }
 
     /// The transport of normalised `patches`: the coarse remainder with clusters of
@@ -611,6 +735,7 @@ impl Transport {
             kernels,
             remainder,
             links,
+            near: NearWeights::default(),
         })
     }
 
@@ -657,13 +782,23 @@ impl Transport {
     #[inline]
     pub fn r(&self, i: u32, j: u32) -> [f32; 3] {
         let (a, b) = (&self.patches[i as usize], &self.patches[j as usize]);
-        let fine = self.kernels.r_fine(a, b, i == j);
+        let s = self.r_subsurface(i, j);
+        let f = self.kernels.r_bounce(a, b, i == j);
         let rem = self.remainder.r(i, j, b.area_m2);
         [
-            (fine[0] + rem[0] as f64) as f32,
-            (fine[1] + rem[1] as f64) as f32,
-            (fine[2] + rem[2] as f64) as f32,
+            (s[0] + f[0] + rem[0] as f64) as f32,
+            (s[1] + f[1] + rem[1] as f64) as f32,
+            (s[2] + f[2] + rem[2] as f64) as f32,
         ]
+    }
+
+    /// [`Kernels::r_subsurface`] of texels `i` (receiver) and `j` (sender), its polar-form
+    /// weight read from [`Transport::near`] when kept there.
+    #[inline]
+    pub fn r_subsurface(&self, i: u32, j: u32) -> [f64; 3] {
+        let (a, b) = (&self.patches[i as usize], &self.patches[j as usize]);
+        self.kernels
+            .r_subsurface_raw(a, b, i == j, self.near.get(i, j))
     }
 }
 

@@ -29,8 +29,10 @@
 //!   rule depends only on distance, so for a node `Q_j` takes `R_d(|x_j − c_s|) A_s`: the walk
 //!   from `j` with each visit's area. A visited texel with a footprint adds its own
 //!   `S_ij^raw A_i / A_j` (`j`'s footprint seen from `i`: the footprint rule is not
-//!   symmetric). Then the same per-channel scale as [`Kernels::normalise_subsurface`]
-//!   ([`Kernels::scale_subsurface`]).
+//!   symmetric; only that weight is integrated). Then the same per-channel scale as
+//!   [`Kernels::normalise_subsurface`] ([`Kernels::scale_subsurface`]). The texel pairs it
+//!   integrated in polar form (the costly near ones, [`NearWeights`]) are kept, and later
+//!   walks read a single texel's weight from them instead of integrating it again.
 //! - The bake's cell integration ([`crate::bake::cells`]): a visit adds
 //!   `R·W_s` to the receiver's transfer, `W_s = Σ_{j ∈ s} A_j k_j / ρ_j` per channel
 //!   ([`SubsurfaceWalk::weight`]; `k_j` the sender scale, `ρ_j` its albedo), and the self visit
@@ -38,7 +40,7 @@
 
 use rayon::prelude::*;
 
-use super::super::{Cancelled, Kernels, Patch, SetupProgress};
+use super::super::{Cancelled, Kernels, NearWeights, Patch, SetupProgress, footprint};
 use super::tree::Tree;
 
 /// A node whose members are of more than one material.
@@ -51,6 +53,10 @@ pub struct SubsurfaceWalk {
     material: Vec<u32>,
     /// Per node: `W_s = Σ A_j k_j / ρ_j` per channel, m² (0 where `ρ_j = 0`).
     weight: Vec<[f32; 3]>,
+    /// The raw weights of the texel pairs integrated in polar form, kept by
+    /// [`SubsurfaceWalk::normalise`] for [`SubsurfaceWalk::walk`]'s single texels (empty
+    /// before).
+    near: NearWeights,
 }
 
 impl SubsurfaceWalk {
@@ -72,6 +78,7 @@ impl SubsurfaceWalk {
             tolerance: tolerance as f64,
             material,
             weight: Vec::new(),
+            near: NearWeights::default(),
         };
         walk.set_weights(tree, patches);
         walk
@@ -115,6 +122,23 @@ impl SubsurfaceWalk {
         patches: &[Patch],
         kernels: &Kernels,
         i: usize,
+        visit: impl FnMut(u32, [f64; 3], bool),
+    ) {
+        let leaf = |j: usize, a: &Patch, b: &Patch| {
+            (self.near.get(i as u32, j as u32)).or_else(|| kernels.subsurface_raw(a, b, i == j))
+        };
+        self.walk_with(tree, patches, kernels, i, leaf, visit);
+    }
+
+    /// [`SubsurfaceWalk::walk`] with the raw weight of a single texel `j` (patch `b`) seen
+    /// from `i` (patch `a`) given by `leaf(j, a, b)`; `None` or 0 visits nothing.
+    fn walk_with(
+        &self,
+        tree: &Tree,
+        patches: &[Patch],
+        kernels: &Kernels,
+        i: usize,
+        mut leaf: impl FnMut(usize, &Patch, &Patch) -> Option<[f64; 3]>,
         mut visit: impl FnMut(u32, [f64; 3], bool),
     ) {
         let a = &patches[i];
@@ -140,7 +164,7 @@ impl SubsurfaceWalk {
             if n.is_leaf() {
                 let j = tree.order[n.first as usize] as usize;
                 let b = &patches[j];
-                if let Some(w) = kernels.subsurface_raw(a, b, i == j)
+                if let Some(w) = leaf(j, a, b)
                     && w != [0.0; 3]
                 {
                     let inv = 1.0 / b.area_m2.max(f32::MIN_POSITIVE) as f64;
@@ -170,7 +194,8 @@ impl SubsurfaceWalk {
         progress: &SetupProgress,
     ) -> Result<usize, Cancelled> {
         progress.phase("transport: subsurface weights", patches.len() as u64);
-        let q: Vec<[f64; 3]> = {
+        type Near = Vec<(u32, [f32; 3])>;
+        let per_sender: Vec<([f64; 3], Near)> = {
             let patches: &[Patch] = patches;
             (0..patches.len())
                 .into_par_iter()
@@ -178,35 +203,49 @@ impl SubsurfaceWalk {
                     if j % 4096 == 0 {
                         progress.advance(4096.min(patches.len() - j) as u64);
                     }
-                    let mut q = [0.0f64; 3];
+                    let (mut q, mut q_texels) = ([0.0f64; 3], [0.0f64; 3]);
+                    let mut near: Near = Vec::new();
                     if progress.check().is_err() {
-                        return q;
+                        return (q, near);
                     }
                     let b = &patches[j];
                     let inv_area = 1.0 / b.area_m2.max(f32::MIN_POSITIVE) as f64;
-                    self.walk(tree, patches, kernels, j, |s, rd, me| {
-                        let node = &tree.nodes[s as usize];
-                        let a = &patches[tree.order[node.first as usize] as usize];
-                        // A texel with a footprint: its weight as the receiver of `j`
-                        // (the footprint rule is not symmetric in the pair).
-                        let w = match (node.is_leaf(), b.footprint_m) {
-                            (true, Some(_)) => kernels
-                                .subsurface_raw(a, b, me)
-                                .map(|w| w.map(|x| x * a.area_m2 as f64 * inv_area)),
-                            _ => None,
+                    // A texel `i` beside a sender with a footprint: its weight as the receiver
+                    // of `j` (the footprint rule is not symmetric in the pair), summed here;
+                    // the walk's own weight (`j` seen from `i`) is not needed.
+                    let leaf = |i: usize, walker: &Patch, a: &Patch| {
+                        let Some(f) = walker.footprint_m else {
+                            return kernels.subsurface_raw(walker, a, i == j);
                         };
-                        let w = w.unwrap_or_else(|| rd.map(|x| x * node.area_m2 as f64));
+                        if let Some(w) = kernels.subsurface_raw(a, walker, i == j) {
+                            if footprint::is_near(a.position_m, walker.position_m, f) {
+                                near.push((i as u32, w.map(|x| x as f32)));
+                            }
+                            for c in 0..3 {
+                                q_texels[c] += w[c] * a.area_m2 as f64 * inv_area;
+                            }
+                        }
+                        None
+                    };
+                    self.walk_with(tree, patches, kernels, j, leaf, |s, rd, _| {
+                        let area = tree.nodes[s as usize].area_m2 as f64;
                         for c in 0..3 {
-                            q[c] += w[c];
+                            q[c] += rd[c] * area;
                         }
                     });
-                    q
+                    for c in 0..3 {
+                        q[c] += q_texels[c];
+                    }
+                    (q, near)
                 })
                 .collect()
         };
         progress.check()?;
+        let near = NearWeights::by_receiver(patches.len(), per_sender.iter().map(|(_, n)| n));
+        let q: Vec<[f64; 3]> = per_sender.into_iter().map(|(q, _)| q).collect();
         let scaled = kernels.scale_subsurface(patches, &q);
         self.set_weights(tree, patches);
+        self.near = near;
         Ok(scaled)
     }
 }
