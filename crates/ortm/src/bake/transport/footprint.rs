@@ -166,7 +166,27 @@ fn polygon(table: &RdTable, d: DVec3, corners: &[DVec3], tolerance: f64) -> [f64
 fn gauss(table: &RdTable, d: DVec3, f0: DVec3, f1: DVec3, r: f64) -> [f64; 3] {
     let area = f0.cross(f1).length();
     let side = f0.length().max(f1.length());
-    let at_r = table.rd(r);
+    let rd = |r: f64| table.rd(r);
+    far_rule(table, rd, r, area, side, |xs, ws, xt, wt| {
+        let y = f0 * (0.5 * xs) + f1 * (0.5 * xt);
+        ((d - y).length(), 0.25 * ws * wt * area)
+    })
+}
+
+/// The far rule of a piece of `area` and longest side `side` whose centre is `r` from the
+/// receiver: the midpoint rule `rd(r)·area` when [`far_points`] asks for one point, else
+/// `Σ k·rd(dist)` over the `n × n` Gauss–Legendre nodes, where `node(x_s, w_s, x_t, w_t)`
+/// (nodes in `[−1, 1]` and their weights per axis) gives the node's distance from the
+/// receiver and its weight `k` (the Jacobian of the piece's parametrisation included).
+fn far_rule(
+    table: &RdTable,
+    rd: impl Fn(f64) -> [f64; 3],
+    r: f64,
+    area: f64,
+    side: f64,
+    node: impl Fn(f64, f64, f64, f64) -> (f64, f64),
+) -> [f64; 3] {
+    let at_r = rd(r);
     let n = far_points(table, at_r, area, side, r);
     if n == 1 {
         return at_r.map(|v| v * area);
@@ -175,9 +195,8 @@ fn gauss(table: &RdTable, d: DVec3, f0: DVec3, f1: DVec3, r: f64) -> [f64; 3] {
     let mut sum = [0.0f64; 3];
     for (xs, ws) in x.iter().zip(w) {
         for (xt, wt) in x.iter().zip(w) {
-            let y = f0 * (0.5 * xs) + f1 * (0.5 * xt);
-            let v = table.rd((d - y).length());
-            let k = 0.25 * ws * wt * area;
+            let (dist, k) = node(*xs, *ws, *xt, *wt);
+            let v = rd(dist);
             for c in 0..3 {
                 sum[c] += k * v[c];
             }
@@ -225,26 +244,13 @@ pub fn triangle_weight(table: &RdTable, receiver: Vec3, c: &[Vec3; 3]) -> [f64; 
         return polygon(table, x - a, &rel, TRIANGLE_TOLERANCE);
     }
     let area = 0.5 * (b - a).cross(e - a).length();
-    let at_r = table.rd_within(r);
-    let n = far_points(table, at_r, area, side, r);
-    if n == 1 {
-        return at_r.map(|v| v * area);
-    }
-    let (xs, ws) = rule_of(n);
-    let mut sum = [0.0f64; 3];
-    for (u, wu) in xs.iter().zip(ws) {
+    let rd = |r: f64| table.rd_within(r);
+    far_rule(table, rd, r, area, side, |u, wu, v, wv| {
         let s = 0.5 * (u + 1.0);
-        for (v, wv) in xs.iter().zip(ws) {
-            let t = 0.5 * (v + 1.0);
-            let y = a + (b - a) * s + (e - b) * (s * t);
-            let val = table.rd_within((x - y).length());
-            let k = 0.25 * wu * wv * 2.0 * area * s;
-            for ch in 0..3 {
-                sum[ch] += k * val[ch];
-            }
-        }
-    }
-    sum
+        let t = 0.5 * (v + 1.0);
+        let y = a + (b - a) * s + (e - b) * (s * t);
+        ((x - y).length(), 0.25 * wu * wv * 2.0 * area * s)
+    })
 }
 
 /// The far pairs' rules, `1 ≤ n ≤ MAX_GAUSS` points ([`gauss_legendre`], computed once).
