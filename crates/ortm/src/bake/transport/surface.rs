@@ -26,7 +26,7 @@ use glam::Vec3;
 use super::Patch;
 use super::dipole::RdTable;
 use super::footprint::triangle_weight;
-use super::hier::subsurface::MIXED;
+use super::hier::subsurface::{MIXED, ProfileWalk};
 use super::hier::tree::Tree;
 use crate::scene::Mesh;
 
@@ -101,41 +101,30 @@ impl SurfaceReemission {
         let Some(tree) = &self.tree else {
             return q;
         };
-        let mut stack = vec![0u32];
-        while let Some(s) = stack.pop() {
-            let mat = self.material[s as usize];
-            if mat != material && mat != MIXED {
-                continue;
-            }
+        let walk = ProfileWalk {
+            tree,
+            material: &self.material,
+            table,
+            tolerance: TOLERANCE,
+        };
+        let radius = |s: u32| self.radius_m[s as usize] as f64;
+        walk.walk(material, x, support_m, radius, |s, whole| {
             let n = &tree.nodes[s as usize];
-            let d = (n.centroid - x).length() as f64;
-            let r = self.radius_m[s as usize] as f64;
-            if d - r > support_m {
-                continue;
-            }
-            let w = if n.is_leaf() {
-                triangle_weight(
+            let w = match whole {
+                Some(mid) => {
+                    let area = n.area_m2 as f64;
+                    mid.map(|v| v * area)
+                }
+                None => triangle_weight(
                     table,
                     x,
                     &self.triangles[tree.order[n.first as usize] as usize].0,
-                )
-            } else {
-                let area = n.area_m2 as f64;
-                let whole = (mat == material)
-                    .then(|| table.cluster_value(d, r, area, TOLERANCE))
-                    .flatten();
-                match whole {
-                    Some(mid) => mid.map(|v| v * area),
-                    None => {
-                        stack.extend(n.children);
-                        continue;
-                    }
-                }
+                ),
             };
             for c in 0..3 {
                 q[c] += w[c];
             }
-        }
+        });
         q
     }
 

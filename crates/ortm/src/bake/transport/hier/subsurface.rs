@@ -40,11 +40,72 @@
 
 use rayon::prelude::*;
 
+use super::super::dipole::RdTable;
 use super::super::{Cancelled, Kernels, NearWeights, Patch, SetupProgress, footprint};
 use super::tree::Tree;
+use glam::Vec3;
 
 /// A node whose members are of more than one material.
 pub const MIXED: u32 = u32::MAX;
+
+/// The Barnes–Hut walk of the profile over a cluster tree, shared by the texels' subsurface
+/// walk ([`SubsurfaceWalk::walk`]) and the continuous surface's re-emission
+/// ([`crate::bake::transport::surface::SurfaceReemission::at`]): from a point of material `m`,
+/// the nodes of that material within the profile's support, each taken whole where
+/// [`RdTable::cluster_value`] accepts it at `tolerance`, refined down to leaves otherwise.
+pub(crate) struct ProfileWalk<'a> {
+    /// The cluster tree walked.
+    pub tree: &'a Tree,
+    /// Per node: the material of all its members, or [`MIXED`].
+    pub material: &'a [u32],
+    /// The material's profile.
+    pub table: &'a RdTable,
+    /// Error allowed per node taken whole ([`RdTable::cluster_value`]).
+    pub tolerance: f64,
+}
+
+impl ProfileWalk<'_> {
+    /// Calls `visit(node, Some(R))` for every node taken whole, `R` the profile at its
+    /// centroid (m⁻², per channel), and `visit(leaf, None)` for every leaf reached, from the
+    /// point `x` (metres) of material `m`; `radius(node)` is the radius around the node's
+    /// centroid that holds its members (metres). Nodes of another material, and those wholly
+    /// beyond `support` (metres), are skipped.
+    pub fn walk(
+        &self,
+        m: u32,
+        x: Vec3,
+        support: f64,
+        radius: impl Fn(u32) -> f64,
+        mut visit: impl FnMut(u32, Option<[f64; 3]>),
+    ) {
+        let mut stack = vec![0u32];
+        while let Some(s) = stack.pop() {
+            let mat = self.material[s as usize];
+            if mat != m && mat != MIXED {
+                continue;
+            }
+            let n = &self.tree.nodes[s as usize];
+            let d = (n.centroid - x).length() as f64;
+            let r = radius(s);
+            if d - r > support {
+                continue;
+            }
+            if n.is_leaf() {
+                visit(s, None);
+                continue;
+            }
+            if mat == m
+                && let Some(mid) = self
+                    .table
+                    .cluster_value(d, r, n.area_m2 as f64, self.tolerance)
+            {
+                visit(s, Some(mid));
+                continue;
+            }
+            stack.extend(n.children);
+        }
+    }
+}
 
 /// The tree's per-node data for the subsurface walk.
 pub struct SubsurfaceWalk {
@@ -149,20 +210,17 @@ impl SubsurfaceWalk {
         ) else {
             return;
         };
-        let mut stack = vec![0u32];
-        while let Some(s) = stack.pop() {
-            let mat = self.material[s as usize];
-            if mat != m && mat != MIXED {
-                continue;
-            }
-            let n = &tree.nodes[s as usize];
-            let d = (n.centroid - a.position_m).length() as f64;
-            let r = n.radius_m as f64;
-            if d - r > support {
-                continue;
-            }
-            if n.is_leaf() {
-                let j = tree.order[n.first as usize] as usize;
+        let walk = ProfileWalk {
+            tree,
+            material: &self.material,
+            table,
+            tolerance: self.tolerance,
+        };
+        let radius = |s: u32| tree.nodes[s as usize].radius_m as f64;
+        walk.walk(m, a.position_m, support, radius, |s, whole| match whole {
+            Some(mid) => visit(s, mid, false),
+            None => {
+                let j = tree.order[tree.nodes[s as usize].first as usize] as usize;
                 let b = &patches[j];
                 if let Some(w) = leaf(j, a, b)
                     && w != [0.0; 3]
@@ -170,16 +228,8 @@ impl SubsurfaceWalk {
                     let inv = 1.0 / b.area_m2.max(f32::MIN_POSITIVE) as f64;
                     visit(s, w.map(|x| x * inv), i == j);
                 }
-                continue;
             }
-            if mat == m
-                && let Some(mid) = table.cluster_value(d, r, n.area_m2 as f64, self.tolerance)
-            {
-                visit(s, mid, false);
-                continue;
-            }
-            stack.extend(n.children);
-        }
+        });
     }
 
     /// Sets every translucent patch's [`Patch::subsurface_scale`] from its re-emission
