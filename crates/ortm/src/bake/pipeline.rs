@@ -808,26 +808,30 @@ fn write_each<'a>(
         total: total as u64,
     });
     let written = std::sync::atomic::AtomicUsize::new(0);
-    let results: Vec<Result<(bake_dir::MapEntry, bool, u64), BakeError>> = (0..total)
-        .into_par_iter()
-        .map(|k| {
-            if let Some(e) = finished(k) {
-                let stored = e.rects.iter().map(|r| r.area()).sum::<u64>();
-                events(BakeEvent::Advance(1));
-                return Ok((e.clone(), true, stored));
-            }
-            if cancel.load(Ordering::Relaxed) {
-                return Err(BakeError::Interrupted {
-                    done: written.load(Ordering::Relaxed),
-                    total,
-                });
-            }
-            let (entry, stored) = write(k)?;
-            written.fetch_add(1, Ordering::Relaxed);
-            events(BakeEvent::Advance(1));
-            Ok((entry, false, stored))
-        })
-        .collect();
+    // Many writers at once: each map's `fsync` would otherwise leave a core idle.
+    let results: Vec<Result<(bake_dir::MapEntry, bool, u64), BakeError>> =
+        crate::io::with_write_pool(|| {
+            (0..total)
+                .into_par_iter()
+                .map(|k| {
+                    if let Some(e) = finished(k) {
+                        let stored = e.rects.iter().map(|r| r.area()).sum::<u64>();
+                        events(BakeEvent::Advance(1));
+                        return Ok((e.clone(), true, stored));
+                    }
+                    if cancel.load(Ordering::Relaxed) {
+                        return Err(BakeError::Interrupted {
+                            done: written.load(Ordering::Relaxed),
+                            total,
+                        });
+                    }
+                    let (entry, stored) = write(k)?;
+                    written.fetch_add(1, Ordering::Relaxed);
+                    events(BakeEvent::Advance(1));
+                    Ok((entry, false, stored))
+                })
+                .collect()
+        });
     gather_written(results, written.load(Ordering::Relaxed), total)
 }
 

@@ -113,6 +113,30 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
     result
 }
 
+/// Threads of [`with_write_pool`]: enough concurrent writers for the file system to commit
+/// their `fsync`s together. Measured on ext4, 2 cores, 6,769 small map files (`ortm bake
+/// cornell --size 64 --levels 3e-3`): 11.5 s with 2 writers, 2.0 s with 16.
+pub const WRITE_THREADS: usize = 16;
+
+/// Runs `f` in a thread pool of [`WRITE_THREADS`] threads (made once per process), so that the
+/// `par_iter`s inside it keep many [`write_atomic`] calls (each waiting in `fsync`) in flight
+/// at once; each file stays atomic and durable on its own. If the pool cannot be made, `f` runs
+/// in the current pool.
+pub fn with_write_pool<R: Send>(f: impl FnOnce() -> R + Send) -> R {
+    static POOL: std::sync::OnceLock<Option<rayon::ThreadPool>> = std::sync::OnceLock::new();
+    let pool = POOL.get_or_init(|| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(WRITE_THREADS.max(rayon::current_num_threads()))
+            .thread_name(|i| format!("ortm-write-{i}"))
+            .build()
+            .ok()
+    });
+    match pool {
+        Some(p) => p.install(f),
+        None => f(),
+    }
+}
+
 /// Encodes `img` as PNG in memory and writes it with [`write_atomic`].
 ///
 /// # Errors

@@ -5,7 +5,8 @@
 //!   anything is read, plain names resolved inside their directory, and a listed file checked
 //!   against the size and SHA-256 its index recorded.
 //! - Writing ([`write_atomic`], [`write_png_atomic`]): temporary file in the same directory,
-//!   `fsync`, rename; readers never see a half-written file.
+//!   `fsync`, rename; readers never see a half-written file; [`with_write_pool`] keeps many
+//!   such writes in flight so that their `fsync`s are committed together.
 //! - [`DirLock`]: the one-writer lock of a bake or atlas directory (`flock` on
 //!   [`LOCK_FILE_NAME`]).
 //! - Digests ([`sha256_hex`], [`is_hex_digest`]): SHA-256 as lower-case hex, as the indexes
@@ -26,7 +27,7 @@ mod lock;
 mod read;
 mod versioned;
 
-pub use atomic::{is_temp_name, write_atomic, write_png_atomic};
+pub use atomic::{WRITE_THREADS, is_temp_name, with_write_pool, write_atomic, write_png_atomic};
 pub use digest::{hex, is_hex_digest, sha256_hex};
 pub use error::{DirKind, FileError};
 pub use lock::{DirLock, LOCK_FILE_NAME, LockError};
