@@ -1,10 +1,15 @@
-//! `ortm demo [cornell] [-o OUT]`: the main job on the built-in Cornell box — inspect, exact
-//! solve, bake, bin and render — each step the same as its own subcommand, outputs under `OUT`,
-//! with `OUT/guide.md` saying what each output shows and what to look for.
+//! `ortm demo [cornell] [-o OUT] [--levels ε] [--offsets K]`: the main job on the built-in
+//! Cornell box — inspect, exact solve, bake, bin and render — each step the same as its own
+//! subcommand, outputs under `OUT`, with `OUT/guide.md` saying what each output shows and what
+//! to look for. The main bake (`OUT/bake`, rendered into `frame.png`) holds multi-resolution
+//! maps (`ortm bake --levels ε`), which converge to the transport; a second bake
+//! (`OUT/bake_offsets`, `frame_offsets.png`) holds the paper's `K` importance-sampled offsets,
+//! for comparison.
 //!
-//! `ortm demo face [-o OUT] [--size N] [--offsets K] [--falloff dipole|exponential] [--bench]`:
-//! the paper's face figures on the scanned head. One bake with radiosity and subsurface
-//! scattering combined (`ortm bake head`), `ortm bin`, then one `ortm render` per figure of
+//! `ortm demo face [-o OUT] [--size N] [--offsets K | --levels ε] [--falloff dipole|exponential]
+//! [--bench]`: the paper's face figures on the scanned head. One bake with radiosity and
+//! subsurface scattering combined (`ortm bake head`: the paper's `K` offsets, or
+//! multi-resolution maps over the hierarchical transport), `ortm bin`, then one `ortm render` per figure of
 //! [`faces::FIGURES`] (Figs. 3, 4, 5, 6a, 6b: lights and camera from the `faces` crate;
 //! first order beside the final image where the figure compares them) → `OUT/<figure>.png`,
 //! plus `OUT/figures.md` with the captions, what to look for and the scan's credit line.
@@ -47,9 +52,15 @@ pub struct Args {
     /// Lightmap size (square); default 64 (cornell), 256 (face).
     #[arg(long)]
     size: Option<u32>,
-    /// Number of offsets.
+    /// Number of offsets (the face demo's bake; the Cornell demo's comparison bake of the
+    /// paper's importance-sampled offsets).
     #[arg(long, default_value_t = 100)]
     offsets: usize,
+    /// Multi-resolution maps (`ortm bake --levels ε`): the Cornell demo's main bake (default
+    /// 3e-3); the face demo's bake instead of `--offsets` when given (with the hierarchical
+    /// transport, `--tolerance 1e-3`).
+    #[arg(long)]
+    levels: Option<f64>,
     /// Face demo: skin falloff.
     #[arg(long, value_enum, default_value_t = FalloffArg::Dipole)]
     falloff: FalloffArg,
@@ -76,6 +87,13 @@ fn words(v: &[&str]) -> Vec<String> {
     v.iter().map(|s| s.to_string()).collect()
 }
 
+/// The Cornell demo's default `--levels`.
+const CORNELL_LEVELS: f64 = 3e-3;
+
+/// The face demo's `--tolerance` (hierarchical transport) when it bakes `--levels`: the rows of
+/// the pair evaluator would cost `n²` visibility rays at 256².
+const FACE_LEVELS_TOLERANCE: &str = "1e-3";
+
 /// Runs `ortm demo`.
 pub fn run(a: Args) -> Result<()> {
     super::ensure_dir(&a.output)?;
@@ -89,6 +107,28 @@ fn cornell(a: &Args) -> Result<()> {
     let out = |p: &str| a.output.join(p).display().to_string();
     let size = a.size.unwrap_or(64).to_string();
     let offsets = a.offsets.to_string();
+    let levels = a.levels.unwrap_or(CORNELL_LEVELS).to_string();
+    let render = |bake: &str, png: &str, exrs: bool| -> Vec<String> {
+        let mut v = words(&[
+            "render",
+            &out(bake),
+            "--scene",
+            "cornell",
+            "--side-by-side",
+            "-o",
+            &out(png),
+        ]);
+        if exrs {
+            v.extend(words(&[
+                "--lightmap-out",
+                &out("final.exr"),
+                "--first-order-out",
+                &out("first_order.exr"),
+            ]));
+        }
+        v.extend(display_words(a));
+        v
+    };
     let steps = [
         words(&[
             "inspect",
@@ -104,35 +144,32 @@ fn cornell(a: &Args) -> Result<()> {
             "cornell",
             "--size",
             &size,
-            "--offsets",
-            &offsets,
+            "--levels",
+            &levels,
             "-o",
             &out("bake"),
         ]),
         words(&["bin", &out("bake")]),
+        render("bake", "frame.png", true),
         words(&[
-            "render",
-            &out("bake"),
-            "--scene",
+            "bake",
             "cornell",
-            "--side-by-side",
+            "--size",
+            &size,
+            "--offsets",
+            &offsets,
             "-o",
-            &out("frame.png"),
-            "--lightmap-out",
-            &out("final.exr"),
-            "--first-order-out",
-            &out("first_order.exr"),
-        ])
-        .into_iter()
-        .chain(display_words(a))
-        .collect(),
+            &out("bake_offsets"),
+        ]),
+        words(&["bin", &out("bake_offsets")]),
+        render("bake_offsets", "frame_offsets.png", false),
     ];
     for s in steps {
         step(s)?;
     }
     write_text(
         &a.output.join("guide.md"),
-        &cornell_guide(&a.output, &size, &offsets),
+        &cornell_guide(&a.output, &size, &levels, &offsets),
     )?;
     println!(
         "\ndemo outputs in {}; what each file shows: {}",
@@ -144,10 +181,11 @@ fn cornell(a: &Args) -> Result<()> {
 
 /// `guide.md` of the Cornell demo written into `out`: each output, what it shows and what to
 /// look for (the Cornell counterpart of the face demo's `figures.md`).
-fn cornell_guide(out: &Path, size: &str, offsets: &str) -> String {
+fn cornell_guide(out: &Path, size: &str, levels: &str, offsets: &str) -> String {
     let o = out.display();
     format!(
-        "# The Cornell demo (`ortm demo`, {size}² lightmap, {offsets} offsets)\n\n\
+        "# The Cornell demo (`ortm demo`, {size}² lightmap, multi-resolution maps at ε = \
+         {levels}; the paper's {offsets} offsets for comparison)\n\n\
          Every step below is an `ortm` subcommand; the demo printed each command line. \
          Lightmaps are in W/m² (radiosity per texel, linear); the PNGs carry a legend.\n\n\
          ## 1. The lightmap layout: `coverage.png`\n\n![coverage](coverage.png)\n\n\
@@ -162,12 +200,13 @@ fn cornell_guide(out: &Path, size: &str, offsets: &str) -> String {
          `final` adds every bounce, `indirect` is their difference (its own scale). \
          Look for: the white walls and the boxes tinted red and green near the side walls, \
          and the shadows under the boxes no longer black in `final`.\n\n\
-         ## 3. The bake: `bake/`\n\n![offsets](bake/report_offsets.png) \
-         ![density](bake/report_density.png)\n\n\
-         `ortm bake cornell`: {offsets} offset transfer maps (`map_*.exr`, listed in \
-         `index.json`). `report_offsets.png`: the offsets (white dots) in the square of \
-         offsets from −1 to 1 lightmap side, each Voronoi cell coloured by its importance; \
-         `report_density.png`: the importance density they were drawn from.\n\n\
+         ## 3. The bake: `bake/`\n\n\
+         `ortm bake cornell --levels {levels}`: multi-resolution transfer maps (`map_*.exr`, \
+         listed in `index.json` with their pyramid level and offset). Each texel's transfer \
+         is split into blocks of a pyramid of the first-order lightmap — single texels near \
+         it, coarser blocks farther away — each block kept whole only where taking the \
+         first order as its mean errs by at most ε × the brightest first order / 2, whatever \
+         the lighting. So the maps converge to the transport as ε falls (ε = 0 is exact).\n\n\
          ## 4. The atlases: `bake/atlas_*.png`\n\n\
          ![packing](bake/atlas_000.png)\n\n\
          `ortm bin`: the maps cut into power-of-two slices and packed into texture atlases \
@@ -175,14 +214,25 @@ fn cornell_guide(out: &Path, size: &str, offsets: &str) -> String {
          the maps (`atlases.json` records it).\n\n\
          ## 5. The frame: `frame.png`, `first_order.exr`, `final.exr`\n\n\
          ![frame](frame.png)\n\n\
-         `ortm render`: left the first order (shadow maps on a GPU, ray-cast shadows on the CPU), right the final image (each map \
-         modulating the first order at its offset, Eq. 9 of the paper). Look for the same \
-         colour bleeding and lit shadows as in `exact/final.png`. The lightmaps the frame \
-         shows are `final.exr` and `first_order.exr`; how far they are from the exact solve:\n\n\
+         `ortm render`: left the first order (shadow maps on a GPU, ray-cast shadows on the \
+         CPU), right the final image (each map modulating the first-order pyramid level at its \
+         offset, Eq. 9 of the paper). Look for the same colour bleeding and lit shadows as in \
+         `exact/final.png`. The lightmaps the frame shows are `final.exr` and \
+         `first_order.exr`; how far they are from the exact solve:\n\n\
          ```sh\n\
          ortm compare {o}/exact/final.exr {o}/final.exr --first {o}/exact/first_order.exr \
          {o}/first_order.exr --scene cornell --size {size} -o {o}/error.png\n\
          ```\n\n\
+         ## 6. The paper's offsets: `bake_offsets/`, `frame_offsets.png`\n\n\
+         ![offsets](bake_offsets/report_offsets.png) \
+         ![density](bake_offsets/report_density.png) ![frame](frame_offsets.png)\n\n\
+         `ortm bake cornell --offsets {offsets}`: the paper's form — {offsets} offsets drawn \
+         by importance (`report_offsets.png`: the offsets as white dots in the square of \
+         offsets from −1 to 1 lightmap side, each Voronoi cell coloured by its importance; \
+         `report_density.png`: the density they were drawn from), each map multiplying the \
+         first order at one site per cell. Look for the bright blotches on the red and green \
+         walls and the back wall: a cell's transfer lands on one site while its senders lie \
+         on several walls. The multi-resolution maps above have none.\n\n\
          Move the light yourself: `ortm view {o}/bake` (a window), or \
          `ortm render {o}/bake --light point:0.15,0.45,0.2:8 -o moved.png`.\n"
     )
@@ -234,25 +284,40 @@ fn face(a: &Args) -> Result<()> {
             bake_dir
         );
     }
+    if a.bench && a.levels.is_some() {
+        anyhow::bail!(
+            "--bench compares the paper's importance-sampled offsets with its Table 1: drop \
+             --levels (or time a levels bake with `ortm bench render --bake DIR`)"
+        );
+    }
+    let form = match a.levels {
+        Some(l) => vec![
+            "--levels".to_string(),
+            l.to_string(),
+            "--tolerance".into(),
+            FACE_LEVELS_TOLERANCE.into(),
+        ],
+        None => vec!["--offsets".to_string(), a.offsets.to_string()],
+    };
     let t = Instant::now();
-    step(words(&[
-        "bake",
-        scene,
-        "--size",
-        &size.to_string(),
-        "--offsets",
-        &a.offsets.to_string(),
-        "--effects",
-        "radiosity,sss",
-        "-o",
-        &bake_dir,
-    ]))?;
+    step(
+        words(&["bake", scene, "--size", &size.to_string()])
+            .into_iter()
+            .chain(form)
+            .chain(words(&["--effects", "radiosity,sss", "-o", &bake_dir]))
+            .collect(),
+    )?;
     let bake_s = t.elapsed().as_secs_f64();
     step(words(&["bin", &bake_dir, "--atlas", "1024"]))?;
+    let maps = match a.levels {
+        Some(l) => format!(
+            "multi-resolution maps at ε = {l} (hierarchical transport at {FACE_LEVELS_TOLERANCE})"
+        ),
+        None => format!("{} offsets", a.offsets),
+    };
     let mut md = format!(
-        "# Face figures (`ortm demo face`, {size}² lightmap, {} offsets, radiosity + {:?} \
+        "# Face figures (`ortm demo face`, {size}² lightmap, {maps}, radiosity + {:?} \
          subsurface scattering in one bake)\n\n{}.\n\n",
-        a.offsets,
         a.falloff,
         faces::HEAD_CREDIT
     );
