@@ -248,9 +248,19 @@ pub fn hierarchical_row(tr: &Transport) -> Option<impl Fn(u32, &mut [[f32; 3]]) 
     let op = tr.links.as_ref()?;
     let tree = op.tree();
     let parent = tree.parents();
+    // The remainder `R_rem(I, J)·A_j/A_J` as the cluster row times each texel's share of its
+    // cluster's area (the same f32 product as `Remainder::r`), read once per row.
+    let rem = &tr.remainder;
+    let nc = rem.clusters.len();
+    let share: Vec<f32> = (tr.patches.iter().zip(&rem.cluster_of))
+        .map(|(p, &c)| p.area_m2 / rem.clusters[c as usize].area_m2)
+        .collect();
     Some(move |i: u32, out: &mut [[f32; 3]]| {
-        for (j, o) in out.iter_mut().enumerate() {
-            *o = tr.remainder.r(i, j as u32, tr.patches[j].area_m2);
+        let ci = rem.cluster_of[i as usize] as usize;
+        let rows = rem.rem.each_ref().map(|r| &r[ci * nc..(ci + 1) * nc]);
+        for ((o, &cj), &f) in out.iter_mut().zip(&rem.cluster_of).zip(&share) {
+            let cj = cj as usize;
+            *o = [rows[0][cj] * f, rows[1][cj] * f, rows[2][cj] * f];
         }
         let p = &tr.patches[i as usize];
         let mut node = tree.leaf_of[i as usize];
