@@ -192,7 +192,8 @@ impl Integration<'_> {
                         continue;
                     }
                     let (xi, yi) = rx.xy[r];
-                    let sites = &rx.sites[r * kmaps..(r + 1) * kmaps];
+                    let sites =
+                        &rx.cand[r * self.cand.cells.len()..(r + 1) * self.cand.cells.len()];
                     let acc = &mut rx.acc[r * kmaps..(r + 1) * kmaps];
                     let st = &mut rx.stats;
                     st.links += 1;
@@ -237,7 +238,7 @@ impl Integration<'_> {
         &self,
         index: &LinkIndex,
         acc: &mut [[f64; 3]],
-        sites: &[Option<Vec3>],
+        sites: &[Vec3],
         (xi, yi): (i32, i32),
         s: u32,
         value: &dyn Fn(u32) -> [f64; 3],
@@ -303,7 +304,7 @@ impl Integration<'_> {
                 },
             );
             let xy = rx.xy[r];
-            let sites = &rx.sites[r * kmaps..(r + 1) * kmaps];
+            let sites = &rx.cand[r * self.cand.cells.len()..(r + 1) * self.cand.cells.len()];
             let acc = &mut rx.acc[r * kmaps..(r + 1) * kmaps];
             for &(s, rd, me) in &visits {
                 let value = |s: u32| {

@@ -392,29 +392,53 @@ fn tile_quadrants(
     Tile { origin, quads }
 }
 
+/// The candidate sites of every cell for the seam rule ([`place`]), as one flat list: cell `k`'s
+/// are `cells[start[k]..start[k + 1]]` — `k` itself, then its Voronoi neighbours (sorted), then
+/// the origin cell (the receiver itself) when there is one. Each receiver holds the positions of
+/// these sites in the same order ([`Receivers::cand`]).
+struct Candidates {
+    start: Vec<u32>,
+    cells: Vec<u32>,
+}
+
+impl Candidates {
+    fn new(neighbours: &[Vec<u32>], origin: Option<u32>) -> Self {
+        let mut start = Vec::with_capacity(neighbours.len() + 1);
+        let mut cells = Vec::new();
+        for (k, n) in neighbours.iter().enumerate() {
+            start.push(cells.len() as u32);
+            cells.push(k as u32);
+            cells.extend_from_slice(n);
+            cells.extend(origin);
+        }
+        start.push(cells.len() as u32);
+        Self { start, cells }
+    }
+
+    /// Where an uncovered site stands in a receiver's candidate positions: at infinite distance
+    /// from every (finite) sender, so it is never the nearest.
+    const UNCOVERED: Vec3 = Vec3::new(f32::INFINITY, 0.0, 0.0);
+}
+
 /// The cell whose site represents a sender at `p_m` whose offset lies in `cell`, for a receiver
-/// with sites `sites` (per cell, `None` when uncovered): of the cell's own site, its Voronoi
+/// whose candidate sites ([`Candidates`]) stand at `pos`: of the cell's own site, its Voronoi
 /// neighbours' sites and the origin's (the receiver itself), the one physically nearest the
-/// sender. Texture-space Voronoi assumes the first-order light is smooth across a cell; where
-/// the cell straddles a UV seam or several charts, its own site can land on an unrelated surface
-/// while a neighbouring site (or the receiver, for a sender across a seam) lies next to the
-/// sender.
+/// sender (the first of equals in candidate order; uncovered sites never). Texture-space Voronoi
+/// assumes the first-order light is smooth across a cell; where the cell straddles a UV seam or
+/// several charts, its own site can land on an unrelated surface while a neighbouring site (or
+/// the receiver, for a sender across a seam) lies next to the sender.
 #[inline]
-fn place(
-    cell: u32,
-    p_m: Vec3,
-    sites: &[Option<Vec3>],
-    origin: Option<u32>,
-    neighbours: &[Vec<u32>],
-    moved: &mut u64,
-) -> u32 {
-    let dist = |k: u32| sites[k as usize].map(|s| (p_m - s).length_squared());
+fn place(cell: u32, p_m: Vec3, pos: &[Vec3], cand: &Candidates, moved: &mut u64) -> u32 {
+    let (a, b) = (
+        cand.start[cell as usize] as usize,
+        cand.start[cell as usize + 1] as usize,
+    );
+    let (cells, pos) = (&cand.cells[a..b], &pos[a..b]);
     let mut best = cell;
-    let mut d_best = dist(cell).unwrap_or(f32::INFINITY);
-    for &k in neighbours[cell as usize].iter().chain(origin.iter()) {
-        if let Some(d) = dist(k)
-            && d < d_best
-        {
+    let mut d_best = (p_m - pos[0]).length_squared();
+    for (&k, &s) in cells[1..].iter().zip(&pos[1..]) {
+        let d = (p_m - s).length_squared();
+        if d < d_best {
             best = k;
             d_best = d;
         }
@@ -481,7 +505,7 @@ pub fn integrate(
         NO_CELL => None,
         c => Some(c),
     };
-    let neighbours = cell_neighbours(&table, kmaps);
+    let cand = Candidates::new(&cell_neighbours(&table, kmaps), origin);
     let links = (transport.links.as_ref()).map(|op| links::LinkIndex::new(op, grid, &table));
     let run = Integration {
         transport,
@@ -490,7 +514,7 @@ pub fn integrate(
         clusters: clusters(transport, grid),
         table,
         origin,
-        neighbours,
+        cand,
         links,
     };
     let per_cluster: Vec<(Vec<[f32; 3]>, CellStats)> = (0..nc)
@@ -555,8 +579,8 @@ struct Integration<'a> {
     table: CellTable,
     /// The cell holding `Δt = 0`, if any.
     origin: Option<u32>,
-    /// Voronoi neighbours of every cell.
-    neighbours: Vec<Vec<u32>>,
+    /// Every cell's candidate sites for the seam rule.
+    cand: Candidates,
     /// The link walk's tables when the transport has the hierarchical operator.
     links: Option<links::LinkIndex>,
 }
@@ -570,6 +594,9 @@ struct Receivers {
     acc: Vec<[f64; 3]>,
     /// Position of the site `t + Δt_k`, `None` when uncovered.
     sites: Vec<Option<Vec3>>,
+    /// Per receiver, the positions of its candidate sites in [`Candidates`] order
+    /// ([`Candidates::UNCOVERED`] where uncovered), at `r · C` for `C` candidates.
+    cand: Vec<Vec3>,
     stats: CellStats,
 }
 
@@ -636,9 +663,19 @@ impl Integration<'_> {
                     .map(|j| self.transport.patches[j as usize].position_m);
             }
         }
+        let cl = self.cand.cells.len();
+        let mut cand = Vec::with_capacity(recv.len() * cl);
+        for r in 0..recv.len() {
+            let site = &sites[r * kmaps..(r + 1) * kmaps];
+            cand.extend(
+                (self.cand.cells.iter())
+                    .map(|&k| site[k as usize].unwrap_or(Candidates::UNCOVERED)),
+            );
+        }
         Receivers {
             xy,
             acc: vec![[0.0f64; 3]; recv.len() * kmaps],
+            cand,
             sites,
             stats: CellStats::default(),
         }
@@ -673,7 +710,7 @@ impl Integration<'_> {
             let pj = rem.clusters[cj].position_m;
             for (r, &(xi, yi)) in rx.xy.iter().enumerate() {
                 let acc = &mut rx.acc[r * kmaps..(r + 1) * kmaps];
-                let sites = &rx.sites[r * kmaps..(r + 1) * kmaps];
+                let sites = &rx.cand[r * self.cand.cells.len()..(r + 1) * self.cand.cells.len()];
                 let st = &mut rx.stats;
                 if !table.uniform.is_empty() {
                     let u = table.uniform[table.index(tile.origin.x - xi, tile.origin.y - yi)];
@@ -714,7 +751,7 @@ impl Integration<'_> {
         let bounce_here = kern.effects.radiosity && self.links.is_none();
         for (r, (&i, &(xi, yi))) in recv.iter().zip(&rx.xy).enumerate() {
             let pi = &transport.patches[i as usize];
-            let sites = &rx.sites[r * kmaps..(r + 1) * kmaps];
+            let sites = &rx.cand[r * self.cand.cells.len()..(r + 1) * self.cand.cells.len()];
             let acc = &mut rx.acc[r * kmaps..(r + 1) * kmaps];
             let st = &mut rx.stats;
             let translucent = kern.is_translucent(pi.material);
@@ -796,10 +833,11 @@ impl Integration<'_> {
         }
     }
 
-    /// [`place`] with this integration's origin cell and neighbours.
+    /// [`place`] with this integration's candidates; `sites` are one receiver's candidate
+    /// positions ([`Receivers::cand`]).
     #[inline]
-    fn place(&self, cell: u32, p_m: Vec3, sites: &[Option<Vec3>], moved: &mut u64) -> u32 {
-        place(cell, p_m, sites, self.origin, &self.neighbours, moved)
+    fn place(&self, cell: u32, p_m: Vec3, sites: &[Vec3], moved: &mut u64) -> u32 {
+        place(cell, p_m, sites, &self.cand, moved)
     }
 
     /// Adds `v · share` to the receiver's sum `acc` in the cell that [`place`] picks for a
@@ -812,7 +850,7 @@ impl Integration<'_> {
     fn add_placed(
         &self,
         acc: &mut [[f64; 3]],
-        sites: &[Option<Vec3>],
+        sites: &[Vec3],
         cell: u32,
         p_m: Vec3,
         v: [f64; 3],
