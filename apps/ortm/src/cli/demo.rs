@@ -146,6 +146,8 @@ fn cornell(a: &Args) -> Result<()> {
             &size,
             "--levels",
             &levels,
+            "--coarse-block",
+            "0",
             "-o",
             &out("bake"),
         ]),
@@ -158,6 +160,8 @@ fn cornell(a: &Args) -> Result<()> {
             &size,
             "--offsets",
             &offsets,
+            "--coarse-block",
+            "0",
             "-o",
             &out("bake_offsets"),
         ]),
@@ -201,7 +205,9 @@ fn cornell_guide(out: &Path, size: &str, levels: &str, offsets: &str) -> String 
          Look for: the white walls and the boxes tinted red and green near the side walls, \
          and the shadows under the boxes no longer black in `final`.\n\n\
          ## 3. The bake: `bake/`\n\n\
-         `ortm bake cornell --levels {levels}`: multi-resolution transfer maps (`map_*.exr`, \
+         `ortm bake cornell --levels {levels} --coarse-block 0`: multi-resolution transfer \
+         maps over the exact transport (`--coarse-block 0`: single-texel clusters up to 4,096 \
+         covered texels) (`map_*.exr`, \
          listed in `index.json` with their pyramid level and offset). Each texel's transfer \
          is split into blocks of a pyramid of the first-order lightmap — single texels near \
          it, coarser blocks farther away — each block kept whole only where taking the \
@@ -226,7 +232,7 @@ fn cornell_guide(out: &Path, size: &str, levels: &str, offsets: &str) -> String 
          ## 6. The paper's offsets: `bake_offsets/`, `frame_offsets.png`\n\n\
          ![offsets](bake_offsets/report_offsets.png) \
          ![density](bake_offsets/report_density.png) ![frame](frame_offsets.png)\n\n\
-         `ortm bake cornell --offsets {offsets}`: the paper's form — {offsets} offsets drawn \
+         `ortm bake cornell --offsets {offsets} --coarse-block 0`: the paper's form — {offsets} offsets drawn \
          by importance (`report_offsets.png`: the offsets as white dots in the square of \
          offsets from −1 to 1 lightmap side, each Voronoi cell coloured by its importance; \
          `report_density.png`: the density they were drawn from), each map multiplying the \
