@@ -242,6 +242,20 @@ fn level_rows(case: &Case, tr: &Transport, build_s: f64, a: &Args) -> Result<Vec
             bake_s,
             frame_cost: ortm::maps::levels::stored_texels(&maps),
         });
+        let t = Instant::now();
+        let blocks = multires::coarsen_receivers(&case.grid, e, *eps);
+        let final_map = multires::apply_blocks(&case.grid, &blocks, &first, &area)?;
+        let shared = blocks.iter().filter(|b| b.receiver_level > 0).count();
+        rows.push(Row {
+            method: format!(
+                "multi-resolution maps, ε = {eps:.0e}, receiver blocks ({:.0} % shared)",
+                100.0 * shared as f64 / blocks.len().max(1) as f64
+            ),
+            offsets: Some(multires::block_maps(&blocks)),
+            final_b: lighting::from_lightmap(&case.grid, &final_map),
+            bake_s: shared_s + t.elapsed().as_secs_f64(),
+            frame_cost: blocks.len() as u64,
+        });
     }
     Ok(rows)
 }

@@ -16,6 +16,16 @@
 //! per block it uses, for every lighting. `ε = 0` keeps only exact blocks: with a generic
 //! transfer, every single texel — the full-budget form, equal to Eq. 9 with every offset.
 //!
+//! # Receiver blocks
+//! Neighbouring receivers mostly keep the same far sender blocks with nearly the same values.
+//! [`coarsen_receivers`] shares such an entry between the covered receivers of a `2^r × 2^r`
+//! receiver block (`r ≤ ℓ`) as their area-weighted mean, when no receiver's own value is more
+//! than `ε/2` from it (the error a kept sender block may add, `ε·B_max/2`, for any first order;
+//! the mean keeps the transferred power exactly). The result is a sum per receiver level,
+//! `G_r(c) = Σ V·P_ℓ(⌊c/2^(ℓ−r)⌋ + Δ)`, read back by every covered texel of the block
+//! ([`apply_blocks`], the CPU form; the GPU form and the bake's files do not carry receiver
+//! levels yet). `ortm bench accuracy --levels` measures both forms.
+//!
 //! # Cost
 //! Rows come from a caller's closure (the dense transfer matrix, or the pair evaluator
 //! [`Transport::r`]): `n` evaluations per receiver. The partition costs `O(n log n)` per
@@ -339,4 +349,208 @@ pub fn entries_per_level(entries: &[Vec<Entry>]) -> Vec<u64> {
         out[e.level as usize] += 1;
     }
     out
+}
+
+/// One kept block of the transfer shared by every covered receiver of a receiver block: the
+/// value `V` multiplies `P_ℓ(⌊c / 2^(ℓ − r)⌋ + Δ)` and adds into every covered texel `t` with
+/// `⌊t / 2^r⌋ = c` ([`coarsen_receivers`], [`apply_blocks`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BlockEntry {
+    /// Receiver level `r` (0: a single texel), at most [`Self::level`].
+    pub receiver_level: u8,
+    /// Receiver block `c` in level-`r` blocks.
+    pub receiver: [u32; 2],
+    /// Sender pyramid level `ℓ`.
+    pub level: u8,
+    /// Offset `Δ` in level-`ℓ` blocks (the same for every receiver of the block).
+    pub offset: IVec2,
+    /// `V`: the receivers' area-weighted mean of `Σ_{j ∈ block} R(t, j)`, per channel.
+    pub value: [f32; 3],
+}
+
+/// A sender block and a receiver block of its level: `(ℓ, Δy, Δx, cy, cx)`.
+type GroupKey = (u8, i32, i32, u32, u32);
+
+/// Receivers (grid texel index) with their own values.
+type Members = Vec<(u32, [f32; 3])>;
+
+/// Shares the receivers' kept blocks ([`partition_rows`]) between neighbouring receivers: every
+/// covered receiver of a `2^r × 2^r` receiver block (`r ≤ ℓ`) that keeps the same sender block
+/// `(ℓ, b)` gets one value, their area-weighted mean `V` (so the transferred power is unchanged
+/// for any first order), when no receiver's own value differs from `V` by more than
+/// `tolerance / 2` in any channel — the same error, `tolerance · B_max / 2` for any first order
+/// `0 ≤ B_o ≤ B_max`, that [`partition`] allows a kept sender block. Tried from `r = ℓ` down;
+/// what cannot be shared stays per receiver (`r = 0`). `entries` is per receiver in the grid's
+/// texel order. Deterministic: entries come out sorted by sender level, offset and receiver.
+pub fn coarsen_receivers(
+    grid: &TexelGrid,
+    entries: &[Vec<Entry>],
+    tolerance: f64,
+) -> Vec<BlockEntry> {
+    let (w, h) = (grid.width, grid.height);
+    let levels = level_count(w, h) as usize;
+    // Covered receivers per block of each level.
+    let mut covered: Vec<Vec<u32>> = vec![vec![0; (w * h) as usize]];
+    for t in &grid.texels {
+        covered[0][(t.y * w + t.x) as usize] = 1;
+    }
+    let mut dims = vec![(w, h)];
+    for l in 1..levels {
+        let d = dims[l - 1];
+        covered.push(halve(d, &covered[l - 1], 0, |a, b| *a += b));
+        dims.push((d.0.div_ceil(2), d.1.div_ceil(2)));
+    }
+    let area: Vec<f64> = grid.texels.iter().map(|t| t.area_m2 as f64).collect();
+    // (ℓ, Δy, Δx, cy, cx at level ℓ, receiver) for every entry.
+    let mut keyed: Vec<(GroupKey, u32, [f32; 3])> = Vec::new();
+    let mut out = Vec::new();
+    for (i, es) in entries.iter().enumerate() {
+        let t = &grid.texels[i];
+        for e in es {
+            if e.level == 0 {
+                out.push(BlockEntry {
+                    receiver_level: 0,
+                    receiver: [t.x, t.y],
+                    level: 0,
+                    offset: e.offset,
+                    value: e.value,
+                });
+            } else {
+                let l = e.level;
+                let key = (l, e.offset.y, e.offset.x, t.y >> l, t.x >> l);
+                keyed.push((key, i as u32, e.value));
+            }
+        }
+    }
+    keyed.sort_unstable_by_key(|k| (k.0, k.1));
+    let mut stack: Vec<(u8, Members)> = Vec::new();
+    for group in keyed.chunk_by(|a, b| a.0 == b.0) {
+        let (l, _, _, _, _) = group[0].0;
+        let offset = IVec2::new(group[0].0.2, group[0].0.1);
+        stack.push((l, group.iter().map(|g| (g.1, g.2)).collect()));
+        while let Some((r, members)) = stack.pop() {
+            let t0 = &grid.texels[members[0].0 as usize];
+            let c = [t0.x >> r, t0.y >> r];
+            let emit_each = |out: &mut Vec<BlockEntry>| {
+                for &(i, v) in &members {
+                    let t = &grid.texels[i as usize];
+                    out.push(BlockEntry {
+                        receiver_level: 0,
+                        receiver: [t.x, t.y],
+                        level: l,
+                        offset,
+                        value: v,
+                    });
+                }
+            };
+            if r == 0 {
+                emit_each(&mut out);
+                continue;
+            }
+            let full = members.len() as u32
+                == covered[r as usize][(c[1] * dims[r as usize].0 + c[0]) as usize];
+            if full {
+                let mut sum = [0.0f64; 3];
+                let mut wsum = 0.0;
+                for &(i, v) in &members {
+                    let a = area[i as usize];
+                    wsum += a;
+                    for ch in 0..3 {
+                        sum[ch] += a * v[ch] as f64;
+                    }
+                }
+                let mean = sum.map(|s| if wsum > 0.0 { s / wsum } else { 0.0 });
+                let ok = members.iter().all(|&(_, v)| {
+                    (0..3).all(|ch| (v[ch] as f64 - mean[ch]).abs() <= 0.5 * tolerance)
+                });
+                if ok {
+                    out.push(BlockEntry {
+                        receiver_level: r,
+                        receiver: c,
+                        level: l,
+                        offset,
+                        value: mean.map(|m| m as f32),
+                    });
+                    continue;
+                }
+            }
+            // Split by the receiver block's children.
+            let mut children: Vec<(u32, Members)> = Vec::new();
+            for &(i, v) in &members {
+                let t = &grid.texels[i as usize];
+                let k = ((t.y >> (r - 1)) & 1) * 2 + ((t.x >> (r - 1)) & 1);
+                match children.iter_mut().find(|ch| ch.0 == k) {
+                    Some(ch) => ch.1.push((i, v)),
+                    None => children.push((k, vec![(i, v)])),
+                }
+            }
+            children.sort_unstable_by_key(|ch| std::cmp::Reverse(ch.0));
+            for (_, m) in children {
+                stack.push((r - 1, m));
+            }
+        }
+    }
+    out
+}
+
+/// The final lightmap of block entries ([`coarsen_receivers`]) on the CPU: each entry adds
+/// `V · P_ℓ(⌊c / 2^(ℓ − r)⌋ + Δ)` into its receiver level's sum `G_r(c)`, and every covered texel
+/// `t` gets `B_o(t) + Σ_r G_r(⌊t / 2^r⌋)`. `weight` are the texel areas (0 where uncovered).
+///
+/// # Errors
+/// [`MapsError`] from the pyramid (a lightmap or weights of the wrong size).
+pub fn apply_blocks(
+    grid: &TexelGrid,
+    blocks: &[BlockEntry],
+    first_order: &Lightmap,
+    weight: &[f32],
+) -> Result<Lightmap, MapsError> {
+    use crate::maps::levels::Pyramid;
+    let (w, h) = (grid.width, grid.height);
+    let levels = level_count(w, h);
+    let pyramid = Pyramid::new(first_order, weight, levels)?;
+    let mut g: Vec<Vec<[f64; 3]>> = pyramid
+        .levels
+        .iter()
+        .map(|l| vec![[0.0; 3]; (l.width * l.height) as usize])
+        .collect();
+    for b in blocks {
+        let (r, l) = (b.receiver_level as u32, b.level as u32);
+        let s = l - r;
+        let p = pyramid.levels[l as usize].get(
+            i64::from(b.receiver[0] >> s) + i64::from(b.offset.x),
+            i64::from(b.receiver[1] >> s) + i64::from(b.offset.y),
+        );
+        let lw = pyramid.levels[r as usize].width;
+        let a = &mut g[r as usize][(b.receiver[1] * lw + b.receiver[0]) as usize];
+        for c in 0..3 {
+            a[c] += b.value[c] as f64 * p[c] as f64;
+        }
+    }
+    let mut out = first_order.clone();
+    for t in &grid.texels {
+        let slot = (t.y * w + t.x) as usize;
+        let mut sum = [0.0f64; 3];
+        for (r, gr) in g.iter().enumerate() {
+            let lw = pyramid.levels[r].width;
+            let v = gr[((t.y >> r) * lw + (t.x >> r)) as usize];
+            for c in 0..3 {
+                sum[c] += v[c];
+            }
+        }
+        let b = first_order.data[slot];
+        out.data[slot] = std::array::from_fn(|c| (b[c] as f64 + sum[c]) as f32);
+    }
+    Ok(out)
+}
+
+/// Maps the block entries make on the GPU: one per receiver level, sender level and offset.
+pub fn block_maps(blocks: &[BlockEntry]) -> usize {
+    let mut keys: Vec<(u8, u8, i32, i32)> = blocks
+        .iter()
+        .map(|b| (b.receiver_level, b.level, b.offset.x, b.offset.y))
+        .collect();
+    keys.sort_unstable();
+    keys.dedup();
+    keys.len()
 }
