@@ -523,6 +523,18 @@ fn head_256_receiver_blocks() {
         let fin = multires::apply_blocks(&grid, &blocks, &first, &area).unwrap();
         let fin = lighting::from_lightmap(&grid, &fin);
         let ind = |v: &[Vec3]| -> Vec<Vec3> { v.iter().zip(&b_o).map(|(b, o)| *b - *o).collect() };
+        // ORTM_TEST_OUT=DIR: the indirect lightmaps of both forms as EXRs, to look at.
+        if let Some(dir) = std::env::var_os("ORTM_TEST_OUT") {
+            let dir = std::path::Path::new(&dir);
+            for (name, v) in [("per_receiver", &per), ("blocks", &fin)] {
+                let m = lighting::to_lightmap(&grid, &ind(v));
+                ortm::render::lightmap_exr::write_lightmap_exr(
+                    &dir.join(format!("head256_{eps:.0e}_{name}_indirect.exr")),
+                    &m,
+                )
+                .unwrap();
+            }
+        }
         eprintln!(
             "head 256², ε {eps:.0e}: {} maps, {} map texels per receiver; receiver blocks: {} \
              maps, {} map texels ({} shared); blocks vs per receiver: final {:.3} %, indirect \
