@@ -381,7 +381,8 @@ type Members = Vec<(u32, [f32; 3])>;
 /// `tolerance / 2` in any channel — the same error, `tolerance · B_max / 2` for any first order
 /// `0 ≤ B_o ≤ B_max`, that [`partition`] allows a kept sender block. Tried from `r = ℓ` down;
 /// what cannot be shared stays per receiver (`r = 0`). `entries` is per receiver in the grid's
-/// texel order. Deterministic: entries come out sorted by sender level, offset and receiver.
+/// texel order. Deterministic: level-0 entries first, per receiver, then the others by sender
+/// level, offset and receiver block.
 pub fn coarsen_receivers(
     grid: &TexelGrid,
     entries: &[Vec<Entry>],
