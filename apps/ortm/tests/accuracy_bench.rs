@@ -107,8 +107,8 @@ fn the_cornell_rows_match_bake_solve_and_compare_and_stay_within_their_bounds() 
     let rows = table_rows(&table);
     assert_eq!(
         rows.len(),
-        4,
-        "evaluator + multi-resolution maps + two cell rules:\n{table}"
+        5,
+        "evaluator + multi-resolution maps (per receiver, receiver blocks) + two cell rules:\n{table}"
     );
     assert!(table.contains("reference: exact dense solve"), "{table}");
 
@@ -171,8 +171,23 @@ fn the_cornell_rows_match_bake_solve_and_compare_and_stay_within_their_bounds() 
     let cmp = compare_with_exact(dir, &grid, &applied, "lbake_final.exr");
     let levels = rows
         .iter()
-        .find(|r| r.method.contains("multi-resolution"))
+        .find(|r| r.method.contains("multi-resolution") && !r.method.contains("receiver blocks"))
         .unwrap();
+    // Receiver blocks keep the transferred power (the energy column agrees to its rounding) and
+    // add little error: measured 1.9 % / 15.6 % against 1.8 % / 14.9 % per receiver (bound:
+    // the per-receiver row's + 25 %).
+    let blocks = rows
+        .iter()
+        .find(|r| r.method.contains("receiver blocks"))
+        .unwrap();
+    assert!(
+        (blocks.energy - levels.energy).abs() <= 0.0011,
+        "{blocks:?} vs {levels:?}"
+    );
+    assert!(
+        blocks.total <= 1.25 * levels.total && blocks.indirect <= 1.25 * levels.indirect,
+        "{blocks:?} vs {levels:?}"
+    );
     assert_eq!(levels.offsets, lmaps.len().to_string(), "maps of the bake");
     for (label, table_value) in [("total", levels.total), ("indirect", levels.indirect)] {
         let by_hand = compare_figure(&cmp, label);
