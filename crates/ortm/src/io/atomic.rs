@@ -114,8 +114,9 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
 }
 
 /// Threads of [`with_write_pool`]: enough concurrent writers for the file system to commit
-/// their `fsync`s together. Measured on ext4, 2 cores, 6,769 small map files (`ortm bake
-/// cornell --size 64 --levels 3e-3`): 11.5 s with 2 writers, 2.0 s with 16.
+/// their `fsync`s together. Measured on ext4, 2 cores, 6,678 small map files (`ortm bake
+/// cornell --size 64 --levels 3e-3`): the bake's maps phase 11.5 s with 2 writers, 1.8–4.3 s
+/// with 16.
 pub const WRITE_THREADS: usize = 16;
 
 /// Runs `f` in a thread pool of [`WRITE_THREADS`] threads (made once per process), so that the

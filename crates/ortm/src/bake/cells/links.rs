@@ -192,8 +192,7 @@ impl Integration<'_> {
                         continue;
                     }
                     let (xi, yi) = rx.xy[r];
-                    let sites =
-                        &rx.cand[r * self.cand.cells.len()..(r + 1) * self.cand.cells.len()];
+                    let sites = self.cand.of(&rx.cand, r);
                     let acc = &mut rx.acc[r * kmaps..(r + 1) * kmaps];
                     let st = &mut rx.stats;
                     st.links += 1;
@@ -304,7 +303,7 @@ impl Integration<'_> {
                 },
             );
             let xy = rx.xy[r];
-            let sites = &rx.cand[r * self.cand.cells.len()..(r + 1) * self.cand.cells.len()];
+            let sites = self.cand.of(&rx.cand, r);
             let acc = &mut rx.acc[r * kmaps..(r + 1) * kmaps];
             for &(s, rd, me) in &visits {
                 let value = |s: u32| {

@@ -418,6 +418,13 @@ impl Candidates {
     /// Where an uncovered site stands in a receiver's candidate positions: at infinite distance
     /// from every (finite) sender, so it is never the nearest.
     const UNCOVERED: Vec3 = Vec3::new(f32::INFINITY, 0.0, 0.0);
+
+    /// Receiver `r`'s candidate positions in `pos` (all receivers', [`Receivers::cand`]).
+    #[inline]
+    fn of<'p>(&self, pos: &'p [Vec3], r: usize) -> &'p [Vec3] {
+        let n = self.cells.len();
+        &pos[r * n..(r + 1) * n]
+    }
 }
 
 /// The cell whose site represents a sender at `p_m` whose offset lies in `cell`, for a receiver
@@ -710,7 +717,7 @@ impl Integration<'_> {
             let pj = rem.clusters[cj].position_m;
             for (r, &(xi, yi)) in rx.xy.iter().enumerate() {
                 let acc = &mut rx.acc[r * kmaps..(r + 1) * kmaps];
-                let sites = &rx.cand[r * self.cand.cells.len()..(r + 1) * self.cand.cells.len()];
+                let sites = self.cand.of(&rx.cand, r);
                 let st = &mut rx.stats;
                 if !table.uniform.is_empty() {
                     let u = table.uniform[table.index(tile.origin.x - xi, tile.origin.y - yi)];
@@ -751,7 +758,7 @@ impl Integration<'_> {
         let bounce_here = kern.effects.radiosity && self.links.is_none();
         for (r, (&i, &(xi, yi))) in recv.iter().zip(&rx.xy).enumerate() {
             let pi = &transport.patches[i as usize];
-            let sites = &rx.cand[r * self.cand.cells.len()..(r + 1) * self.cand.cells.len()];
+            let sites = self.cand.of(&rx.cand, r);
             let acc = &mut rx.acc[r * kmaps..(r + 1) * kmaps];
             let st = &mut rx.stats;
             let translucent = kern.is_translucent(pi.material);
