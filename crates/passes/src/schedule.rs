@@ -289,6 +289,7 @@ mod tests {
             dst_y: dst[1],
             offset: off,
             level: 0,
+            receiver_level: 0,
         }
     }
 

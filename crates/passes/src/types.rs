@@ -291,6 +291,13 @@ pub struct AtlasData {
 /// outside level `ℓ`'s size `⌈W/2^ℓ⌉ × ⌈H/2^ℓ⌉` (W×H = the lightmap). Level 0 pieces are
 /// exactly the original single-resolution form. `level ≤` [`MAX_PIECE_LEVEL`]; pieces of
 /// level > 0 need [`TexelWeights`] to build the pyramid.
+///
+/// # Receiver blocks (`receiver_level = r > 0`)
+/// The rectangle then lies in the grid of `2^r × 2^r` receiver blocks (`⌈W/2^r⌉ × ⌈H/2^r⌉`):
+/// `dst`, `w`, `h` count blocks, and its value at block `c = dst + (i,j)` multiplies
+/// `P_ℓ(⌊c / 2^(ℓ−r)⌋ + Δ)` and adds into *every covered texel* `t` with `⌊t / 2^r⌋ = c`
+/// (covered: first-order alpha > 0). `r ≤ ℓ`. One block value stands for up to `4^r` texels:
+/// the frame cost is the block count, not the texel count. `r = 0` is the form above.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct TransferPiece {
     /// Index into the atlas list.
@@ -313,6 +320,8 @@ pub struct TransferPiece {
     /// Pyramid level `ℓ` of the first-order light read (0 = the first-order map itself);
     /// at most [`MAX_PIECE_LEVEL`].
     pub level: u32,
+    /// Receiver level `r ≤ level` (0: one value per texel; see the type's docs).
+    pub receiver_level: u32,
 }
 
 /// The largest [`TransferPiece::level`] (blocks of `2^15 × 2^15` texels: one block covers

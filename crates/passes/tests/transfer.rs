@@ -58,6 +58,7 @@ fn random_case(seed: u64) -> Case {
             dst_y: r.range(0, (size[1] - h) as i64) as u32,
             offset: [r.range(-30, 30) as i32, r.range(-30, 30) as i32],
             level: 0,
+            receiver_level: 0,
         });
     }
     Case {
@@ -222,6 +223,7 @@ fn exact_single_piece() {
             dst_y: 0,
             offset: [-1, 1],
             level: 0,
+            receiver_level: 0,
         },
         TransferPiece {
             atlas: 0,
@@ -233,6 +235,7 @@ fn exact_single_piece() {
             dst_y: 0,
             offset: [0, 5],
             level: 0,
+            receiver_level: 0,
         },
     ];
     let c = Case {
@@ -492,6 +495,7 @@ fn paired_partial_overlap_reads_outside_own_rect() {
             dst_y: 0,
             offset: [-2, 2],
             level: 0,
+            receiver_level: 0,
         },
         TransferPiece {
             atlas: 0,
@@ -503,6 +507,7 @@ fn paired_partial_overlap_reads_outside_own_rect() {
             dst_y: 4,
             offset: [4, -4],
             level: 0,
+            receiver_level: 0,
         },
     ];
     let c = Case {

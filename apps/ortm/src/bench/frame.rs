@@ -226,6 +226,7 @@ mod tests {
             dst_y: 0,
             offset,
             level: 0,
+            receiver_level: 0,
         };
         let albedo = AlbedoMap::uniform(size, size, [0.5; 3]);
         (

@@ -136,6 +136,7 @@ pub fn transfer_piece(p: &AtlasPiece) -> TransferPiece {
         dst_y: p.dst_y,
         offset: p.offset,
         level: p.level,
+        receiver_level: 0,
     }
 }
 

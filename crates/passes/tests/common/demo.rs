@@ -124,6 +124,7 @@ pub fn blur_transfer(
                     dst_y: y0,
                     offset: [dx, dy],
                     level: 0,
+                    receiver_level: 0,
                 });
             }
             dx += step;
