@@ -287,6 +287,7 @@ fn level_bake_round_trips_through_files_and_atlases() {
         size: (32, 32),
         coarse_block: 1,
         levels: Some(3e-3),
+        receiver_blocks: false,
         ..Default::default()
     };
     let summary = ortm::bake::bake(

@@ -71,6 +71,13 @@ pub struct Args {
         help = "Multi-resolution maps instead of --offsets: each receiver's transfer split into blocks of a first-order pyramid, from single texels near it to coarse blocks far away, each block's error at most this tolerance × the brightest first order / 2 (e.g. 3e-3; 0 = every texel, exact). Costs n² transfer evaluations (n covered texels): lightmaps up to ~128²; --coarse-block 2 makes the higher bounces accurate"
     )]
     pub levels: Option<f64>,
+    /// With --levels: share blocks between neighbouring receivers (`on`, the default) or not.
+    #[arg(
+        long,
+        value_name = "on|off",
+        help = "With --levels: share each kept block between the receivers of a 2^r×2^r receiver block when every receiver's own value is within the tolerance / 2 of their mean, stored once per block (on, the default: fewer stored texels, for any lighting the same error bound per block), or keep one value per receiver (off)"
+    )]
+    pub receiver_blocks: Option<String>,
 }
 
 /// Parses `--effects`.
@@ -121,6 +128,16 @@ pub fn settings(a: &Args, size: (u32, u32)) -> Result<BakeSettings> {
     {
         bail!("--levels {e}: give a tolerance ≥ 0, e.g. 3e-3");
     }
+    let receiver_blocks = match (a.receiver_blocks.as_deref(), a.levels) {
+        (None, _) => true,
+        (Some(_), None) => bail!(
+            "--receiver-blocks only applies to multi-resolution maps: give --levels ε too (e.g. \
+             --levels 3e-3 --receiver-blocks off), or drop --receiver-blocks"
+        ),
+        (Some("on"), Some(_)) => true,
+        (Some("off"), Some(_)) => false,
+        (Some(o), Some(_)) => bail!("--receiver-blocks: unknown '{o}'; use on or off"),
+    };
     let coarse_block = a.coarse_block.unwrap_or(if a.tolerance.is_some() {
         0
     } else {
@@ -130,6 +147,7 @@ pub fn settings(a: &Args, size: (u32, u32)) -> Result<BakeSettings> {
         size,
         tolerance: a.tolerance,
         levels: a.levels,
+        receiver_blocks,
         cell_rule,
         offsets: a.offsets,
         effects: parse_effects(&a.effects)?,

@@ -25,11 +25,14 @@ pub fn apply_atlas_set(set: &AtlasSet, first_order: &Lightmap) -> Result<Lightma
 /// offset, or the first K maps by importance, as `ortm view` shows them); same order and
 /// arithmetic. Pieces of multi-resolution maps (level > 0) read the first-order pyramid
 /// ([`crate::maps::levels::Pyramid`]) built with the texel weights `weights` (texel areas, 0
-/// where uncovered; `W × H`), which they then need.
+/// where uncovered; `W × H`), which they then need. A piece of receiver level `r > 0` holds
+/// one value per `2^r × 2^r` receiver block `c` (its `dst`, `w`, `h` count blocks): the value
+/// times `P_ℓ(⌊c/2^(ℓ−r)⌋ + Δ)` adds into every covered texel `t` of the block (`⌊t/2^r⌋ = c`,
+/// covered: `weights[t] > 0`), as [`crate::maps::levels::apply_levels`] does.
 ///
 /// # Errors
-/// As [`apply_atlas_set`]; [`AtlasError::NeedsWeights`] when a kept piece has level > 0 and
-/// `weights` is `None` or not `W × H`.
+/// As [`apply_atlas_set`]; [`AtlasError::NeedsWeights`] when a kept piece has level > 0 (so
+/// also any with receiver level > 0) and `weights` is `None` or not `W × H`.
 pub fn apply_atlas_pieces(
     set: &AtlasSet,
     keep: impl Fn(&AtlasPiece) -> bool,
@@ -51,7 +54,7 @@ pub fn apply_atlas_pieces(
     let mut order: Vec<&AtlasPiece> = set.pieces.iter().filter(|p| keep(p)).collect();
     order.sort_by_key(|p| p.map_index); // stable: ties keep atlas order
     let aw = set.atlas_size.0 as usize;
-    let pyramid = match order.iter().map(|p| p.level).max() {
+    let pyramid = match order.iter().map(|p| p.level.max(p.receiver_level)).max() {
         Some(top) if top > 0 => {
             let weights = weights
                 .filter(|wt| wt.len() == w as usize * h as usize)
@@ -69,6 +72,33 @@ pub fn apply_atlas_pieces(
     };
     for p in order {
         let atlas = &set.atlases[p.atlas as usize];
+        if p.receiver_level > 0 {
+            let pyr = pyramid.as_ref().expect("built for levels > 0");
+            let lv = &pyr.levels[p.level as usize];
+            let covered = &pyr.levels[0].weight;
+            let (r, s) = (p.receiver_level, p.level - p.receiver_level);
+            for j in 0..p.h {
+                let cy = p.dst_y + j;
+                let sy = i64::from(cy >> s) + i64::from(p.offset[1]);
+                for i in 0..p.w {
+                    let cx = p.dst_x + i;
+                    let sv = lv.get(i64::from(cx >> s) + i64::from(p.offset[0]), sy);
+                    let v = atlas[(p.src_y + j) as usize * aw + (p.src_x + i) as usize];
+                    for y in (cy << r)..((cy + 1) << r).min(h) {
+                        for x in (cx << r)..((cx + 1) << r).min(w) {
+                            let t = y as usize * w as usize + x as usize;
+                            if covered[t] <= 0.0 {
+                                continue;
+                            }
+                            for c in 0..3 {
+                                acc[t][c] += f64::from(v[c]) * f64::from(sv[c]);
+                            }
+                        }
+                    }
+                }
+            }
+            continue;
+        }
         if p.level > 0 {
             let lv = &pyramid.as_ref().expect("built for levels > 0").levels[p.level as usize];
             let l = p.level;

@@ -75,8 +75,8 @@ pub fn build_atlas_set_with_stats(
     atlas_h: u32,
 ) -> Result<(AtlasSet, binning::PackStats), AtlasError> {
     let first = maps.first().ok_or(AtlasError::NoMaps)?;
-    let lightmap_size = (first.width(), first.height());
-    let padded = pad_single_crops(maps, lightmap_size.0);
+    let lightmap_size = first.lightmap_size();
+    let padded = pad_single_crops(maps);
     let sources = binning_sources(maps, &padded, lightmap_size)?;
     let packing = binning::pack(&sources.rects, atlas_w, atlas_h)?;
     let atlases = binning::blit(&packing, &sources.data)?;
@@ -94,11 +94,11 @@ pub fn build_atlas_set_with_stats(
 type Padded = Option<(u32, u32, Vec<[f32; 3]>)>;
 
 /// The padded crop of every map that has exactly one crop and whose width pads
-/// ([`padded_columns`]); `None` for the others.
-fn pad_single_crops(maps: &[TransferMap], lightmap_w: u32) -> Vec<Padded> {
+/// ([`padded_columns`], inside the map's receiver grid); `None` for the others.
+fn pad_single_crops(maps: &[TransferMap]) -> Vec<Padded> {
     maps.iter()
         .map(|m| match m.crops() {
-            [c] => padded_columns(c.rect.x, c.rect.w, lightmap_w).map(|(x, w)| {
+            [c] => padded_columns(c.rect.x, c.rect.w, m.width()).map(|(x, w)| {
                 let mut buf = vec![[0.0f32; 3]; w as usize * c.rect.h as usize];
                 let shift = (c.rect.x - x) as usize;
                 for row in 0..c.rect.h as usize {
@@ -134,11 +134,11 @@ fn binning_sources<'a>(
         data: Vec::new(),
     };
     for (mi, m) in maps.iter().enumerate() {
-        if (m.width(), m.height()) != lightmap_size {
+        if m.lightmap_size() != lightmap_size {
             return Err(AtlasError::LightmapMismatch {
                 map: mi,
                 expected: lightmap_size,
-                found: (m.width(), m.height()),
+                found: m.lightmap_size(),
             });
         }
         for (ci, c) in m.crops().iter().enumerate() {
@@ -187,6 +187,7 @@ fn pieces_of(
             offset: m.offset.to_array(),
             map_index: map_index(mi)?,
             level: m.level(),
+            receiver_level: m.receiver_level(),
         });
     }
     pieces.sort_by_key(|p| (p.atlas, p.src_y, p.src_x));

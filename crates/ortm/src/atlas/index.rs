@@ -361,22 +361,22 @@ fn check_bake(dir: &Path, atlas_index: &Path, index: &AtlasIndex) -> Result<(), 
         .get("maps")
         .and_then(|m| m.as_array())
         .ok_or_else(|| bad("field \"maps\" is missing or not an array".into()))?;
-    let offsets: Vec<Option<([i32; 2], u32)>> = maps
+    let offsets: Vec<Option<([i32; 2], u32, u32)>> = maps
         .iter()
         .map(|m| {
             let o = m
                 .get("offset")
                 .and_then(|o| serde_json::from_value(o.clone()).ok())?;
-            let level = match m.get("level") {
-                None => 0,
-                Some(l) => serde_json::from_value(l.clone()).ok()?,
+            let level = |name| match m.get(name) {
+                None => Some(0),
+                Some(l) => serde_json::from_value(l.clone()).ok(),
             };
-            Some((o, level))
+            Some((o, level("level")?, level("receiver_level")?))
         })
         .collect();
     for (i, p) in index.pieces.iter().enumerate() {
         match offsets.get(p.map_index as usize) {
-            Some(Some(o)) if *o == (p.offset, p.level) => {}
+            Some(Some(o)) if *o == (p.offset, p.level, p.receiver_level) => {}
             found => {
                 return Err(AtlasError::BadIndex {
                     path: atlas_index.to_owned(),
@@ -384,11 +384,13 @@ fn check_bake(dir: &Path, atlas_index: &Path, index: &AtlasIndex) -> Result<(), 
                         "piece {i} is map {} with {}, but the bake index {} has {}; the \
                          atlases were packed from another bake: re-run `ortm bin`",
                         p.map_index,
-                        offset_text(p.offset, p.level),
+                        offset_text(p.offset, p.level, p.receiver_level),
                         path.display(),
                         match found {
                             None => format!("{} maps", offsets.len()),
-                            Some(Some((o, l))) => format!("{} for that map", offset_text(*o, *l)),
+                            Some(Some((o, l, r))) => {
+                                format!("{} for that map", offset_text(*o, *l, *r))
+                            }
                             Some(None) => "no readable offset for that map".into(),
                         }
                     ),
@@ -397,22 +399,27 @@ fn check_bake(dir: &Path, atlas_index: &Path, index: &AtlasIndex) -> Result<(), 
         }
     }
     // The pieces of each map cover its crop rectangles exactly once (a single rectangle padded
-    // to the width the packer stores: docs/atlas-format.md, "Width padding").
-    let lw = index.lightmap.width;
-    let pad = |r: Vec<[u32; 4]>| match r.as_slice() {
-        [[x, y, w, h]] if *w <= lw => match super::build::padded_columns(*x, *w, lw) {
-            Some((xp, wp)) => vec![[xp, *y, wp, *h]],
-            None => r,
-        },
-        _ => r,
+    // to the width the packer stores, inside the map's receiver grid: docs/atlas-format.md,
+    // "Width padding").
+    let lightmap = (index.lightmap.width, index.lightmap.height);
+    let pad = |r: Vec<[u32; 4]>, level: u32| {
+        let lw = crate::maps::receiver_grid(lightmap, level).0;
+        match r.as_slice() {
+            [[x, y, w, h]] if *w <= lw => match super::build::padded_columns(*x, *w, lw) {
+                Some((xp, wp)) => vec![[xp, *y, wp, *h]],
+                None => r,
+            },
+            _ => r,
+        }
     };
     let rects = maps
         .iter()
         .enumerate()
         .map(|(m, e)| {
+            let level = offsets[m].map_or(0, |o| o.2);
             e.get("rects")
                 .and_then(|r| serde_json::from_value::<Vec<crate::maps::CropRect>>(r.clone()).ok())
-                .map(|r| pad(r.iter().map(|r| [r.x, r.y, r.w, r.h]).collect()))
+                .map(|r| pad(r.iter().map(|r| [r.x, r.y, r.w, r.h]).collect(), level))
                 .ok_or_else(|| {
                     bad(format!(
                         "maps[{m}]: field \"rects\" is missing or malformed"
@@ -480,11 +487,12 @@ pub fn read_atlas_set(dir: &Path) -> Result<AtlasSet, AtlasError> {
     })
 }
 
-/// `offset [dx, dy]`, with ` at level ℓ` for a multi-resolution map.
-fn offset_text(offset: [i32; 2], level: u32) -> String {
-    if level == 0 {
-        format!("offset {offset:?}")
-    } else {
-        format!("offset {offset:?} at level {level}")
+/// `offset [dx, dy]`, with ` at level ℓ` for a multi-resolution map and `, receiver level r`
+/// for receiver blocks.
+fn offset_text(offset: [i32; 2], level: u32, receiver_level: u32) -> String {
+    match (level, receiver_level) {
+        (0, 0) => format!("offset {offset:?}"),
+        (l, 0) => format!("offset {offset:?} at level {l}"),
+        (l, r) => format!("offset {offset:?} at level {l}, receiver level {r}"),
     }
 }

@@ -35,9 +35,12 @@
 //! # Invariants of a valid [`AtlasSet`] (checked by [`AtlasSet::validate`], on write and read)
 //! Atlas sides are powers of two in `1..=65536` with `W·H ≤` [`MAX_TEXELS`](crate::maps::MAX_TEXELS); the lightmap is
 //! non-empty with `≤ MAX_TEXELS` texels; every atlas holds `W·H` finite values; every piece is
-//! non-empty, names an existing atlas, lies inside it and (at `dst`) inside the lightmap; pieces
+//! non-empty, names an existing atlas, lies inside it and (at `dst`) inside the lightmap, or
+//! for a piece of receiver level `r > 0` inside the `⌈W/2^r⌉ × ⌈H/2^r⌉` grid of receiver
+//! blocks, with `r ≤ level`; pieces
 //! are sorted by `(atlas, src_y, src_x)` and pairwise disjoint in their atlas; the pieces of one
-//! map share one offset and are pairwise disjoint in the lightmap.
+//! map share one offset, level and receiver level and are pairwise disjoint in the lightmap (in
+//! their grid).
 //!
 //! # Limits
 //! Checking disjointness costs one `u32` per atlas texel and per lightmap texel (stamp grids).
@@ -91,6 +94,13 @@ pub struct AtlasPiece {
     /// `P_ℓ(⌊t/2^ℓ⌋ + Δ)`, its offset in blocks of `2^ℓ` texels; absent (0) for the paper's maps.
     #[serde(default, skip_serializing_if = "is_zero")]
     pub level: u32,
+    /// The map's receiver level `r ≤ level` ([`crate::maps::TransferMap::receiver_level`]):
+    /// for `r > 0`, `dst_x, dst_y, w, h` count `2^r × 2^r` receiver blocks in the
+    /// `⌈W/2^r⌉ × ⌈H/2^r⌉` grid, and the piece's value at block `c` multiplies
+    /// `P_ℓ(⌊c/2^(ℓ−r)⌋ + Δ)` and adds into every covered texel of the block; absent (0) for
+    /// one value per texel.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub receiver_level: u32,
 }
 
 fn is_zero(v: &u32) -> bool {

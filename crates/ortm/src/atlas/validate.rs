@@ -126,24 +126,27 @@ pub(super) fn check_geometry(
     pieces: &[AtlasPiece],
 ) -> Result<(), String> {
     check_sizes(atlas_size, lightmap_size)?;
-    let mut offsets: HashMap<u32, ([i32; 2], u32)> = HashMap::new();
+    let mut offsets: HashMap<u32, ([i32; 2], u32, u32)> = HashMap::new();
     for (i, p) in pieces.iter().enumerate() {
-        check_piece(i, pieces, atlas_size, lightmap_size, atlas_count)?;
-        if p.level > crate::maps::MAX_MAP_LEVEL {
+        if p.level > crate::maps::MAX_MAP_LEVEL || p.receiver_level > p.level {
             return Err(format!(
-                "piece {i} of map {} has pyramid level {} (at most {})",
+                "piece {i} of map {} has pyramid level {} and receiver_level {} (0 ≤ \
+                 receiver_level ≤ level ≤ {})",
                 p.map_index,
                 p.level,
+                p.receiver_level,
                 crate::maps::MAX_MAP_LEVEL
             ));
         }
-        if let Some(o) = offsets.insert(p.map_index, (p.offset, p.level))
-            && o != (p.offset, p.level)
+        check_piece(i, pieces, atlas_size, lightmap_size, atlas_count)?;
+        let key = (p.offset, p.level, p.receiver_level);
+        if let Some(o) = offsets.insert(p.map_index, key)
+            && o != key
         {
             return Err(format!(
-                "piece {i} of map {} has offset {:?} at level {} but another piece of that map \
-                 has {:?} at level {}",
-                p.map_index, p.offset, p.level, o.0, o.1
+                "piece {i} of map {} has offset {:?} at level {} (receiver level {}) but another \
+                 piece of that map has {:?} at level {} (receiver level {})",
+                p.map_index, p.offset, p.level, p.receiver_level, o.0, o.1, o.2
             ));
         }
     }
@@ -172,15 +175,17 @@ fn check_sizes(atlas_size: (u32, u32), lightmap_size: (u32, u32)) -> Result<(), 
 }
 
 /// Piece `i` is non-empty, names an existing atlas, lies inside it and (at `dst`) inside the
-/// lightmap, and comes after piece `i − 1` in `(atlas, src_y, src_x)` order.
+/// lightmap — for receiver level `r > 0`, inside the `⌈W/2^r⌉ × ⌈H/2^r⌉` grid of receiver
+/// blocks — and comes after piece `i − 1` in `(atlas, src_y, src_x)` order.
 fn check_piece(
     i: usize,
     pieces: &[AtlasPiece],
     (aw, ah): (u32, u32),
-    (lw, lh): (u32, u32),
+    lightmap_size: (u32, u32),
     atlas_count: usize,
 ) -> Result<(), String> {
     let p = &pieces[i];
+    let (lw, lh) = crate::maps::receiver_grid(lightmap_size, p.receiver_level);
     let inside = |o: u32, len: u32, size: u32| u64::from(o) + u64::from(len) <= u64::from(size);
     if p.w == 0 || p.h == 0 {
         return Err(format!("piece {i} is empty ({}×{})", p.w, p.h));
@@ -198,10 +203,18 @@ fn check_piece(
         ));
     }
     if !inside(p.dst_x, p.w, lw) || !inside(p.dst_y, p.h, lh) {
-        return Err(format!(
-            "piece {i} ({}×{} at lightmap ({}, {})) lies outside the {lw}×{lh} lightmap",
-            p.w, p.h, p.dst_x, p.dst_y
-        ));
+        return Err(if p.receiver_level > 0 {
+            format!(
+                "piece {i} ({}×{} blocks at ({}, {}), receiver_level {}) lies outside the \
+                 {lw}×{lh} grid of receiver blocks of the {}×{} lightmap",
+                p.w, p.h, p.dst_x, p.dst_y, p.receiver_level, lightmap_size.0, lightmap_size.1
+            )
+        } else {
+            format!(
+                "piece {i} ({}×{} at lightmap ({}, {})) lies outside the {lw}×{lh} lightmap",
+                p.w, p.h, p.dst_x, p.dst_y
+            )
+        });
     }
     if i > 0 {
         let q = &pieces[i - 1];
@@ -274,6 +287,7 @@ mod coverage_tests {
             dst_y: dst.1,
             offset: [0, 0],
             level: 0,
+            receiver_level: 0,
             map_index: map,
         }
     }

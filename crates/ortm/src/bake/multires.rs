@@ -23,8 +23,10 @@
 //! than `ε/2` from it (the error a kept sender block may add, `ε·B_max/2`, for any first order;
 //! the mean keeps the transferred power exactly). The result is a sum per receiver level,
 //! `G_r(c) = Σ V·P_ℓ(⌊c/2^(ℓ−r)⌋ + Δ)`, read back by every covered texel of the block
-//! ([`apply_blocks`], the CPU form; the GPU form and the bake's files do not carry receiver
-//! levels yet). `ortm bench accuracy --levels` measures both forms.
+//! ([`apply_blocks`], the CPU form). [`to_block_maps`] groups them into maps with a receiver
+//! level ([`TransferMap::receiver_level`]), one per `(r, ℓ, Δ)`, which the bake writes
+//! (`ortm bake --levels ε`, `--receiver-blocks on`, the default), the atlases pack and the
+//! renderer applies. `ortm bench accuracy --levels` measures both forms.
 //!
 //! # Cost
 //! Rows come from a caller's closure (the dense transfer matrix, or the pair evaluator
@@ -543,6 +545,90 @@ pub fn apply_blocks(
         out.data[slot] = std::array::from_fn(|c| (b[c] as f64 + sum[c]) as f32);
     }
     Ok(out)
+}
+
+/// Groups block entries ([`coarsen_receivers`]) into maps, one per receiver level, sender level
+/// and offset, ordered by receiver level, then level, then offset (row-major): the map of
+/// `(r, ℓ, Δ)` holds each entry's value at its receiver block in the `⌈W/2^r⌉ × ⌈H/2^r⌉` grid
+/// ([`TransferMap::with_receiver_level`]). [`crate::maps::levels::apply_levels`] of the result
+/// equals [`apply_blocks`] of `blocks` (up to the order of the f64 sums).
+///
+/// # Errors
+/// [`MapsError`] from cropping (a non-finite value), a receiver block outside its grid or a
+/// receiver level above the sender level.
+pub fn to_block_maps(
+    grid: &TexelGrid,
+    blocks: &[BlockEntry],
+) -> Result<Vec<TransferMap>, MapsError> {
+    use crate::maps::receiver_grid;
+    // (r, ℓ, dy, dx) → (receiver block, value) pairs.
+    type Receivers = Vec<([u32; 2], [f32; 3])>;
+    let mut keyed: BTreeMap<(u8, u8, i32, i32), Receivers> = BTreeMap::new();
+    for b in blocks {
+        keyed
+            .entry((b.receiver_level, b.level, b.offset.y, b.offset.x))
+            .or_default()
+            .push((b.receiver, b.value));
+    }
+    let size = (grid.width, grid.height);
+    keyed
+        .into_par_iter()
+        .map(|((r, level, dy, dx), list)| {
+            let offset = IVec2::new(dx, dy);
+            let (gw, gh) = receiver_grid(size, u32::from(r));
+            let mut full = Lightmap::new(gw, gh);
+            for ([cx, cy], v) in list {
+                if cx >= gw || cy >= gh {
+                    return Err(MapsError::InvalidCrop {
+                        what: format!("receiver blocks of level {r}, offset {:?}", [dx, dy]),
+                        reason: format!("block ({cx}, {cy}) is outside the {gw}×{gh} grid"),
+                    });
+                }
+                full.set(cx, cy, v);
+            }
+            let cropped = TransferMap::from_full(offset, 0.0, 0.0, &full)?;
+            TransferMap::from_crops(
+                "receiver-block map",
+                offset,
+                0.0,
+                0.0,
+                size.0,
+                size.1,
+                cropped.crops().to_vec(),
+            )?
+            .with_level(u32::from(level))?
+            .with_receiver_level(u32::from(r))
+        })
+        .collect()
+}
+
+/// What [`coarsen_receivers`] shared, for reports: `(receiver entries, shared)`, the
+/// per-receiver entries the blocks stand for (a block entry of level `r` counts its covered
+/// receivers) and how many of them lie in blocks of `r > 0`.
+pub fn shared_entries(grid: &TexelGrid, blocks: &[BlockEntry]) -> (u64, u64) {
+    let top = blocks.iter().map(|b| b.receiver_level).max().unwrap_or(0) as u32;
+    // Covered receivers per block, per receiver level.
+    let covered: Vec<std::collections::HashMap<[u32; 2], u64>> = (0..=top)
+        .map(|r| {
+            let mut m = std::collections::HashMap::new();
+            for t in &grid.texels {
+                *m.entry([t.x >> r, t.y >> r]).or_insert(0) += 1;
+            }
+            m
+        })
+        .collect();
+    let (mut all, mut shared) = (0u64, 0u64);
+    for b in blocks {
+        let n = covered[b.receiver_level as usize]
+            .get(&b.receiver)
+            .copied()
+            .unwrap_or(0);
+        all += n;
+        if b.receiver_level > 0 {
+            shared += n;
+        }
+    }
+    (all, shared)
 }
 
 /// Maps the block entries make on the GPU: one per receiver level, sender level and offset.

@@ -85,6 +85,14 @@ pub struct BakeSettings {
     /// `selector`, `metric` and `cell_rule` are then unused. `None`: the paper's offsets.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub levels: Option<f64>,
+    /// With [`Self::levels`]: share kept blocks between neighbouring receivers
+    /// ([`crate::bake::multires::coarsen_receivers`], each shared value within `ε/2` of every
+    /// receiver's own) and write maps with receiver levels
+    /// ([`crate::bake::multires::to_block_maps`]); `false`: one value per receiver
+    /// ([`crate::bake::multires::to_maps`]). Recorded in the bake's settings (and so its key)
+    /// only when `levels` is set ([`Self::to_json`]).
+    #[serde(default = "default_true")]
+    pub receiver_blocks: bool,
     /// How the scene was named when baking (a built-in name or a scene-file path, as given), so
     /// that `ortm render DIR` can find it again; informational (the scene hash identifies it).
     pub scene: Option<String>,
@@ -107,8 +115,29 @@ impl Default for BakeSettings {
             selection_receivers: 4096,
             cell_rule: CellRule::Integrated,
             levels: None,
+            receiver_blocks: true,
             scene: None,
         }
+    }
+}
+
+fn default_true() -> bool {
+    true
+}
+
+impl BakeSettings {
+    /// The settings as the bake records them in `index.json` (and hashes into its
+    /// [`BakeKey`]): every field, except `receiver_blocks` when `levels` is unset (it changes
+    /// nothing there, so the paper's bakes keep their keys); with `levels` it is always written,
+    /// so a resumed bake never mixes maps with and without receiver blocks.
+    pub fn to_json(&self) -> serde_json::Value {
+        let mut v = serde_json::to_value(self).expect("settings serialise");
+        if self.levels.is_none()
+            && let Some(o) = v.as_object_mut()
+        {
+            o.remove("receiver_blocks");
+        }
+        v
     }
 }
 
@@ -586,7 +615,7 @@ pub fn bake(
     )
     .map_err(|e| BakeError::Settings(e.to_string()))?;
     let hash = scene_hash(scene);
-    let settings_json = serde_json::to_value(settings).expect("settings serialise");
+    let settings_json = settings.to_json();
     let key = BakeKey::new(&hash, &settings_json);
     let links = match settings.tolerance {
         Some(t) => format!("; hierarchical first bounce at tolerance {t:e}"),
@@ -633,7 +662,15 @@ pub fn bake(
     let t_transport = t0.elapsed().as_secs_f64();
 
     if let Some(tolerance) = settings.levels {
-        let written = write_level_maps(dir, &key, &transport, &grid, tolerance, events, cancel)?;
+        let written = write_level_maps(
+            dir,
+            &key,
+            &transport,
+            &grid,
+            (tolerance, settings.receiver_blocks),
+            events,
+            cancel,
+        )?;
         let t_rows = written.seconds;
         let maps = written.entries.len();
         let (reused, stored_texels) = (written.reused, written.stored_texels);
@@ -839,15 +876,17 @@ fn write_each<'a>(
 /// from the hierarchical transport when the bake has one
 /// ([`crate::bake::multires::hierarchical_row`], `--tolerance`), else from the pair evaluator
 /// ([`Transport::r`], `n²` evaluations with a visibility ray each), partitioned, grouped into one
-/// map per level and offset, and written like [`write_maps`] (in parallel, each atomically;
-/// a finished map of the same bake key, index, offset, level and rectangles is kept: the rows
-/// are deterministic).
+/// map per level and offset — or with `receiver_blocks`, shared between neighbouring receivers
+/// ([`crate::bake::multires::coarsen_receivers`] at the same tolerance) and grouped into one map
+/// per receiver level, level and offset ([`crate::bake::multires::to_block_maps`]) — and written
+/// like [`write_maps`] (in parallel, each atomically; a finished map of the same bake key, index,
+/// offset, level, receiver level and rectangles is kept: the rows are deterministic).
 fn write_level_maps(
     dir: &Path,
     key: &BakeKey,
     transport: &Transport,
     grid: &TexelGrid,
-    tolerance: f64,
+    (tolerance, receiver_blocks): (f64, bool),
     events: &(dyn Fn(BakeEvent) + Sync),
     cancel: &AtomicBool,
 ) -> Result<LevelMapsWritten, BakeError> {
@@ -874,8 +913,23 @@ fn write_level_maps(
     }
     .map_err(|_| BakeError::Interrupted { done: 0, total: 0 })?
     .remove(0);
-    let maps = multires::to_maps(grid, &entries)?;
-    drop(entries);
+    let maps = if receiver_blocks {
+        let blocks = multires::coarsen_receivers(grid, &entries, tolerance);
+        drop(entries);
+        let (all, shared) = multires::shared_entries(grid, &blocks);
+        let block_entries = blocks.iter().filter(|b| b.receiver_level > 0).count();
+        events(BakeEvent::Message(format!(
+            "receiver blocks: {shared} of {all} receiver entries ({:.1} % shared) in \
+             {block_entries} block entries; {} entries in all",
+            100.0 * shared as f64 / all.max(1) as f64,
+            blocks.len()
+        )));
+        multires::to_block_maps(grid, &blocks)?
+    } else {
+        let maps = multires::to_maps(grid, &entries)?;
+        drop(entries);
+        maps
+    };
     if maps.len() > crate::io::limits::MAX_OFFSETS {
         return Err(BakeError::Settings(format!(
             "--levels {tolerance:e} makes {} maps, more than the {} a bake may hold \
@@ -894,7 +948,10 @@ fn write_level_maps(
         |k| {
             scan.finished.get(&(k as u32)).filter(|e| {
                 let m = &maps[k];
-                e.offset == m.offset.to_array() && e.level == m.level() && e.rects == m.rects()
+                e.offset == m.offset.to_array()
+                    && e.level == m.level()
+                    && e.receiver_level == m.receiver_level()
+                    && e.rects == m.rects()
             })
         },
         |k| {

@@ -19,6 +19,9 @@
 //! ```
 //! A multi-resolution map ([`crate::maps::levels`]) adds `"level": ℓ` (1–15; absent means 0)
 //! and its offset is in blocks of `2^ℓ` texels; its file has version 2 (older builds refuse it).
+//! A map with one value per `2^r × 2^r` block of receivers adds `"receiver_level": r`
+//! (`1..=level`; absent means 0): its rects are then in the `⌈W/2^r⌉ × ⌈H/2^r⌉` grid of receiver
+//! blocks, and its file has version 3.
 //! Offsets are texels, `+y` down the image; rects are lightmap texels (row 0 = `v = 1`). File
 //! names are plain names inside the bake directory (no separators, no `..`, not absolute).
 //!
@@ -75,6 +78,10 @@ pub struct MapEntry {
     /// Pyramid level of the senders ([`crate::maps::levels`]); absent (0) for the paper's maps.
     #[serde(default, skip_serializing_if = "is_zero")]
     pub level: u32,
+    /// Receiver level `r ≤ level` ([`TransferMap::receiver_level`]): the rects are in the grid
+    /// of `2^r × 2^r` receiver blocks; absent (0) for one value per texel.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub receiver_level: u32,
     /// Voronoi area of the offset (normalised units, informational).
     pub voronoi_area: f64,
     /// Importance of the offset (informational).
@@ -96,6 +103,7 @@ impl MapEntry {
             index,
             offset: map.offset.to_array(),
             level: map.level(),
+            receiver_level: map.receiver_level(),
             voronoi_area: map.voronoi_area,
             importance: map.importance,
             rects: map.rects(),
@@ -203,11 +211,32 @@ impl BakeIndex {
                     m.voronoi_area, m.importance
                 )));
             }
+            if m.level > crate::maps::MAX_MAP_LEVEL || m.receiver_level > m.level {
+                return Err(bad(format!(
+                    "maps[{n}]: level {} / receiver_level {} invalid (0 ≤ receiver_level ≤ \
+                     level ≤ {})",
+                    m.level,
+                    m.receiver_level,
+                    crate::maps::MAX_MAP_LEVEL
+                )));
+            }
+            let (gw, gh) = crate::maps::receiver_grid(
+                (self.lightmap.width, self.lightmap.height),
+                m.receiver_level,
+            );
             check_rects(
-                &format!("{what} maps[{n}]"),
+                &if m.receiver_level > 0 {
+                    format!(
+                        "{what} maps[{n}] (receiver_level {}: the {gw}×{gh} grid of receiver \
+                         blocks)",
+                        m.receiver_level
+                    )
+                } else {
+                    format!("{what} maps[{n}]")
+                },
                 &m.rects,
-                self.lightmap.width,
-                self.lightmap.height,
+                gw,
+                gh,
             )?;
         }
         Ok(())
@@ -357,6 +386,13 @@ impl BakeIndex {
                 "file has pyramid level {}, index says {}",
                 f.map.level(),
                 m.level
+            )));
+        }
+        if f.map.receiver_level() != m.receiver_level {
+            return Err(mismatch(format!(
+                "file has receiver level {}, index says {}",
+                f.map.receiver_level(),
+                m.receiver_level
             )));
         }
         if f.map.rects() != m.rects {

@@ -33,6 +33,16 @@
 //! the CPU reference computed from disk equals the one computed in memory. The price is twice
 //! the size, partly recovered by lossless ZIP; a renderer may still convert to f16 on upload.
 //!
+//! # Receiver blocks (version 3)
+//! A map of receiver level `r > 0` ([`TransferMap::receiver_level`]) stores one value per
+//! `2^r × 2^r` block of receivers: its display window is the `⌈W/2^r⌉ × ⌈H/2^r⌉` grid of
+//! blocks, its data windows lie in that grid, and `ortmMeta` ends with `ortmLevel`,
+//! `ortmReceiverLevel` (`1..=ortmLevel`) and `ortmLightmapSize` (`W,H`, the lightmap). Such a
+//! file has `ortmVersion` 3, so builds that know only versions 1 and 2 refuse it instead of
+//! applying its values per texel; its content hash starts with the tag `"ortm-transfer-map-v3\0"`
+//! and adds the level, the receiver level and the lightmap size. Maps with `r = 0` are written
+//! exactly as before (versions 1 and 2).
+//!
 //! # Integrity
 //! `ortmContentSha256` hashes a canonical byte string of the whole map (tag
 //! `"ortm-transfer-map-v1\0"`, map index, bake key, lightmap size, offset, area and importance
@@ -75,6 +85,9 @@ const FILE_VERSION: i32 = 1;
 /// Value of the `ortmVersion` attribute of a multi-resolution map of level > 0 (it adds
 /// `ortmLevel`; older builds refuse it instead of applying it as a level-0 map).
 const FILE_VERSION_LEVELS: i32 = 2;
+/// Value of the `ortmVersion` attribute of a map with receiver level > 0 (it adds
+/// `ortmReceiverLevel` and `ortmLightmapSize`; older builds refuse it).
+const FILE_VERSION_RECEIVERS: i32 = 3;
 /// Name of the placeholder part of an empty map.
 const EMPTY_PART: &str = "ortm-empty";
 
@@ -88,6 +101,8 @@ const A_RECTS: &str = "ortmRectCount";
 const A_KEY: &str = "ortmBakeKey";
 const A_HASH: &str = "ortmContentSha256";
 const A_LEVEL: &str = "ortmLevel";
+const A_RECEIVER_LEVEL: &str = "ortmReceiverLevel";
+const A_LIGHTMAP: &str = "ortmLightmapSize";
 
 /// A decoded transfer-map file.
 #[derive(Clone, Debug, PartialEq)]
@@ -103,7 +118,14 @@ pub struct MapFile {
 /// SHA-256 of the canonical content of map `index` (see the module doc).
 pub(crate) fn content_hash(index: u32, bake_key: &str, map: &TransferMap) -> String {
     let mut h = Sha256::new();
-    if map.level() == 0 {
+    if map.receiver_level() > 0 {
+        h.update(b"ortm-transfer-map-v3\0");
+        h.update(map.level().to_le_bytes());
+        h.update(map.receiver_level().to_le_bytes());
+        let (w, hh) = map.lightmap_size();
+        h.update(w.to_le_bytes());
+        h.update(hh.to_le_bytes());
+    } else if map.level() == 0 {
         h.update(b"ortm-transfer-map-v1\0");
     } else {
         h.update(b"ortm-transfer-map-v2\0");
@@ -135,11 +157,51 @@ pub(crate) fn content_hash(index: u32, bake_key: &str, map: &TransferMap) -> Str
     crate::io::hex(&h.finalize())
 }
 
+/// The `ortmMeta` fields of map `index` (module doc), in their fixed order.
+fn map_fields(index: u32, map: &TransferMap, key: &BakeKey) -> Vec<(&'static str, String)> {
+    let version = if map.receiver_level() > 0 {
+        FILE_VERSION_RECEIVERS
+    } else if map.level() > 0 {
+        FILE_VERSION_LEVELS
+    } else {
+        FILE_VERSION
+    };
+    let mut fields = vec![
+        (A_FORMAT, FILE_FORMAT.to_owned()),
+        (A_VERSION, version.to_string()),
+        (A_INDEX, index.to_string()),
+        (A_OFFSET, format!("{},{}", map.offset.x, map.offset.y)),
+        (A_AREA, format!("0x{:016x}", map.voronoi_area.to_bits())),
+        (A_IMPORTANCE, format!("0x{:016x}", map.importance.to_bits())),
+        (A_RECTS, map.crops().len().to_string()),
+        (A_KEY, key.as_str().to_owned()),
+        (A_HASH, content_hash(index, key.as_str(), map)),
+    ];
+    if map.level() > 0 {
+        fields.push((A_LEVEL, map.level().to_string()));
+    }
+    if map.receiver_level() > 0 {
+        let (w, h) = map.lightmap_size();
+        fields.push((A_RECEIVER_LEVEL, map.receiver_level().to_string()));
+        fields.push((A_LIGHTMAP, format!("{w},{h}")));
+    }
+    fields
+}
+
 /// Encodes map `index` as an OpenEXR file in memory (layout in the module doc).
 ///
 /// # Errors
 /// [`FileError::Exr`] if the encoder fails (not expected for a valid map).
 pub fn encode_map(index: u32, map: &TransferMap, key: &BakeKey) -> Result<Vec<u8>, MapsError> {
+    encode_with_fields(index, map, &map_fields(index, map, key))
+}
+
+/// [`encode_map`] with the given `ortmMeta` fields.
+fn encode_with_fields(
+    index: u32,
+    map: &TransferMap,
+    fields: &[(&str, String)],
+) -> Result<Vec<u8>, MapsError> {
     let mut layers: Vec<Layer<AnyChannels<FlatSamples>>> = if map.crops().is_empty() {
         vec![Layer::new(
             Vec2(1, 1),
@@ -163,29 +225,7 @@ pub fn encode_map(index: u32, map: &TransferMap, key: &BakeKey) -> Result<Vec<u8
             })
             .collect()
     };
-    let mut fields = vec![
-        (A_FORMAT, FILE_FORMAT.to_owned()),
-        (
-            A_VERSION,
-            if map.level() == 0 {
-                FILE_VERSION
-            } else {
-                FILE_VERSION_LEVELS
-            }
-            .to_string(),
-        ),
-        (A_INDEX, index.to_string()),
-        (A_OFFSET, format!("{},{}", map.offset.x, map.offset.y)),
-        (A_AREA, format!("0x{:016x}", map.voronoi_area.to_bits())),
-        (A_IMPORTANCE, format!("0x{:016x}", map.importance.to_bits())),
-        (A_RECTS, map.crops().len().to_string()),
-        (A_KEY, key.as_str().to_owned()),
-        (A_HASH, content_hash(index, key.as_str(), map)),
-    ];
-    if map.level() > 0 {
-        fields.push((A_LEVEL, map.level().to_string()));
-    }
-    let meta = meta_attribute(&fields);
+    let meta = meta_attribute(fields);
     layers[0].attributes.other.insert(text(A_META), meta);
     encode_layers((map.width(), map.height()), layers).map_err(|source| {
         MapsError::from(FileError::Exr {
@@ -212,6 +252,10 @@ pub fn read_map_file(path: &Path, expected_size: Option<(u32, u32)>) -> Result<M
 struct MapHeader {
     index: u32,
     level: u32,
+    /// Receiver level and lightmap size (`ortmReceiverLevel`, `ortmLightmapSize`): `(0, None)`
+    /// in versions 1 and 2.
+    receiver_level: u32,
+    lightmap: Option<(u32, u32)>,
     offset: IVec2,
     area: f64,
     importance: f64,
@@ -264,6 +308,7 @@ pub fn decode_map(
         crops,
     )
     .and_then(|m| m.with_level(header.level))
+    .and_then(|m| m.with_receiver_level(header.receiver_level))
     .map_err(|e| bad(e.to_string()))?;
     let hash = content_hash(header.index, &header.bake_key, &map);
     if hash != header.stored_hash {
@@ -321,17 +366,41 @@ fn check_headers(
         )));
     }
     check_size(&path.display().to_string(), width, height)?;
+    let header =
+        parse_map_header(&parse_meta(&first.own_attributes.other).map_err(&bad)?).map_err(&bad)?;
+    // The lightmap: the display window, or for receiver blocks `ortmLightmapSize`, whose
+    // level-r grid the display window must be.
+    let (width, height) = match header.lightmap {
+        None => (width, height),
+        Some((lw, lh)) => {
+            check_size(&format!("{} ({A_LIGHTMAP})", path.display()), lw, lh)?;
+            let grid = crate::maps::receiver_grid((lw, lh), header.receiver_level);
+            if grid != (width, height) {
+                return Err(bad(format!(
+                    "the display window is {width}×{height} but {A_LIGHTMAP} = {lw},{lh} at                      {A_RECEIVER_LEVEL} = {} has a {}×{} grid of receiver blocks",
+                    header.receiver_level, grid.0, grid.1
+                )));
+            }
+            (lw, lh)
+        }
+    };
     if let Some((ew, eh)) = expected_size
         && (ew, eh) != (width, height)
     {
         return Err(MapsError::SizeMismatch {
-            what: format!("lightmap size of {}", path.display()),
+            what: format!(
+                "lightmap size of {}{}",
+                path.display(),
+                if header.lightmap.is_some() {
+                    format!(" ({A_LIGHTMAP})")
+                } else {
+                    String::new()
+                }
+            ),
             expected: (ew, eh),
             found: (width, height),
         });
     }
-    let header =
-        parse_map_header(&parse_meta(&first.own_attributes.other).map_err(&bad)?).map_err(&bad)?;
     let rect_count = header.rect_count;
     if headers.len() != rect_count.max(1) {
         return Err(bad(format!(
@@ -362,21 +431,45 @@ fn parse_map_header(attrs: &Meta) -> Result<MapHeader, String> {
         ));
     }
     let version = get_i32(attrs, A_VERSION)?;
-    let level = match version {
-        FILE_VERSION => 0,
-        FILE_VERSION_LEVELS => u32::try_from(get_i32(attrs, A_LEVEL)?)
+    let get_level = || {
+        u32::try_from(get_i32(attrs, A_LEVEL)?)
             .ok()
             .filter(|l| (1..=crate::maps::MAX_MAP_LEVEL).contains(l))
             .ok_or_else(|| {
                 format!(
-                    "{A_LEVEL} must be 1..={} in a version-{FILE_VERSION_LEVELS} map",
+                    "{A_LEVEL} must be 1..={} in a version-{version} map",
                     crate::maps::MAX_MAP_LEVEL
                 )
-            })?,
+            })
+    };
+    let (level, receiver_level, lightmap) = match version {
+        FILE_VERSION => (0, 0, None),
+        FILE_VERSION_LEVELS => (get_level()?, 0, None),
+        FILE_VERSION_RECEIVERS => {
+            let level = get_level()?;
+            let r = u32::try_from(get_i32(attrs, A_RECEIVER_LEVEL)?)
+                .ok()
+                .filter(|r| (1..=level).contains(r))
+                .ok_or_else(|| {
+                    format!(
+                        "{A_RECEIVER_LEVEL} must be 1..={level} ({A_LEVEL}) in a \
+                         version-{FILE_VERSION_RECEIVERS} map"
+                    )
+                })?;
+            let size = get_text(attrs, A_LIGHTMAP)?;
+            let lightmap = size
+                .split_once(',')
+                .and_then(|(w, h)| Some((w.parse().ok()?, h.parse().ok()?)))
+                .ok_or_else(|| {
+                    format!("field {A_LIGHTMAP} of {A_META} is {size:?}, expected width,height")
+                })?;
+            (level, r, Some(lightmap))
+        }
         _ => {
             return Err(format!(
                 "file version {version} is not supported, this build reads versions \
-                 {FILE_VERSION} and {FILE_VERSION_LEVELS}; re-bake with this build"
+                 {FILE_VERSION}, {FILE_VERSION_LEVELS} and {FILE_VERSION_RECEIVERS}; re-bake \
+                 with this build"
             ));
         }
     };
@@ -384,6 +477,8 @@ fn parse_map_header(attrs: &Meta) -> Result<MapHeader, String> {
         index: u32::try_from(get_i32(attrs, A_INDEX)?)
             .map_err(|_| format!("{A_INDEX} is negative"))?,
         level,
+        receiver_level,
+        lightmap,
         offset: get_offset(attrs, A_OFFSET)?,
         area: get_f64(attrs, A_AREA)?,
         importance: get_f64(attrs, A_IMPORTANCE)?,
@@ -661,5 +756,107 @@ mod tests {
             write_map_file(&blocker, 0, &map, &key()),
             Err(MapsError::File(FileError::Io { .. }))
         ));
+    }
+
+    /// A level-2 map with receiver level 1 over a 40×24 lightmap (grid 20×12).
+    fn block_map(seed: u64) -> TransferMap {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let mut grid = Lightmap::new(20, 12);
+        for y in 2..7 {
+            for x in 13..20 {
+                grid.set(x, y, [rng.random(), rng.random(), rng.random()]);
+            }
+        }
+        let cropped = TransferMap::from_full(IVec2::new(-1, 2), 0.0, 0.0, &grid).unwrap();
+        TransferMap::from_crops(
+            "t",
+            IVec2::new(-1, 2),
+            0.0,
+            0.0,
+            40,
+            24,
+            cropped.crops().to_vec(),
+        )
+        .unwrap()
+        .with_level(2)
+        .unwrap()
+        .with_receiver_level(1)
+        .unwrap()
+    }
+
+    #[test]
+    fn receiver_block_map_round_trips_as_version_3() {
+        let map = block_map(5);
+        assert_eq!((map.width(), map.height()), (20, 12));
+        assert_eq!(map.lightmap_size(), (40, 24));
+        let bytes = encode_map(4, &map, &key()).unwrap();
+        let f = decode_map(Path::new("b.exr"), &bytes, Some((40, 24))).unwrap();
+        assert_eq!(f.map, map);
+        assert_eq!(f.map.receiver_level(), 1);
+        let f = decode_map(Path::new("b.exr"), &bytes, None).unwrap();
+        assert_eq!(f.map.lightmap_size(), (40, 24));
+        // The display window is the receiver grid; the lightmap size is checked against it.
+        let meta = MetaData::read_from_buffered(Cursor::new(&bytes), true).unwrap();
+        assert_eq!(
+            meta.headers[0].shared_attributes.display_window.size,
+            Vec2(20, 12)
+        );
+        let e = decode_map(Path::new("b.exr"), &bytes, Some((20, 12))).unwrap_err();
+        assert!(matches!(e, MapsError::SizeMismatch { .. }), "{e}");
+        assert!(e.to_string().contains("ortmLightmapSize"), "{e}");
+        // Receiver level 0 keeps versions 1 and 2, byte for byte: no new field.
+        let plain = encode_map(4, &sample_map(1), &key()).unwrap();
+        let text = String::from_utf8_lossy(&plain);
+        assert!(text.contains("ortmVersion=1\n") && !text.contains(A_RECEIVER_LEVEL));
+        assert!(String::from_utf8_lossy(&bytes).contains("ortmVersion=3\n"));
+    }
+
+    #[test]
+    fn version_3_files_with_wrong_fields_are_refused() {
+        let map = block_map(6);
+        let fields = map_fields(9, &map, &key());
+        let with = |name: &str, value: Option<&str>| {
+            let f: Vec<(&str, String)> = fields
+                .iter()
+                .filter(|(k, _)| *k != name || value.is_some())
+                .map(|(k, v)| {
+                    if *k == name {
+                        (*k, value.unwrap().to_owned())
+                    } else {
+                        (*k, v.clone())
+                    }
+                })
+                .collect();
+            let bytes = encode_with_fields(9, &map, &f).unwrap();
+            decode_map(Path::new("w.exr"), &bytes, Some((40, 24)))
+                .unwrap_err()
+                .to_string()
+        };
+        for (name, value, says) in [
+            (
+                A_RECEIVER_LEVEL,
+                Some("3"),
+                "ortmReceiverLevel must be 1..=2",
+            ),
+            (
+                A_RECEIVER_LEVEL,
+                Some("0"),
+                "ortmReceiverLevel must be 1..=2",
+            ),
+            (
+                A_RECEIVER_LEVEL,
+                None,
+                "ortmReceiverLevel of ortmMeta is missing",
+            ),
+            (A_LEVEL, None, "ortmLevel"),
+            (A_LIGHTMAP, Some("38,24"), "ortmLightmapSize = 38,24"),
+            (A_LIGHTMAP, Some("40"), "ortmLightmapSize"),
+            (A_LIGHTMAP, None, "ortmLightmapSize of ortmMeta is missing"),
+            (A_VERSION, Some("2"), "size mismatch"),
+            (A_VERSION, Some("4"), "file version 4 is not supported"),
+        ] {
+            let e = with(name, value);
+            assert!(e.contains(says), "{name}={value:?}: {e}");
+        }
     }
 }

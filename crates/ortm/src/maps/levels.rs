@@ -22,6 +22,14 @@
 //! single texels near the receiver; the map value is the transfer summed over the block, so the
 //! only approximation is the first-order light taken as its block mean.
 //!
+//! # Receiver blocks
+//! A map of receiver level `r > 0` ([`TransferMap::receiver_level`], `r ≤ ℓ`) holds one value
+//! per `2^r × 2^r` block of receivers: its grid is `⌈W/2^r⌉ × ⌈H/2^r⌉` and its value at block `c`
+//! adds `map(c) · P_ℓ(⌊c / 2^(ℓ−r)⌋ + Δ)` into every *covered* texel `t` of the block
+//! (`⌊t / 2^r⌋ = c`). Coverage rule: a texel is covered when its pyramid weight (its area) is
+//! > 0, the same texels the GPU marks with first-order alpha > 0; uncovered texels of the block
+//! receive nothing. The bake's [`crate::bake::multires::coarsen_receivers`] makes such maps.
+//!
 //! # Determinism
 //! Each texel is accumulated by one thread in map order, in f64, rounded once (as [`super::apply`]).
 
@@ -161,11 +169,13 @@ impl Pyramid {
     }
 }
 
-/// The indirect light `Σ_maps map(t) · P_ℓ(⌊t/2^ℓ⌋ + Δ)` (module docs).
+/// The indirect light `Σ_maps map(t) · P_ℓ(⌊t/2^ℓ⌋ + Δ)` (module docs); a map of receiver
+/// level `r > 0` adds `map(c) · P_ℓ(⌊c/2^(ℓ−r)⌋ + Δ)` into every covered texel `t` of its block
+/// `c = ⌊t/2^r⌋` (covered: the pyramid's level-0 weight is > 0), and nothing into uncovered ones.
 ///
 /// # Errors
-/// [`MapsError::SizeMismatch`] when a map's size differs from the pyramid's level 0 or its
-/// level is beyond the pyramid.
+/// [`MapsError::SizeMismatch`] when a map's lightmap size differs from the pyramid's level 0 or
+/// its level is beyond the pyramid.
 pub fn apply_levels_indirect(
     maps: &[TransferMap],
     pyramid: &Pyramid,
@@ -173,16 +183,17 @@ pub fn apply_levels_indirect(
     let base = &pyramid.levels[0];
     let (w, h) = (base.width, base.height);
     for (i, m) in maps.iter().enumerate() {
-        if (m.width(), m.height()) != (w, h) || m.level() as usize >= pyramid.levels.len() {
+        if m.lightmap_size() != (w, h) || m.level() as usize >= pyramid.levels.len() {
             return Err(MapsError::SizeMismatch {
                 what: format!(
-                    "level-{} map {i} (offset {:?}) vs. the {}-level pyramid",
+                    "level-{} map {i} (offset {:?}, receiver level {}) vs. the {}-level pyramid",
                     m.level(),
                     m.offset.to_array(),
+                    m.receiver_level(),
                     pyramid.levels.len()
                 ),
                 expected: (w, h),
-                found: (m.width(), m.height()),
+                found: m.lightmap_size(),
             });
         }
     }
@@ -190,23 +201,34 @@ pub fn apply_levels_indirect(
         .into_par_iter()
         .map(|y| {
             let mut acc = vec![[0.0f64; 3]; w as usize];
+            let covered = &base.weight[(y * w) as usize..((y + 1) * w) as usize];
             for m in maps {
                 let l = m.level();
+                let rl = m.receiver_level();
                 let lv = &pyramid.levels[l as usize];
                 let (dx, dy) = (m.offset.x as i64, m.offset.y as i64);
+                // The map's grid row holding lightmap row `y`.
+                let gy = y >> rl;
                 for crop in m.crops() {
                     let r = crop.rect;
-                    if y < r.y || y >= r.y + r.h {
+                    if gy < r.y || gy >= r.y + r.h {
                         continue;
                     }
                     let row =
-                        &crop.data[((y - r.y) * r.w) as usize..((y - r.y + 1) * r.w) as usize];
-                    let by = (y as i64 >> l) + dy;
+                        &crop.data[((gy - r.y) * r.w) as usize..((gy - r.y + 1) * r.w) as usize];
+                    let by = (i64::from(gy) >> (l - rl)) + dy;
                     for (k, v) in row.iter().enumerate() {
-                        let x = r.x + k as u32;
-                        let s = lv.get((x as i64 >> l) + dx, by);
-                        for c in 0..3 {
-                            acc[x as usize][c] += v[c] as f64 * s[c] as f64;
+                        let gx = r.x + k as u32;
+                        let s = lv.get((i64::from(gx) >> (l - rl)) + dx, by);
+                        let x0 = gx << rl;
+                        let x1 = ((gx + 1) << rl).min(w);
+                        for x in x0..x1 {
+                            if rl > 0 && covered[x as usize] <= 0.0 {
+                                continue;
+                            }
+                            for c in 0..3 {
+                                acc[x as usize][c] += v[c] as f64 * s[c] as f64;
+                            }
                         }
                     }
                 }

@@ -33,7 +33,7 @@ use std::path::PathBuf;
 
 pub use apply::{apply, apply_indirect};
 pub use crop::{CropOptions, CropRect, crop_rects};
-pub use transfer_map::{Crop, MAX_MAP_LEVEL, TransferMap};
+pub use transfer_map::{Crop, MAX_MAP_LEVEL, TransferMap, receiver_grid};
 
 /// Largest lightmap (width × height, in texels) this module accepts: 2²⁸ texels, e.g. 16384²
 /// (the same value as [`crate::io::limits::MAX_TEXELS`], where every limit is listed).

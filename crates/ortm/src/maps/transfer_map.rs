@@ -5,14 +5,19 @@
 //! - `offset` `Δt` in texels (`+y` goes down the image), `voronoi_area` `|V(Δt, O)|` in the
 //!   offset sampler's normalised units (informational: it is already folded into the values via
 //!   `TVA`), `importance` (the sampler's weight for this offset, informational).
-//! - Values are dimensionless RGB over a `width×height` lightmap. Only the [`Crop`]s are stored:
-//!   disjoint rectangles inside the map, each with its texels row-major (row 0 of the crop is its
-//!   top row `rect.y`). Texels outside every crop are zero.
+//! - Values are dimensionless RGB over the map's *receiver grid*: the `W×H` lightmap itself, or
+//!   for a map of receiver level `r > 0` ([`TransferMap::receiver_level`]) the grid of
+//!   `2^r × 2^r` receiver blocks, `⌈W/2^r⌉ × ⌈H/2^r⌉`, one value per block shared by the
+//!   block's covered texels ([`crate::maps::levels`]). [`TransferMap::width`] and
+//!   [`TransferMap::height`] are that grid, [`TransferMap::lightmap_size`] is `W×H`. Only the
+//!   [`Crop`]s are stored: disjoint rectangles inside the grid, each with its values row-major
+//!   (row 0 of the crop is its top row `rect.y`). Grid cells outside every crop are zero.
 //!
 //! # Invariants (checked by every constructor)
-//! Lightmap size `1 ≤ width·height ≤` [`MAX_TEXELS`]; every rectangle non-empty, inside the map,
-//! disjoint from the others, with `w·h` data values; all values, the area and the importance
-//! finite; the area ≥ 0.
+//! Lightmap size `1 ≤ width·height ≤` [`MAX_TEXELS`]; every rectangle non-empty, inside the
+//! receiver grid, disjoint from the others, with `w·h` data values; all values, the area and the
+//! importance finite; the area ≥ 0; receiver level `r ≤` the pyramid level `ℓ ≤`
+//! [`MAX_MAP_LEVEL`].
 
 use glam::IVec2;
 
@@ -38,11 +43,16 @@ pub struct TransferMap {
     pub voronoi_area: f64,
     /// Importance (sampling weight) of the offset (informational).
     pub importance: f64,
+    /// Lightmap width `W`, texels.
     width: u32,
+    /// Lightmap height `H`, texels.
     height: u32,
     crops: Vec<Crop>,
     /// Pyramid level of the senders ([`crate::maps::levels`]): 0 for the paper's maps.
     level: u32,
+    /// Receiver level `r ≤ level`: 0 for one value per texel, `r` for one value per `2^r × 2^r`
+    /// receiver block.
+    receiver_level: u32,
 }
 
 /// Largest pyramid level a map may have (blocks of `2^15` texels: beyond any lightmap side
@@ -139,6 +149,7 @@ impl TransferMap {
             height: full.height,
             crops,
             level: 0,
+            receiver_level: 0,
         })
     }
 
@@ -192,6 +203,7 @@ impl TransferMap {
             height,
             crops,
             level: 0,
+            receiver_level: 0,
         })
     }
 
@@ -199,12 +211,16 @@ impl TransferMap {
     /// offset is then in level-`level` blocks.
     ///
     /// # Errors
-    /// [`MapsError::InvalidValue`] when `level` exceeds [`MAX_MAP_LEVEL`].
+    /// [`MapsError::InvalidValue`] when `level` exceeds [`MAX_MAP_LEVEL`] or is below the
+    /// receiver level.
     pub fn with_level(mut self, level: u32) -> Result<Self, MapsError> {
-        if level > MAX_MAP_LEVEL {
+        if level > MAX_MAP_LEVEL || level < self.receiver_level {
             return Err(MapsError::InvalidValue {
                 offset: (self.offset.x, self.offset.y),
-                what: format!("pyramid level {level} (at most {MAX_MAP_LEVEL})"),
+                what: format!(
+                    "pyramid level {level} (at most {MAX_MAP_LEVEL}, at least the receiver level {})",
+                    self.receiver_level
+                ),
             });
         }
         self.level = level;
@@ -218,14 +234,59 @@ impl TransferMap {
         self.level
     }
 
-    /// Lightmap width in texels.
-    pub fn width(&self) -> u32 {
-        self.width
+    /// The map with one value per `2^r × 2^r` receiver block (`r` = `receiver_level`): its
+    /// crops, built over the `W×H` lightmap, are then read in the `⌈W/2^r⌉ × ⌈H/2^r⌉` grid of
+    /// receiver blocks, and its value at block `c` multiplies `P_ℓ(⌊c/2^(ℓ−r)⌋ + Δ)` for every
+    /// covered texel of the block ([`crate::maps::levels`]). Set the pyramid level first
+    /// ([`Self::with_level`]).
+    ///
+    /// # Errors
+    /// [`MapsError::InvalidValue`] when `r` exceeds the map's level or [`MAX_MAP_LEVEL`],
+    /// [`MapsError::InvalidCrop`] when a crop lies outside the level-`r` grid.
+    pub fn with_receiver_level(mut self, r: u32) -> Result<Self, MapsError> {
+        if r > MAX_MAP_LEVEL || r > self.level {
+            return Err(MapsError::InvalidValue {
+                offset: (self.offset.x, self.offset.y),
+                what: format!(
+                    "receiver level {r} (at most the pyramid level {} and {MAX_MAP_LEVEL})",
+                    self.level
+                ),
+            });
+        }
+        let (gw, gh) = receiver_grid((self.width, self.height), r);
+        check_rects(
+            &format!(
+                "level-{r} receiver blocks of the map of offset {:?}",
+                self.offset.to_array()
+            ),
+            &self.rects(),
+            gw,
+            gh,
+        )?;
+        self.receiver_level = r;
+        Ok(self)
     }
 
-    /// Lightmap height in texels.
+    /// Receiver level `r`: 0 for one value per texel, `r > 0` for one value per `2^r × 2^r`
+    /// block of receivers ([`Self::with_receiver_level`]).
+    pub fn receiver_level(&self) -> u32 {
+        self.receiver_level
+    }
+
+    /// Width of the receiver grid: the lightmap width `W` at receiver level 0, else `⌈W/2^r⌉`.
+    pub fn width(&self) -> u32 {
+        receiver_grid((self.width, self.height), self.receiver_level).0
+    }
+
+    /// Height of the receiver grid: the lightmap height `H` at receiver level 0, else
+    /// `⌈H/2^r⌉`.
     pub fn height(&self) -> u32 {
-        self.height
+        receiver_grid((self.width, self.height), self.receiver_level).1
+    }
+
+    /// The lightmap size `(W, H)` in texels, whatever the receiver level.
+    pub fn lightmap_size(&self) -> (u32, u32) {
+        (self.width, self.height)
     }
 
     /// The stored crops (disjoint, in cropping order).
@@ -254,9 +315,10 @@ impl TransferMap {
             })
     }
 
-    /// Expands the crops back into a full `width×height` map (zero outside the crops).
+    /// Expands the crops back into a full `width()×height()` map of the receiver grid (zero
+    /// outside the crops).
     pub fn to_full(&self) -> Lightmap {
-        let mut full = Lightmap::new(self.width, self.height);
+        let mut full = Lightmap::new(self.width(), self.height());
         for c in &self.crops {
             for (row, y) in (c.rect.y..c.rect.y + c.rect.h).enumerate() {
                 let dst = full.index(c.rect.x, y);
@@ -267,6 +329,15 @@ impl TransferMap {
         }
         full
     }
+}
+
+/// The `⌈W/2^r⌉ × ⌈H/2^r⌉` grid of receiver blocks of level `r` of a `W×H` lightmap.
+pub fn receiver_grid((w, h): (u32, u32), r: u32) -> (u32, u32) {
+    let r = r.min(31);
+    (
+        ((u64::from(w) + (1u64 << r) - 1) >> r) as u32,
+        ((u64::from(h) + (1u64 << r) - 1) >> r) as u32,
+    )
 }
 
 /// Checks that the area and importance are finite and the area ≥ 0.

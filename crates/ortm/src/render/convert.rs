@@ -124,7 +124,8 @@ pub fn shadow_layers_for(lights: &[Light]) -> u32 {
 }
 
 /// One atlas piece as a passes transfer piece (same fields: atlas, source rectangle in the
-/// atlas, destination in the lightmap, offset `Δt` in texels).
+/// atlas, destination in the lightmap — in receiver blocks for receiver level `r > 0` —, offset
+/// `Δt` in texels or level-`ℓ` blocks, level, receiver level).
 pub fn transfer_piece(p: &AtlasPiece) -> TransferPiece {
     TransferPiece {
         atlas: p.atlas,
@@ -136,12 +137,13 @@ pub fn transfer_piece(p: &AtlasPiece) -> TransferPiece {
         dst_y: p.dst_y,
         offset: p.offset,
         level: p.level,
-        receiver_level: 0,
+        receiver_level: p.receiver_level,
     }
 }
 
 /// The atlases and pieces of `set` as passes inputs, after checking that every atlas holds
-/// `atlas_size` texels, every piece lies inside its atlas and the lightmap, and the lightmap
+/// `atlas_size` texels, every piece lies inside its atlas and the lightmap (a piece of receiver
+/// level `r > 0`: inside the `⌈W/2^r⌉ × ⌈H/2^r⌉` grid of receiver blocks), and the lightmap
 /// size is `lightmap_size`.
 pub fn transfer_inputs(
     set: &AtlasSet,
@@ -170,23 +172,33 @@ pub fn transfer_inputs(
             rgb: a.clone(),
         });
     }
-    let (lw, lh) = lightmap_size;
     let inside = |o: u32, len: u32, size: u32| o as u64 + len as u64 <= size as u64;
     let pieces = set
         .pieces
         .iter()
         .enumerate()
         .map(|(i, p)| {
-            if p.atlas as usize >= atlases.len()
+            let (lw, lh) = crate::maps::receiver_grid(lightmap_size, p.receiver_level);
+            if p.receiver_level > p.level
+                || p.atlas as usize >= atlases.len()
                 || !inside(p.src_x, p.w, aw)
                 || !inside(p.src_y, p.h, ah)
                 || !inside(p.dst_x, p.w, lw)
                 || !inside(p.dst_y, p.h, lh)
             {
                 return Err(bad(format!(
-                    "piece {i} (map {}, atlas {}, {}×{} from ({}, {}) to ({}, {})) lies outside \
-                     its atlas or the lightmap",
-                    p.map_index, p.atlas, p.w, p.h, p.src_x, p.src_y, p.dst_x, p.dst_y
+                    "piece {i} (map {}, atlas {}, {}×{} from ({}, {}) to ({}, {}), receiver level \
+                     {} of level {}) lies outside its atlas or the lightmap's {lw}×{lh} grid",
+                    p.map_index,
+                    p.atlas,
+                    p.w,
+                    p.h,
+                    p.src_x,
+                    p.src_y,
+                    p.dst_x,
+                    p.dst_y,
+                    p.receiver_level,
+                    p.level
                 )));
             }
             Ok(transfer_piece(p))
