@@ -13,8 +13,8 @@
 // by 2^k per piece; values are 0 outside a piece's own rectangle).
 // Coordinates: texel (x, y), y down, row 0 = v = 1; framebuffer pixel (x, y) is lightmap texel (x, y).
 
-// Params (binding 0 of group 0), `texel_to_clip` and `quad_clip`: transfer_quad.wgsl, also
-// prepended by the host.
+// Params (binding 0 of group 0): transfer_params.wgsl; `texel_to_clip` and `quad_clip`:
+// transfer_quad.wgsl; both prepended by the host. Pairs hold receiver level 0 only (pairing.rs).
 
 // Both pieces of a pair have the same pyramid level ℓ (pairing.rs): piece X reads
 // P_ℓ(⌊t/2^ℓ⌋ + Δ_X), level 0 = the first-order map.

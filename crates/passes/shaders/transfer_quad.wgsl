@@ -1,18 +1,11 @@
-// Shared by transfer.wgsl and transfer_pair.wgsl (the host prepends it to each; WGSL has no
-// includes): the uniform both read and the instanced quad both draw.
-// Coordinates: texel (x, y), y down, row 0 = v = 1; framebuffer pixel (x, y) is lightmap texel (x, y).
-
-// Must match `TransferParams` in transfer.rs (16 bytes).
-struct Params {
-    lightmap_size: vec2<u32>,
-    _pad: vec2<u32>,
-}
-
-@group(0) @binding(0) var<uniform> params: Params;
+// Shared by transfer.wgsl and transfer_pair.wgsl (the host prepends it to each, after
+// transfer_params.wgsl; WGSL has no includes): the instanced quad both draw.
+// Coordinates: texel (x, y), y down, row 0 = v = 1; framebuffer pixel (x, y) is texel (x, y)
+// of the accumulation target (the lightmap, with the receiver-block grids below it).
 
 // Texel-space point (x right, y down, in texels) to clip space.
 fn texel_to_clip(p: vec2<f32>) -> vec4<f32> {
-    let size = vec2<f32>(params.lightmap_size);
+    let size = vec2<f32>(params.target_size);
     return vec4<f32>(2.0 * p.x / size.x - 1.0, 1.0 - 2.0 * p.y / size.y, 0.0, 1.0);
 }
 

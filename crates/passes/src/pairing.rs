@@ -201,7 +201,7 @@ pub fn pair_schedule(
         used[i] = true;
         used[j] = true;
     }
-    let singles = singles(schedule.lightmap_size, &items, &used);
+    let singles = singles(schedule, &items, &used);
     let page_w = PAGE_WIDTH_MAX.min(max_side);
     let boxes: Vec<([u32; 2], [u32; 2])> = pairs
         .iter()
@@ -304,7 +304,8 @@ fn greedy_pairs(items: &[(u32, PieceInstance)], max_abs: &[f32]) -> Vec<(usize, 
                 continue;
             }
             let (p, q) = (&items[i].1, &items[j].1);
-            if p.level != q.level {
+            // Pairs share one read formula per level; receiver-block pieces stay single.
+            if p.level != q.level || p.receiver_level != 0 || q.receiver_level != 0 {
                 continue;
             }
             let (_, s) = bbox(p, q);
@@ -330,13 +331,14 @@ fn greedy_pairs(items: &[(u32, PieceInstance)], max_abs: &[f32]) -> Vec<(usize, 
 
 /// The unpaired instances (`!used`) per atlas, in input order.
 fn singles(
-    lightmap_size: [u32; 2],
+    schedule: &FrameSchedule,
     items: &[(u32, PieceInstance)],
     used: &[bool],
 ) -> FrameSchedule {
     let mut singles = FrameSchedule {
-        lightmap_size,
+        lightmap_size: schedule.lightmap_size,
         batches: Vec::new(),
+        receiver_levels: schedule.receiver_levels,
     };
     for (k, (a, inst)) in items.iter().enumerate() {
         if used[k] {
@@ -545,6 +547,7 @@ mod tests {
                 atlas: 0,
                 instances: vec![a, b],
             }],
+            receiver_levels: 0,
         };
         let p = pair_schedule(&s, std::slice::from_ref(&atlas), 64).unwrap();
         assert_eq!(p.pairs, 0);
@@ -576,6 +579,7 @@ mod tests {
                     inst([2, 0], [8, 8], [8, 0]),
                 ],
             }],
+            receiver_levels: 0,
         };
         let p = pair_schedule(&s, std::slice::from_ref(&atlas), 8192).unwrap();
         assert_eq!(p.pairs, 1);
@@ -630,6 +634,7 @@ mod tests {
                 atlas: 0,
                 instances: vec![inst([0, 0], [3, 3], [2, 0])],
             }],
+            receiver_levels: 0,
         };
         assert!(pair_schedule(&s, std::slice::from_ref(&atlas), 64).is_err());
         let mut one = s.clone();
@@ -658,6 +663,7 @@ mod tests {
                 atlas: 0,
                 instances,
             }],
+            receiver_levels: 0,
         };
         // A tiny device limit forces several shelves and pages.
         let p = pair_schedule(&s, &[atlas], 24).unwrap();

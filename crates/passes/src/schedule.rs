@@ -24,26 +24,39 @@
 //! atlas and its destination inside the lightmap, and its level must be at most
 //! [`MAX_PIECE_LEVEL`]; anything else is an error (the binning stage produces such pieces
 //! only when its inputs disagree with the render's).
+//!
+//! # Receiver blocks and the accumulation target ([`target_size`], [`block_origin`])
+//! A piece of receiver level `r > 0` ([`TransferPiece::receiver_level`]) writes one value per
+//! `2^r × 2^r` receiver block into `G_r`, the level-`r` block grid (`⌈W/2^r⌉ × ⌈H/2^r⌉`), which
+//! every covered texel of the block then adds (the resolve step of either path). The work is
+//! drawn into one *accumulation target*: the lightmap at `(0, 0)` and, below it, the grids
+//! `G_1..G_R` packed as the first-order pyramid packs its levels ([`crate::pyramid`]):
+//! `block_origin(r) = level_origin(r) + (0, H)`. Instances carry target coordinates: a
+//! receiver-block instance's `dst` is `block_origin(r) + c`, and its read is
+//! `origin_ℓ + ⌊(t − block_origin(r)) / 2^(ℓ−r)⌋ + Δ`, which for `r = 0` (`block_origin = 0`) is
+//! the read above. Cropping works in level-`r` blocks: `0 ≤ ⌊c/2^(ℓ−r)⌋ + Δ < n_ℓ`. Without
+//! receiver blocks the target is the lightmap itself.
 
 use bytemuck::{Pod, Zeroable};
 
 use crate::error::PassError;
-use crate::pyramid::{level_origin, level_size};
+use crate::pyramid::{level_origin, level_size, packed_size};
 use crate::types::{MAX_PIECE_LEVEL, TransferPiece};
 
 /// Side of a compute-path tile in texels (= workgroup size in each dimension).
 /// Must match `TILE_SIZE` in `shaders/transfer_gather.wgsl`.
 pub const TILE_SIZE: u32 = 8;
 
-/// One piece as the GPU sees it. 48 bytes (a multiple of 16).
-/// Must match `PieceInstance` in `shaders/transfer_gather.wgsl` and the instance vertex
-/// attributes (locations 0–5) of `shaders/transfer.wgsl`.
+/// One piece as the GPU sees it. 56 bytes (a multiple of its 8-byte alignment, as WGSL lays
+/// out the storage array). Must match `PieceInstance` in `shaders/transfer_gather.wgsl` and
+/// the instance vertex attributes (locations 0–6) of `shaders/transfer.wgsl`.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Pod, Zeroable)]
 pub struct PieceInstance {
     /// Top-left texel of the rectangle in the atlas.
     pub src: [u32; 2],
-    /// Top-left lightmap texel receiving it.
+    /// Top-left texel receiving it in the accumulation target (module docs): a lightmap texel
+    /// for receiver level 0, `block_origin(r) + c` for a receiver block `c` of level `r`.
     pub dst: [u32; 2],
     /// Width and height in texels.
     pub size: [u32; 2],
@@ -51,11 +64,34 @@ pub struct PieceInstance {
     pub offset: [i32; 2],
     /// Pyramid level `ℓ` read (0 = the first-order map).
     pub level: u32,
-    /// Padding (0).
-    pub _pad: u32,
+    /// Receiver level `r ≤ ℓ` (0: one value per texel).
+    pub receiver_level: u32,
     /// Origin of level `ℓ` in the packed pyramid texture ([`crate::pyramid::level_origin`];
-    /// `(0, 0)` at level 0): the read is `origin + ⌊t / 2^ℓ⌋ + Δ`.
+    /// `(0, 0)` at level 0).
     pub origin: [u32; 2],
+    /// [`block_origin`]`(r)` (`(0, 0)` for `r = 0`): the read is
+    /// `origin + ⌊(t − block_origin) / 2^(ℓ−r)⌋ + Δ` for `ℓ ≥ 1`, `t` the target texel.
+    pub block_origin: [u32; 2],
+}
+
+/// Top-left texel of the receiver-block grid `G_r` (`r ≥ 1`) in the accumulation target
+/// (module docs); `(0, 0)` for `r = 0` (the lightmap).
+pub fn block_origin(lightmap_size: [u32; 2], r: u32) -> [u32; 2] {
+    if r == 0 {
+        return [0, 0];
+    }
+    let o = level_origin(lightmap_size, r);
+    [o[0], lightmap_size[1] + o[1]]
+}
+
+/// Size of the accumulation target holding the lightmap and the grids `G_1..=G_R`
+/// (`receiver_levels = R`; the lightmap size when `R = 0`).
+pub fn target_size(lightmap_size: [u32; 2], receiver_levels: u32) -> [u32; 2] {
+    if receiver_levels == 0 {
+        return lightmap_size;
+    }
+    let p = packed_size(lightmap_size, receiver_levels);
+    [lightmap_size[0].max(p[0]), lightmap_size[1] + p[1]]
 }
 
 /// All pieces of one atlas, drawn together.
@@ -74,9 +110,17 @@ pub struct FrameSchedule {
     pub lightmap_size: [u32; 2],
     /// One batch per atlas that has pieces, in increasing atlas order.
     pub batches: Vec<AtlasBatch>,
+    /// `R`: the highest receiver level of any piece (0: no receiver blocks, the target is the
+    /// lightmap).
+    pub receiver_levels: u32,
 }
 
 impl FrameSchedule {
+    /// Size of the accumulation target ([`target_size`]).
+    pub fn target_size(&self) -> [u32; 2] {
+        target_size(self.lightmap_size, self.receiver_levels)
+    }
+
     /// The highest piece level (0 when every piece reads the first-order map, or none).
     pub fn max_level(&self) -> u32 {
         self.batches
@@ -87,7 +131,8 @@ impl FrameSchedule {
             .unwrap_or(0)
     }
 
-    /// Total texels written by all pieces (= texel blends per frame in the blend path).
+    /// Total texels (or receiver blocks) written by all pieces (= blends per frame in the
+    /// blend path).
     pub fn texel_blends(&self) -> u64 {
         self.batches
             .iter()
@@ -107,6 +152,7 @@ pub fn build_schedule(
 ) -> Result<FrameSchedule, PassError> {
     let [lw, lh] = lightmap_size;
     let mut per_atlas: Vec<Vec<PieceInstance>> = vec![Vec::new(); atlas_sizes.len()];
+    let mut receiver_levels = 0;
     for (i, p) in pieces.iter().enumerate() {
         if p.level > MAX_PIECE_LEVEL {
             return Err(PassError::InvalidInput {
@@ -115,6 +161,16 @@ pub fn build_schedule(
                     "is {} but pyramid levels go up to {MAX_PIECE_LEVEL}; the index is corrupt \
                      or from a newer baker",
                     p.level
+                ),
+            });
+        }
+        if p.receiver_level > p.level {
+            return Err(PassError::InvalidInput {
+                what: format!("pieces[{i}].receiver_level"),
+                problem: format!(
+                    "is {} but the piece reads pyramid level {}; a receiver block is at most \
+                     as large as the sender block it reads (the index is corrupt)",
+                    p.receiver_level, p.level
                 ),
             });
         }
@@ -140,34 +196,44 @@ pub fn build_schedule(
                 ),
             });
         }
-        if p.dst_x as u64 + p.w as u64 > lw as u64 || p.dst_y as u64 + p.h as u64 > lh as u64 {
+        let r = p.receiver_level;
+        let [rw, rh] = level_size(lightmap_size, r);
+        if p.dst_x as u64 + p.w as u64 > rw as u64 || p.dst_y as u64 + p.h as u64 > rh as u64 {
+            let grid = if r == 0 {
+                format!("the {lw}×{lh} lightmap")
+            } else {
+                format!("the {rw}×{rh} receiver blocks of level {r} (lightmap {lw}×{lh})")
+            };
             return Err(PassError::InvalidInput {
                 what: format!("pieces[{i}] destination rectangle"),
                 problem: format!(
-                    "({}, {}) + {}×{} leaves the {lw}×{lh} lightmap; render with the lightmap \
-                     size the maps were baked for",
+                    "({}, {}) + {}×{} leaves {grid}; render with the lightmap size the maps \
+                     were baked for",
                     p.dst_x, p.dst_y, p.w, p.h
                 ),
             });
         }
-        // Crop to the texels whose read ⌊t/2^ℓ⌋ + Δ lies in level ℓ: first order (and so
-        // every level) is 0 outside it (Eq. 4), so the cropped texels add exactly nothing,
-        // and the shaders need no bounds test on the read.
+        // Crop to the receivers c (texels or level-r blocks) whose read ⌊c/2^(ℓ−r)⌋ + Δ lies
+        // in level ℓ: first order (and so every level) is 0 outside it (Eq. 4), so the
+        // cropped receivers add exactly nothing, and the shaders need no bounds test.
         let [nw, nh] = level_size(lightmap_size, p.level);
         let (Some((x0, w)), Some((y0, h))) = (
-            read_inside(p.dst_x, p.w, p.offset[0], nw, p.level),
-            read_inside(p.dst_y, p.h, p.offset[1], nh, p.level),
+            read_inside(p.dst_x, p.w, p.offset[0], nw, p.level - r),
+            read_inside(p.dst_y, p.h, p.offset[1], nh, p.level - r),
         ) else {
             continue;
         };
+        let bo = block_origin(lightmap_size, r);
+        receiver_levels = receiver_levels.max(r);
         per_atlas[p.atlas as usize].push(PieceInstance {
             src: [p.src_x + x0, p.src_y + y0],
-            dst: [p.dst_x + x0, p.dst_y + y0],
+            dst: [bo[0] + p.dst_x + x0, bo[1] + p.dst_y + y0],
             size: [w, h],
             offset: p.offset,
             level: p.level,
-            _pad: 0,
+            receiver_level: r,
             origin: level_origin(lightmap_size, p.level),
+            block_origin: bo,
         });
     }
     let batches = per_atlas
@@ -182,11 +248,13 @@ pub fn build_schedule(
     Ok(FrameSchedule {
         lightmap_size,
         batches,
+        receiver_levels,
     })
 }
 
 /// Along one axis: the first local index and the count of `t = dst + i` (`0 ≤ i < len`) whose
-/// read `⌊t / 2^level⌋ + offset` lies in `[0, blocks)`; `None` if there is none. (`⌊t/2^ℓ⌋ ≥ k`
+/// read `⌊t / 2^level⌋ + offset` lies in `[0, blocks)` (`level` = the sender level less the
+/// receiver level); `None` if there is none. (`⌊t/2^ℓ⌋ ≥ k`
 /// ⟺ `t ≥ k·2^ℓ` and `⌊t/2^ℓ⌋ < k` ⟺ `t < k·2^ℓ` for integer `k`.)
 fn read_inside(dst: u32, len: u32, offset: i32, blocks: u32, level: u32) -> Option<(u32, u32)> {
     let (dst, len, offset, blocks) = (dst as i64, len as i64, offset as i64, blocks as i64);
@@ -223,10 +291,11 @@ pub struct TileWork {
     pub count: u32,
 }
 
-/// Buckets each batch's instances by the tiles their destination rectangles overlap.
-/// Within a tile, instances keep their input order.
+/// Buckets each batch's instances by the tiles of the accumulation target
+/// ([`FrameSchedule::target_size`]) their destination rectangles overlap. Within a tile,
+/// instances keep their input order.
 pub fn build_tiles(schedule: &FrameSchedule) -> Vec<AtlasTiles> {
-    let [lw, lh] = schedule.lightmap_size;
+    let [lw, lh] = schedule.target_size();
     let tx = lw.div_ceil(TILE_SIZE) as usize;
     let ty = lh.div_ceil(TILE_SIZE) as usize;
     schedule
@@ -295,7 +364,7 @@ mod tests {
 
     #[test]
     fn shared_struct_sizes() {
-        assert_eq!(std::mem::size_of::<PieceInstance>(), 48);
+        assert_eq!(std::mem::size_of::<PieceInstance>(), 56);
         assert_eq!(std::mem::size_of::<TileWork>(), 16);
     }
 
@@ -383,6 +452,81 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("pieces[0].level"), "{e}");
+    }
+
+    /// Receiver-block pieces: placed at `block_origin(r) + c` in the target, cropped to the
+    /// blocks `c` whose read `⌊c/2^(ℓ−r)⌋ + Δ` lies in level ℓ (brute force), validated
+    /// against the level-r grid, `r ≤ ℓ` enforced; the target holds every `G_r` below the
+    /// lightmap without overlap.
+    #[test]
+    fn receiver_block_pieces_live_below_the_lightmap() {
+        let map = [37u32, 29];
+        for level in 1..5u32 {
+            for r in 1..=level {
+                let [gw, gh] = level_size(map, r);
+                let [nw, nh] = level_size(map, level);
+                for (dx, dy) in [(-3, 2), (0, 0), (5, -7), (2, 3)] {
+                    let mut p = piece(0, [0, 0], [gw, gh], [0, 0], [dx, dy]);
+                    (p.level, p.receiver_level) = (level, r);
+                    let s = build_schedule(map, &[[64, 64]], &[p]).unwrap();
+                    let inst = s.batches.first().map(|b| b.instances[0]);
+                    let bo = block_origin(map, r);
+                    for cy in 0..gh {
+                        for cx in 0..gw {
+                            let s = level - r;
+                            let (bx, by) = ((cx >> s) as i32 + dx, (cy >> s) as i32 + dy);
+                            let inside = bx >= 0 && by >= 0 && (bx as u32) < nw && (by as u32) < nh;
+                            let (x, y) = (bo[0] + cx, bo[1] + cy);
+                            let kept = inst.is_some_and(|i| {
+                                (i.dst[0]..i.dst[0] + i.size[0]).contains(&x)
+                                    && (i.dst[1]..i.dst[1] + i.size[1]).contains(&y)
+                            });
+                            assert_eq!(
+                                inside, kept,
+                                "ℓ {level} r {r} Δ ({dx}, {dy}) c ({cx}, {cy})"
+                            );
+                        }
+                    }
+                    if let Some(i) = inst {
+                        assert_eq!((i.receiver_level, i.block_origin), (r, bo));
+                        assert_eq!(s.receiver_levels, r);
+                        let [tw, th] = s.target_size();
+                        assert!(i.dst[0] + i.size[0] <= tw && i.dst[1] + i.size[1] <= th);
+                    }
+                }
+                // One block too far right is an error naming the level-r grid.
+                let mut p = piece(0, [0, 0], [1, 1], [gw, 0], [0, 0]);
+                (p.level, p.receiver_level) = (level, r);
+                let e = build_schedule(map, &[[64, 64]], &[p])
+                    .unwrap_err()
+                    .to_string();
+                assert!(e.contains(&format!("receiver blocks of level {r}")), "{e}");
+            }
+        }
+        // The grids G_1..G_5 are disjoint, below the lightmap and inside the target.
+        let [tw, th] = target_size(map, 5);
+        let mut owner = vec![0u32; (tw * th) as usize];
+        for r in 1..=5u32 {
+            let o = block_origin(map, r);
+            let [gw, gh] = level_size(map, r);
+            assert!(o[1] >= map[1]);
+            for y in o[1]..o[1] + gh {
+                for x in o[0]..o[0] + gw {
+                    assert_eq!(
+                        owner[(y * tw + x) as usize],
+                        0,
+                        "G_{r} overlaps at ({x}, {y})"
+                    );
+                    owner[(y * tw + x) as usize] = r;
+                }
+            }
+        }
+        let mut p = piece(0, [0, 0], [1, 1], [0, 0], [0, 0]);
+        (p.level, p.receiver_level) = (1, 2);
+        let e = build_schedule(map, &[[4, 4]], &[p])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("pieces[0].receiver_level"), "{e}");
     }
 
     #[test]

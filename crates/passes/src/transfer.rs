@@ -16,6 +16,13 @@
 //! `origin_ℓ + ⌊t/2^ℓ⌋ + Δ`; pieces are cropped so that read stays inside level `ℓ`
 //! ([`crate::schedule`]).
 //!
+//! **Receiver blocks** ([`TransferPiece::receiver_level`] `r > 0`): such a piece writes one
+//! value per `2^r × 2^r` block into the grid `G_r`, which lives below the lightmap in a taller
+//! accumulation target ([`crate::schedule`], "Receiver blocks"). Both paths then *resolve*:
+//! `final[t] = acc[t] + Σ_r G_r(⌊t/2^r⌋)` at covered texels (first-order alpha > 0) —
+//! `shaders/transfer_resolve.wgsl` (one full-screen draw) in the blend path, `cs_resolve` in
+//! the compute path. Without receiver blocks the target is the lightmap and nothing changes.
+//!
 //! - **Blend path** (`shaders/transfer.wgsl`, the paper's method): a full-screen draw copies
 //!   first-order RGBA (alpha = coverage) into the accumulation target; then per atlas one
 //!   instanced draw of all its pieces — a quad per piece rasterised at `dst`, reading the
@@ -133,19 +140,38 @@ impl TransferOptions {
     }
 }
 
-/// The uniform and quad vertex code shared by `transfer.wgsl` and `transfer_pair.wgsl`,
-/// prepended to each.
+/// The uniform and the target layout shared by every transfer shader, prepended to each.
+pub(crate) const PARAMS_WGSL: &str = include_str!("../shaders/transfer_params.wgsl");
+
+/// The quad vertex code shared by `transfer.wgsl` and `transfer_pair.wgsl`, prepended to
+/// each (after [`PARAMS_WGSL`]).
 const QUAD_WGSL: &str = include_str!("../shaders/transfer_quad.wgsl");
 
-/// Uniform of both transfer shaders. 16 bytes.
-/// Must match `Params` in `shaders/transfer_quad.wgsl` and `shaders/transfer_gather.wgsl`.
+/// Uniform of every transfer shader. 32 bytes.
+/// Must match `Params` in `shaders/transfer_params.wgsl`.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Pod, Zeroable)]
 pub struct TransferParams {
+    /// Accumulation target `[width, height]` ([`crate::schedule::target_size`]).
+    pub target_size: [u32; 2],
     /// Lightmap `[width, height]`.
     pub lightmap_size: [u32; 2],
-    /// Padding to 16 bytes.
-    pub _pad: [u32; 2],
+    /// `R`, the highest receiver level (0: no receiver blocks).
+    pub receiver_levels: u32,
+    /// Padding to 32 bytes.
+    pub _pad: [u32; 3],
+}
+
+impl TransferParams {
+    /// The uniform of `schedule`.
+    pub fn of(schedule: &FrameSchedule) -> Self {
+        Self {
+            target_size: schedule.target_size(),
+            lightmap_size: schedule.lightmap_size,
+            receiver_levels: schedule.receiver_levels,
+            _pad: [0; 3],
+        }
+    }
 }
 
 /// Blend-path pipelines.
@@ -157,6 +183,9 @@ struct BlendPipelines {
     atlas_layout: wgpu::BindGroupLayout,
     copy: wgpu::RenderPipeline,
     piece: wgpu::RenderPipeline,
+    /// Receiver blocks: group 0 layout (params + accumulation target) and the resolve
+    /// pipeline (`shaders/transfer_resolve.wgsl`).
+    resolve: (wgpu::BindGroupLayout, wgpu::RenderPipeline),
     /// Paired pieces (with `TransferOptions::pair_pieces`): group 1 layout and pipeline.
     pair: Option<(wgpu::BindGroupLayout, wgpu::RenderPipeline)>,
 }
@@ -189,6 +218,10 @@ pub struct TransferScene {
     pair_gpu: Option<PairGpu>,
     /// A 1×1 texture bound as the pyramid when no piece has level > 0 (never read).
     dummy_pyramid: wgpu::TextureView,
+    /// Blend path with receiver blocks: the accumulation target (lightmap + `G_r` grids)
+    /// the pieces draw into before the resolve writes `final_tex`; `None` otherwise (the
+    /// pieces draw into `final_tex`).
+    accum_tex: Option<wgpu::Texture>,
     final_tex: wgpu::Texture,
 }
 
@@ -302,7 +335,7 @@ impl TransferPass {
             device,
             "ortm.transfer.shader",
             &format!(
-                "{}{}{}{}{QUAD_WGSL}{}",
+                "{}{PARAMS_WGSL}{}{}{}{QUAD_WGSL}{}",
                 util::FULLSCREEN_WGSL,
                 reads.wgsl(0, 1, "first_order", f32x4),
                 reads.wgsl(0, 2, "pyramid", f32x4),
@@ -356,7 +389,7 @@ impl TransferPass {
                     step_mode: wgpu::VertexStepMode::Instance,
                     attributes: &wgpu::vertex_attr_array![
                         0 => Uint32x2, 1 => Uint32x2, 2 => Uint32x2, 3 => Sint32x2,
-                        4 => Uint32x2, 5 => Uint32x2
+                        4 => Uint32x2, 5 => Uint32x2, 6 => Uint32x2
                     ],
                 })],
             ),
@@ -371,7 +404,56 @@ impl TransferPass {
             copy,
             piece,
             pair,
+            resolve: Self::resolve_pipeline(device, format),
         }
+    }
+
+    /// The receiver-block resolve (`shaders/transfer_resolve.wgsl`): its group 0 layout and
+    /// full-screen pipeline writing the final lightmap in `format`.
+    fn resolve_pipeline(
+        device: &wgpu::Device,
+        format: wgpu::TextureFormat,
+    ) -> (wgpu::BindGroupLayout, wgpu::RenderPipeline) {
+        let module = util::shader(
+            device,
+            "ortm.transfer.resolve_shader",
+            &format!(
+                "{}{PARAMS_WGSL}{}",
+                util::FULLSCREEN_WGSL,
+                include_str!("../shaders/transfer_resolve.wgsl")
+            ),
+        );
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("ortm.transfer.resolve_layout"),
+            entries: &[
+                util::uniform_entry(0, wgpu::ShaderStages::FRAGMENT),
+                wgpu::BindGroupLayoutEntry {
+                    binding: 1,
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Texture {
+                        sample_type: wgpu::TextureSampleType::Float { filterable: false },
+                        view_dimension: wgpu::TextureViewDimension::D2,
+                        multisampled: false,
+                    },
+                    count: None,
+                },
+            ],
+        });
+        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("ortm.transfer.resolve_pipeline_layout"),
+            bind_group_layouts: &[Some(&layout)],
+            immediate_size: 0,
+        });
+        let pipeline = util::fullscreen_pipeline(
+            device,
+            "ortm.transfer.resolve_pipeline",
+            Some(&pipeline_layout),
+            &module,
+            "fs_resolve",
+            format,
+            None,
+        );
+        (layout, pipeline)
     }
 
     fn pair_pipeline(
@@ -385,7 +467,7 @@ impl TransferPass {
             device,
             "ortm.transfer.pair_shader",
             &format!(
-                "{}{}{}{QUAD_WGSL}{}",
+                "{PARAMS_WGSL}{}{}{}{QUAD_WGSL}{}",
                 reads.wgsl(0, 1, "first_order", wgpu::TextureFormat::Rgba32Float),
                 reads.wgsl(0, 2, "pyramid", wgpu::TextureFormat::Rgba32Float),
                 reads.wgsl(1, 0, "page", page_format),
@@ -438,28 +520,34 @@ impl TransferPass {
         let schedule = build_schedule(lightmap_size, &sizes, pieces)?;
         let device = &gpu.device;
         let atlas_views = self.upload_atlases(gpu, atlases)?;
+        let target = schedule.target_size();
+        if schedule.receiver_levels > 0 {
+            gpu.check_texture_size("transfer accumulation target", target[0], target[1])?;
+        }
         let params = util::buffer_init(
             device,
             "ortm.transfer.params",
-            bytemuck::bytes_of(&TransferParams {
-                lightmap_size,
-                _pad: [0; 2],
-            }),
+            bytemuck::bytes_of(&TransferParams::of(&schedule)),
             wgpu::BufferUsages::UNIFORM,
         );
-        let (instance_buffers, gather, final_tex) = match self.options.path {
+        let (instance_buffers, gather, final_tex, accum_tex) = match self.options.path {
             TransferPath::Blend => {
                 let bufs = instance_buffers(device, "instances", &schedule.batches);
+                let usage = wgpu::TextureUsages::RENDER_ATTACHMENT
+                    | wgpu::TextureUsages::TEXTURE_BINDING
+                    | wgpu::TextureUsages::COPY_SRC;
+                let format = self.options.accum_format.texture_format();
                 let tex = util::texture_2d(
                     device,
                     "ortm.transfer.final_lightmap",
                     lightmap_size,
-                    self.options.accum_format.texture_format(),
-                    wgpu::TextureUsages::RENDER_ATTACHMENT
-                        | wgpu::TextureUsages::TEXTURE_BINDING
-                        | wgpu::TextureUsages::COPY_SRC,
+                    format,
+                    usage,
                 );
-                (bufs, None, tex)
+                let accum = (schedule.receiver_levels > 0).then(|| {
+                    util::texture_2d(device, "ortm.transfer.accumulation", target, format, usage)
+                });
+                (bufs, None, tex, accum)
             }
             TransferPath::Compute => {
                 let g = self
@@ -469,8 +557,8 @@ impl TransferPass {
                         what: "TransferPass".into(),
                         problem: "compute path without its pipelines (internal bug)".into(),
                     })?;
-                let (scene, tex) = g.prepare(gpu, lightmap_size, &schedule, &params)?;
-                (Vec::new(), Some(scene), tex)
+                let (scene, tex) = g.prepare(gpu, &schedule, &params)?;
+                (Vec::new(), Some(scene), tex, None)
             }
         };
         let (paired, pair_gpu) = self.prepare_pairs(gpu, &schedule, atlases)?;
@@ -491,6 +579,7 @@ impl TransferPass {
             paired,
             pair_gpu,
             dummy_pyramid,
+            accum_tex,
             final_tex,
         })
     }
@@ -699,11 +788,17 @@ impl TransferPass {
                 })
             })
             .collect();
-        let target = util::view(&scene.final_tex);
+        // With receiver blocks the pieces draw into the accumulation target (the lightmap and
+        // the G_r grids below it), and the resolve writes the final lightmap from it.
+        let target = util::view(scene.accum_tex.as_ref().unwrap_or(&scene.final_tex));
         let mut pass = util::clear_pass(encoder, "ortm.transfer.blend_pass", &target);
         pass.set_bind_group(0, &frame_bg, &[]);
         pass.set_pipeline(&bp.copy);
+        let [lw, lh] = scene.schedule.lightmap_size;
+        pass.set_scissor_rect(0, 0, lw, lh);
         pass.draw(0..3, 0..1);
+        let [tw, th] = scene.schedule.target_size();
+        pass.set_scissor_rect(0, 0, tw, th);
         pass.set_pipeline(&bp.piece);
         for ((batch, bg), buf) in batches.iter().zip(&atlas_bgs).zip(instance_buffers) {
             pass.set_bind_group(1, bg, &[]);
@@ -727,6 +822,30 @@ impl TransferPass {
                 pass.set_vertex_buffer(0, buf.slice(..));
                 pass.draw(0..6, 0..page.instances.len() as u32);
             }
+        }
+        drop(pass);
+        if let Some(accum) = &scene.accum_tex {
+            let (layout, pipeline) = &bp.resolve;
+            let accum_view = util::view(accum);
+            let bg = device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("ortm.transfer.resolve_bind_group"),
+                layout,
+                entries: &[
+                    wgpu::BindGroupEntry {
+                        binding: 0,
+                        resource: scene.params.as_entire_binding(),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 1,
+                        resource: wgpu::BindingResource::TextureView(&accum_view),
+                    },
+                ],
+            });
+            let out = util::view(&scene.final_tex);
+            let mut pass = util::clear_pass(encoder, "ortm.transfer.resolve_pass", &out);
+            pass.set_bind_group(0, &bg, &[]);
+            pass.set_pipeline(pipeline);
+            pass.draw(0..3, 0..1);
         }
     }
 }
@@ -774,6 +893,6 @@ mod tests {
 
     #[test]
     fn params_size_matches_wgsl() {
-        assert_eq!(std::mem::size_of::<TransferParams>(), 16);
+        assert_eq!(std::mem::size_of::<TransferParams>(), 32);
     }
 }

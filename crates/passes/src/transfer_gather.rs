@@ -3,17 +3,21 @@
 //! mirror [`crate::cpu::transfer_gather`].
 //!
 //! # Data flow
-//! `cs_init` copies the first-order map into an RGBA32F storage buffer `acc` (one `vec4`
-//! per texel, row-major). Then per atlas one dispatch of `cs_gather`: one 8×8 workgroup
-//! per non-empty tile of [`crate::schedule::build_tiles`]; each invocation owns one texel,
-//! sums the tile's pieces that contain it (a piece of level ℓ > 0 reading the packed pyramid
-//! at `origin_ℓ + ⌊t/2^ℓ⌋ + Δ`) and adds the sum into `acc` — no two invocations
-//! of a dispatch write the same texel, and dispatches are ordered, so no atomics are needed.
-//! `cs_resolve` writes `acc` to the RGBA32F final texture (alpha = coverage, untouched).
+//! `cs_init` copies the first-order map into an RGBA32F storage buffer `acc` over the
+//! accumulation target ([`crate::schedule::target_size`]: the lightmap, and below it the
+//! receiver-block grids `G_r` when some piece has receiver level `r > 0`; zero there), one
+//! `vec4` per texel, row-major. Then per atlas one dispatch of `cs_gather`: one 8×8 workgroup
+//! per non-empty tile of [`crate::schedule::build_tiles`]; each invocation owns one target
+//! texel, sums the tile's pieces that contain it (a piece of level ℓ > 0 reading the packed
+//! pyramid at `origin_ℓ + ⌊(t − block_origin_r)/2^(ℓ−r)⌋ + Δ`) and adds the sum into `acc` — no
+//! two invocations of a dispatch write the same texel, and dispatches are ordered, so no
+//! atomics are needed. `cs_resolve` writes the RGBA32F final texture: `acc[t]` plus, at covered
+//! texels (alpha > 0), `Σ_r acc[block_origin(r) + ⌊t/2^r⌋]` (alpha = coverage, untouched).
 //!
 //! # Limits
 //! A tile list with more than 65535 entries is dispatched as a 2D grid (`x` ≤ 65535).
-//! The accumulation buffer is 16 bytes per lightmap texel.
+//! The accumulation buffer is 16 bytes per target texel (about 1.5× the lightmap with
+//! receiver blocks).
 
 use crate::error::PassError;
 use crate::gpu::Gpu;
@@ -38,6 +42,7 @@ pub struct GatherPass {
 #[derive(Debug)]
 pub struct GatherScene {
     lightmap_size: [u32; 2],
+    target_size: [u32; 2],
     params: wgpu::Buffer,
     acc: wgpu::Buffer,
     final_view: wgpu::TextureView,
@@ -53,7 +58,11 @@ impl GatherPass {
             let module = util::shader(
                 device,
                 "ortm.transfer_gather.shader",
-                include_str!("../shaders/transfer_gather.wgsl"),
+                &format!(
+                    "{}{}",
+                    crate::transfer::PARAMS_WGSL,
+                    include_str!("../shaders/transfer_gather.wgsl")
+                ),
             );
             let cs = wgpu::ShaderStages::COMPUTE;
             // Order = @binding order in transfer_gather.wgsl.
@@ -110,12 +119,13 @@ impl GatherPass {
     pub fn prepare(
         &self,
         gpu: &Gpu,
-        lightmap_size: [u32; 2],
         schedule: &FrameSchedule,
         params: &wgpu::Buffer,
     ) -> Result<(GatherScene, wgpu::Texture), PassError> {
         let device = &gpu.device;
-        let texels = lightmap_size[0] as u64 * lightmap_size[1] as u64;
+        let lightmap_size = schedule.lightmap_size;
+        let target_size = schedule.target_size();
+        let texels = target_size[0] as u64 * target_size[1] as u64;
         let max_buf = device.limits().max_storage_buffer_binding_size;
         if texels * 16 > max_buf {
             return Err(PassError::TooLarge {
@@ -171,6 +181,7 @@ impl GatherPass {
         Ok((
             GatherScene {
                 lightmap_size,
+                target_size,
                 params: params.clone(),
                 acc,
                 final_view: util::view(&final_tex),
@@ -246,19 +257,20 @@ impl GatherPass {
                 (bg, *n)
             })
             .collect();
-        let [w, h] = scene.lightmap_size;
+        let [tw, th] = scene.target_size;
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("ortm.transfer_gather.pass"),
             timestamp_writes: None,
         });
         pass.set_bind_group(0, &frame_bg, &[]);
         pass.set_pipeline(&self.init);
-        pass.dispatch_workgroups(w.div_ceil(8), h.div_ceil(8), 1);
+        pass.dispatch_workgroups(tw.div_ceil(8), th.div_ceil(8), 1);
         pass.set_pipeline(&self.gather);
         for (bg, n) in &atlas_bgs {
             pass.set_bind_group(1, bg, &[]);
             pass.dispatch_workgroups((*n).min(MAX_GROUPS_X), n.div_ceil(MAX_GROUPS_X), 1);
         }
+        let [w, h] = scene.lightmap_size;
         pass.set_pipeline(&self.resolve);
         pass.dispatch_workgroups(w.div_ceil(8), h.div_ceil(8), 1);
         debug_assert_eq!(TILE_SIZE, 8);

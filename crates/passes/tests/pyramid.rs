@@ -1,6 +1,7 @@
 //! Multi-resolution maps: the pyramid pass against its CPU mirror (derived f32 bound), both
-//! transfer paths (blend, paired blend, compute) with pieces of levels 0..3 against their CPU
-//! mirrors, the mirrors against the formula written out here (no schedule, no reduction),
+//! transfer paths (blend, paired blend, compute) with pieces of levels 0..3, with and without
+//! receiver blocks, against their CPU mirrors, the mirrors against the formula written out
+//! here (no schedule, no reduction, no accumulation target),
 //! the renderer end to end, and the errors (level > 0 without weights, bad weights, level
 //! beyond the maximum).
 
@@ -27,8 +28,10 @@ struct Case {
 }
 
 /// Random first order (20 % uncovered: RGB 0, weight 0), random texel areas (some covered
-/// texels weigh 0 too), and pieces of levels `0..=max_piece_level` with offsets in blocks.
-fn random_case(seed: u64, size: [u32; 2], max_piece_level: u32) -> Case {
+/// texels weigh 0 too), and pieces of levels `0..=max_piece_level` with offsets in blocks;
+/// with `blocks`, every other piece of level ℓ ≥ 1 has a receiver level `1..=ℓ` (its
+/// rectangle in that level's block grid).
+fn random_case(seed: u64, size: [u32; 2], max_piece_level: u32, blocks: bool) -> Case {
     let mut r = Rng::new(seed);
     let n = (size[0] * size[1]) as usize;
     let mut first_order = TexelImage::new(size[0], size[1]);
@@ -58,10 +61,17 @@ fn random_case(seed: u64, size: [u32; 2], max_piece_level: u32) -> Case {
     for k in 0..48 {
         let a = r.range(0, 1) as usize;
         let [aw, ah] = atlas_sizes[a];
-        let w = r.range(1, aw.min(size[0]) as i64) as u32;
-        let h = r.range(1, ah.min(size[1]) as i64) as u32;
         // Every level appears; offsets span a little beyond each level's size.
         let level = (k % (max_piece_level + 1) as usize) as u32;
+        let receiver_level =
+            if blocks && level > 0 && (k / (max_piece_level as usize + 1)).is_multiple_of(2) {
+                1 + (k as u32 / 2) % level
+            } else {
+                0
+            };
+        let grid = level_size(size, receiver_level);
+        let w = r.range(1, aw.min(grid[0]) as i64) as u32;
+        let h = r.range(1, ah.min(grid[1]) as i64) as u32;
         let [lw, lh] = level_size(size, level);
         pieces.push(TransferPiece {
             atlas: a as u32,
@@ -69,13 +79,14 @@ fn random_case(seed: u64, size: [u32; 2], max_piece_level: u32) -> Case {
             src_y: r.range(0, (ah - h) as i64) as u32,
             w,
             h,
-            dst_x: r.range(0, (size[0] - w) as i64) as u32,
-            dst_y: r.range(0, (size[1] - h) as i64) as u32,
+            dst_x: r.range(0, (grid[0] - w) as i64) as u32,
+            dst_y: r.range(0, (grid[1] - h) as i64) as u32,
             offset: [
                 r.range(-(lw as i64) / 2, lw as i64 / 2) as i32,
                 r.range(-(lh as i64) / 2, lh as i64 / 2) as i32,
             ],
             level,
+            receiver_level,
         });
     }
     Case {
@@ -127,8 +138,10 @@ fn direct_pyramid(c: &Case, max_level: u32) -> Vec<(Vec<[f64; 3]>, Vec<f64>, Vec
         .collect()
 }
 
-/// Eq. 9 with levels written out per texel from (1): `final[t] = B_o(t) + Σ_{pieces ∋ t}
-/// atlas[src + t − dst] · P_ℓ(⌊t/2^ℓ⌋ + Δ)`, `P` from [`direct_pyramid`], 0 outside level ℓ.
+/// Eq. 9 with levels written out per texel from (1): `final[t] = B_o(t) + Σ_{pieces ∋ c}
+/// atlas[src + c − dst] · P_ℓ(⌊c/2^(ℓ−r)⌋ + Δ)`, `c = ⌊t/2^r⌋` the piece's receiver (the
+/// texel itself for `r = 0`; for `r > 0` only covered texels, alpha > 0, receive), `P` from
+/// [`direct_pyramid`], 0 outside level ℓ.
 fn direct_final(c: &Case) -> TexelImage {
     let max_level = c.pieces.iter().map(|p| p.level).max().unwrap_or(0);
     let pyr = direct_pyramid(c, max_level);
@@ -136,17 +149,23 @@ fn direct_final(c: &Case) -> TexelImage {
     for y in 0..c.size[1] {
         for x in 0..c.size[0] {
             let mut acc = [0.0f64; 3];
+            let covered = c.first_order.get(x, y)[3] > 0.0;
             for p in &c.pieces {
-                if x < p.dst_x || y < p.dst_y || x >= p.dst_x + p.w || y >= p.dst_y + p.h {
+                let rl = p.receiver_level;
+                if rl > 0 && !covered {
+                    continue;
+                }
+                let (cx, cy) = (x >> rl, y >> rl);
+                if cx < p.dst_x || cy < p.dst_y || cx >= p.dst_x + p.w || cy >= p.dst_y + p.h {
                     continue;
                 }
                 let at = &c.atlases[p.atlas as usize];
                 let a =
-                    at.rgb[((p.src_y + y - p.dst_y) * at.width + p.src_x + x - p.dst_x) as usize];
+                    at.rgb[((p.src_y + cy - p.dst_y) * at.width + p.src_x + cx - p.dst_x) as usize];
                 let l = p.level;
                 let [bw, bh] = level_size(c.size, l);
-                let bx = (x >> l) as i64 + p.offset[0] as i64;
-                let by = (y >> l) as i64 + p.offset[1] as i64;
+                let bx = (cx >> (l - rl)) as i64 + p.offset[0] as i64;
+                let by = (cy >> (l - rl)) as i64 + p.offset[1] as i64;
                 if bx < 0 || by < 0 || bx >= bw as i64 || by >= bh as i64 {
                     continue;
                 }
@@ -277,7 +296,7 @@ fn pyramid_pass_matches_mirror_within_f32_bound() {
         (3, [5, 130], 9),
         (4, [1, 1], 2),
     ] {
-        let c = random_case(seed, size, 0);
+        let c = random_case(seed, size, 0, false);
         let got = gpu_pyramid(&gpu, &c, max_level);
         check_pyramid(&c, max_level, &got, &format!("{size:?}"));
         // The top level of a map of one block is the whole map's mean.
@@ -292,8 +311,13 @@ fn pyramid_pass_matches_mirror_within_f32_bound() {
 /// power-of-two map.
 #[test]
 fn mirrors_match_the_direct_formula() {
-    for (seed, size) in [(5, [37u32, 29u32]), (6, [32, 32])] {
-        let c = random_case(seed, size, 3);
+    for (seed, size, blocks) in [
+        (5, [37u32, 29u32], false),
+        (6, [32, 32], false),
+        (15, [37, 29], true),
+        (16, [32, 32], true),
+    ] {
+        let c = random_case(seed, size, 3, blocks);
         let mirror = cpu::pyramid::pyramid(&c.first_order, &c.weights, 3);
         let direct = direct_pyramid(&c, 3);
         for l in 1..=3usize {
@@ -313,12 +337,14 @@ fn mirrors_match_the_direct_formula() {
         let sizes: Vec<[u32; 2]> = c.atlases.iter().map(|a| [a.width, a.height]).collect();
         let s = build_schedule(c.size, &sizes, &c.pieces).unwrap();
         assert_eq!(s.max_level(), 3);
+        assert_eq!(s.receiver_levels, if blocks { 3 } else { 0 });
         let blend = cpu::transfer::transfer_levels(&s, &c.atlases, &c.first_order, &mirror);
         let gather = cpu::transfer_gather::transfer_gather_levels(
             &build_tiles(&s),
             &c.atlases,
             &c.first_order,
             &mirror,
+            s.receiver_levels,
         );
         assert_close(&blend, &want, 1e-5, 1e-3, "cpu blend vs direct");
         assert_close(&gather, &want, 1e-5, 1e-3, "cpu gather vs direct");
@@ -395,8 +421,13 @@ fn options(path: TransferPath, pair_pieces: bool, texel_reads: TexelReads) -> Tr
 fn transfer_paths_with_levels_match_mirrors() {
     let gpu = gpu();
     let storage = common::has_storage_reads(&gpu, "levels storage reads");
-    for (seed, size) in [(7, [37u32, 29u32]), (8, [64, 64])] {
-        let c = random_case(seed, size, 3);
+    for (seed, size, blocks) in [
+        (7, [37u32, 29u32], false),
+        (8, [64, 64], false),
+        (17, [37, 29], true),
+        (18, [64, 64], true),
+    ] {
+        let c = random_case(seed, size, 3, blocks);
         let want = direct_final(&c);
         let mut reads = vec![TexelReads::Sampled];
         if storage {
@@ -408,16 +439,18 @@ fn transfer_paths_with_levels_match_mirrors() {
                 (TransferPath::Blend, true),
                 (TransferPath::Compute, false),
             ] {
-                let what = format!("{size:?} {path:?} paired {paired} {r:?}");
+                let what = format!("{size:?} blocks {blocks} {path:?} paired {paired} {r:?}");
                 let (got, levels, scene) = run_transfer(&gpu, &c, options(path, paired, r));
                 check_pyramid(&c, 3, &levels, &what);
                 let s = &scene.schedule;
+                assert_eq!(s.receiver_levels > 0, blocks, "{what}");
                 let mirror = match (path, paired) {
                     (TransferPath::Compute, _) => cpu::transfer_gather::transfer_gather_levels(
                         &build_tiles(s),
                         &c.atlases,
                         &c.first_order,
                         &levels,
+                        s.receiver_levels,
                     ),
                     (_, false) => {
                         cpu::transfer::transfer_levels(s, &c.atlases, &c.first_order, &levels)
@@ -431,7 +464,17 @@ fn transfer_paths_with_levels_match_mirrors() {
                             .flat_map(|pg| &pg.instances)
                             .filter(|i| i.level > 0)
                             .count();
-                        assert!(coarse_pairs > 0, "{what}: no pair of level > 0");
+                        assert!(coarse_pairs > 0 || blocks, "{what}: no pair of level > 0");
+                        let block_pairs = p.singles.batches.iter().flat_map(|b| &b.instances);
+                        assert_eq!(
+                            block_pairs.filter(|i| i.receiver_level > 0).count(),
+                            s.batches
+                                .iter()
+                                .flat_map(|b| &b.instances)
+                                .filter(|i| i.receiver_level > 0)
+                                .count(),
+                            "{what}: every receiver-block piece stays single"
+                        );
                         cpu::transfer::transfer_paired_levels(
                             &p,
                             &c.atlases,
@@ -453,7 +496,7 @@ fn transfer_paths_with_levels_match_mirrors() {
 #[test]
 fn level_zero_ignores_the_pyramid_bit_for_bit() {
     let gpu = gpu();
-    let c = random_case(9, [37, 29], 0);
+    let c = random_case(9, [37, 29], 0, false);
     for (path, paired) in [
         (TransferPath::Blend, false),
         (TransferPath::Blend, true),
@@ -543,7 +586,7 @@ fn levels_without_weights_and_bad_inputs_are_errors() {
     assert!(e.contains("pieces[3].level"), "{e}");
 
     // The transfer pass alone: encoding level > 0 pieces without a pyramid.
-    let c = random_case(10, [37, 29], 2);
+    let c = random_case(10, [37, 29], 2, false);
     let o = options(TransferPath::Blend, false, TexelReads::Sampled);
     let pass = TransferPass::new(&gpu, &o).unwrap();
     let scene = pass.prepare(&gpu, c.size, &c.atlases, &c.pieces).unwrap();

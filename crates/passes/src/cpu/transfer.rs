@@ -7,13 +7,83 @@
 //! [`super::pyramid::read`]), read as zero outside the level. Alpha (coverage) is copied, never
 //! added to. Arithmetic is `f32`; the RGBA16F accumulation option of the GPU rounds after every
 //! blend and is compared against this mirror with a derived bound.
+//!
+//! With receiver blocks ([`crate::schedule`], "Receiver blocks") the accumulation target is
+//! the lightmap with the grids `G_r` below it (the copy fills only the lightmap, the rest
+//! starts at 0), and [`resolve`] (`shaders/transfer_resolve.wgsl`) gives the final map:
+//! `acc[t] + Σ_r acc[block_origin(r) + ⌊t/2^r⌋]` at covered texels (alpha > 0), summed in
+//! `r` order in `f32`.
 
 use super::pyramid::read;
 use crate::gpu::f16_to_f32;
 use crate::pairing::PairedSchedule;
 use crate::pyramid::level_size;
-use crate::schedule::FrameSchedule;
+use crate::schedule::{FrameSchedule, PieceInstance, block_origin, target_size};
 use crate::types::{AtlasData, TexelImage};
+
+/// What instance `inst` reads at target texel `t` (`fs_piece`, `cs_gather`): `P_ℓ` at
+/// `⌊(t − block_origin)/2^(ℓ−r)⌋ + Δ` (for `r = 0`: `⌊t/2^ℓ⌋ + Δ`), 0 outside level `ℓ`.
+pub(crate) fn piece_read(
+    first_order: &TexelImage,
+    levels: &[TexelImage],
+    inst: &PieceInstance,
+    t: [u32; 2],
+) -> [f32; 4] {
+    let shift = inst.level - inst.receiver_level;
+    let c = [t[0] - inst.block_origin[0], t[1] - inst.block_origin[1]];
+    read(
+        first_order,
+        levels,
+        inst.level,
+        (c[0] >> shift) as i32 + inst.offset[0],
+        (c[1] >> shift) as i32 + inst.offset[1],
+    )
+}
+
+/// The accumulation target before any piece: the first-order map (RGBA) at the top left of a
+/// `target_size(lightmap, receiver_levels)` image, 0 elsewhere (`fs_copy` / `cs_init`).
+pub(crate) fn init_target(first_order: &TexelImage, receiver_levels: u32) -> TexelImage {
+    let size = [first_order.width, first_order.height];
+    if receiver_levels == 0 {
+        return first_order.clone();
+    }
+    let [tw, th] = target_size(size, receiver_levels);
+    let mut acc = TexelImage::new(tw, th);
+    for y in 0..size[1] {
+        for x in 0..size[0] {
+            *acc.at_mut(x, y) = first_order.get(x, y);
+        }
+    }
+    acc
+}
+
+/// The final lightmap (`lightmap_size`) from an accumulation target holding receiver levels
+/// `1..=receiver_levels` (`shaders/transfer_resolve.wgsl`, `cs_resolve`): `acc[t]`, plus at
+/// covered texels (alpha > 0) `Σ_r acc[block_origin(r) + ⌊t/2^r⌋]`, in `r` order, `f32`.
+pub fn resolve(lightmap_size: [u32; 2], receiver_levels: u32, acc: &TexelImage) -> TexelImage {
+    let [w, h] = lightmap_size;
+    if receiver_levels == 0 && (acc.width, acc.height) == (w, h) {
+        return acc.clone();
+    }
+    let mut out = TexelImage::new(w, h);
+    for y in 0..h {
+        for x in 0..w {
+            let own = acc.get(x, y);
+            let mut v = own;
+            if own[3] > 0.0 {
+                for r in 1..=receiver_levels {
+                    let o = block_origin(lightmap_size, r);
+                    let g = acc.get(o[0] + (x >> r), o[1] + (y >> r));
+                    for c in 0..3 {
+                        v[c] += g[c];
+                    }
+                }
+            }
+            *out.at_mut(x, y) = v;
+        }
+    }
+    out
+}
 
 /// `final = first_order + Σ pieces` in blend order, every piece of level 0.
 pub fn transfer(
@@ -33,8 +103,19 @@ pub fn transfer_levels(
     first_order: &TexelImage,
     levels: &[TexelImage],
 ) -> TexelImage {
+    let acc = accumulate(schedule, atlases, first_order, levels);
+    resolve(schedule.lightmap_size, schedule.receiver_levels, &acc)
+}
+
+/// The accumulation target after the copy and every piece of `schedule` (before the resolve).
+fn accumulate(
+    schedule: &FrameSchedule,
+    atlases: &[AtlasData],
+    first_order: &TexelImage,
+    levels: &[TexelImage],
+) -> TexelImage {
     // fs_copy: the accumulation target starts as the first-order map (alpha = coverage).
-    let mut out = first_order.clone();
+    let mut out = init_target(first_order, schedule.receiver_levels);
     for batch in &schedule.batches {
         let atlas = &atlases[batch.atlas as usize];
         for inst in &batch.instances {
@@ -44,13 +125,7 @@ pub fn transfer_levels(
                     let t = [inst.dst[0] + i, inst.dst[1] + j];
                     let s = [inst.src[0] + i, inst.src[1] + j];
                     let a = atlas.rgb[(s[1] * atlas.width + s[0]) as usize];
-                    let fo = read(
-                        first_order,
-                        levels,
-                        inst.level,
-                        (t[0] >> inst.level) as i32 + inst.offset[0],
-                        (t[1] >> inst.level) as i32 + inst.offset[1],
-                    );
+                    let fo = piece_read(first_order, levels, inst, t);
                     // Additive blend, alpha untouched.
                     let o = out.at_mut(t[0], t[1]);
                     for c in 0..3 {
@@ -83,7 +158,7 @@ pub fn transfer_paired_levels(
     first_order: &TexelImage,
     levels: &[TexelImage],
 ) -> TexelImage {
-    let mut out = transfer_levels(&paired.singles, atlases, first_order, levels);
+    let mut out = accumulate(&paired.singles, atlases, first_order, levels);
     let read = |t: [u32; 2], off: [i32; 2], level: u32| {
         let [w, h] = level_size(paired.lightmap_size, level);
         let x = ((t[0] >> level) as i32 + off[0]).clamp(0, w as i32 - 1);
@@ -113,5 +188,5 @@ pub fn transfer_paired_levels(
             }
         }
     }
-    out
+    resolve(paired.lightmap_size, paired.singles.receiver_levels, &out)
 }

@@ -7,7 +7,7 @@
 //! level 0 the first-order map) and adds the sum to the buffer (`cs_gather`);
 //! `cs_resolve` writes the buffer to the final texture.
 
-use super::pyramid::read;
+use super::transfer::{init_target, piece_read, resolve};
 use crate::schedule::{AtlasTiles, TILE_SIZE};
 use crate::types::{AtlasData, TexelImage};
 
@@ -17,20 +17,23 @@ pub fn transfer_gather(
     atlases: &[AtlasData],
     first_order: &TexelImage,
 ) -> TexelImage {
-    transfer_gather_levels(tiles, atlases, first_order, &[])
+    transfer_gather_levels(tiles, atlases, first_order, &[], 0)
 }
 
 /// [`transfer_gather`] with pieces of any level: a piece of level `ℓ` reads
 /// `P_ℓ(⌊t / 2^ℓ⌋ + Δ)`, `levels[ℓ − 1]` being pyramid level `ℓ` (see
-/// [`super::transfer::transfer_levels`]).
+/// [`super::transfer::transfer_levels`]). `receiver_levels` is the schedule's
+/// [`crate::schedule::FrameSchedule::receiver_levels`] (the tiles cover its accumulation
+/// target; 0 without receiver blocks).
 pub fn transfer_gather_levels(
     tiles: &[AtlasTiles],
     atlases: &[AtlasData],
     first_order: &TexelImage,
     levels: &[TexelImage],
+    receiver_levels: u32,
 ) -> TexelImage {
     // cs_init
-    let mut acc = first_order.clone();
+    let mut acc = init_target(first_order, receiver_levels);
     for at in tiles {
         let atlas = &atlases[at.atlas as usize];
         for work in &at.tiles {
@@ -55,13 +58,7 @@ pub fn transfer_gather_levels(
                         }
                         let s = [inst.src[0] + li as u32, inst.src[1] + lj as u32];
                         let a = atlas.rgb[(s[1] * atlas.width + s[0]) as usize];
-                        let fo = read(
-                            first_order,
-                            levels,
-                            inst.level,
-                            (t[0] >> inst.level) as i32 + inst.offset[0],
-                            (t[1] >> inst.level) as i32 + inst.offset[1],
-                        );
+                        let fo = piece_read(first_order, levels, &inst, t);
                         for c in 0..3 {
                             sum[c] += a[c] * fo[c];
                         }
@@ -74,6 +71,10 @@ pub fn transfer_gather_levels(
             }
         }
     }
-    // cs_resolve: the buffer is the final map.
-    acc
+    // cs_resolve
+    resolve(
+        [first_order.width, first_order.height],
+        receiver_levels,
+        &acc,
+    )
 }
