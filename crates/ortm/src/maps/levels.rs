@@ -27,8 +27,8 @@
 //! per `2^r × 2^r` block of receivers: its grid is `⌈W/2^r⌉ × ⌈H/2^r⌉` and its value at block `c`
 //! adds `map(c) · P_ℓ(⌊c / 2^(ℓ−r)⌋ + Δ)` into every *covered* texel `t` of the block
 //! (`⌊t / 2^r⌋ = c`). Coverage rule: a texel is covered when its pyramid weight (its area) is
-//! > 0, the same texels the GPU marks with first-order alpha > 0; uncovered texels of the block
-//! receive nothing. The bake's [`crate::bake::multires::coarsen_receivers`] makes such maps.
+//! positive, the same texels the GPU marks with first-order alpha > 0; uncovered texels of the
+//! block receive nothing. The bake's [`crate::bake::multires::coarsen_receivers`] makes such maps.
 //!
 //! # Determinism
 //! Each texel is accumulated by one thread in map order, in f64, rounded once (as [`super::apply`]).
@@ -315,5 +315,58 @@ mod tests {
         );
         let top = (1.0 + 9.0 + 14.0 + 2.0) / 7.0;
         assert!((p.levels[2].mean[0][0] as f64 - top).abs() < 1e-6);
+    }
+
+    /// A receiver-block map (level 1, receiver level 1) adds its block's value times the sender
+    /// block's mean into the covered texels of the block only; a block beyond the pyramid reads 0.
+    #[test]
+    fn receiver_blocks_add_into_covered_texels() {
+        use crate::maps::{Crop, CropRect};
+        let mut lm = Lightmap::new(4, 2);
+        let mut wt = vec![1.0f32; 8];
+        wt[1] = 0.0; // texel (1, 0) uncovered
+        wt[6] = 3.0; // texel (2, 1) weighs 3
+        for (i, v) in lm.data.iter_mut().enumerate() {
+            *v = [i as f32, 1.0, 0.0];
+        }
+        let map = TransferMap::from_crops(
+            "t",
+            glam::IVec2::new(1, 0),
+            0.0,
+            0.0,
+            4,
+            2,
+            vec![Crop {
+                rect: CropRect {
+                    x: 0,
+                    y: 0,
+                    w: 2,
+                    h: 1,
+                },
+                data: vec![[2.0, 0.5, 1.0], [7.0, 7.0, 7.0]],
+            }],
+        )
+        .unwrap()
+        .with_level(1)
+        .unwrap()
+        .with_receiver_level(1)
+        .unwrap();
+        assert_eq!((map.width(), map.height()), (2, 1));
+        let p = Pyramid::new(&lm, &wt, level_count(4, 2)).unwrap();
+        let out = apply_levels_indirect(std::slice::from_ref(&map), &p).unwrap();
+        // Sender block (1, 0) of level 1: texels 2, 3, 6 (weight 3), 7.
+        let mean = (2.0 + 3.0 + 3.0 * 6.0 + 7.0) / 6.0;
+        for (i, v) in out.data.iter().enumerate() {
+            let want = match i {
+                0 | 4 | 5 => [2.0 * mean, 0.5, 0.0],
+                _ => [0.0; 3],
+            };
+            for c in 0..3 {
+                assert!(
+                    (v[c] - want[c]).abs() < 1e-5,
+                    "texel {i}: {v:?} vs {want:?}"
+                );
+            }
+        }
     }
 }
