@@ -15,8 +15,10 @@
 //!    into the fewest `atlas_w × atlas_h` atlases; [`binning::blit`] copies the values
 //!    bit-exactly. Each placement becomes an [`AtlasPiece`]: `src_x, src_y` = its position in
 //!    the atlas, `dst_x = crop.x + placement.src_x`, `dst_y = crop.y + placement.src_y` = the
-//!    receiver texel of its top-left corner in the lightmap, `offset` = the map's `Δt`,
-//!    `map_index` = the map's position in the slice (= its position in `index.json`'s `maps`).
+//!    receiver texel of its top-left corner in the lightmap (for a map of receiver level
+//!    `r > 0`: the receiver block, in the `⌈W/2^r⌉ × ⌈H/2^r⌉` grid), `offset` = the map's `Δt`,
+//!    `level` and `receiver_level` = the map's, `map_index` = the map's position in the slice
+//!    (= its position in `index.json`'s `maps`).
 //! 2. [`write_atlas_set`] writes one OpenEXR file per atlas (`atlas_000.exr`, …) and then the
 //!    index `atlases.json` (format in `docs/atlas-format.md`), all atomically, the index last.
 //! 3. [`read_atlas_set`] reads them back with every check a renderer needs: version, file names,
@@ -24,7 +26,9 @@
 //!    directory has one.
 //! 4. [`apply_atlas_set`] evaluates `B = B_o + Σ_pieces atlas[src+(i,j)]·B_o[dst+(i,j)+Δt]`, the
 //!    same sum as [`crate::maps::apply()`] (bit-identical when the pieces came from the same maps:
-//!    see its doc). [`packing_image`] and [`atlas_values_image`] draw an atlas for people.
+//!    see its doc); [`apply_atlas_pieces`] also applies multi-resolution pieces and receiver
+//!    blocks (added into the covered texels of their block) as
+//!    [`crate::maps::levels::apply_levels`] does. [`packing_image`] and [`atlas_values_image`] draw an atlas for people.
 //!
 //! # Units and conventions
 //! Atlas texels hold the maps' dimensionless transfer factors (linear RGB, f32). Atlas and
