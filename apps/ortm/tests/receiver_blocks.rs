@@ -287,7 +287,7 @@ fn stored(dir: &Path) -> u64 {
         .sum()
 }
 
-/// (b) `ortm bake --levels 3e-3 --coarse-block 0` writes receiver-block maps (the default) that
+/// (b) `ortm bake --levels 3e-3 --coarse-block 0 --receiver-blocks on` writes receiver-block maps that
 /// equal `to_block_maps` of the blocks computed in memory; `ortm bin` packs them; the atlas
 /// pieces applied on the CPU equal `apply_blocks` of the same blocks within 1e-5 relative per
 /// texel (so does `apply_levels` of the maps); they store strictly fewer texels than
@@ -312,9 +312,11 @@ fn cornell_bake_with_receiver_blocks_applies_like_the_blocks() {
         args.extend(extra);
         ok(ortm(&args, dir))
     };
-    let text = bake("on", &[]);
+    let text = bake("on", &["--receiver-blocks", "on"]);
     assert!(text.contains("% shared"), "{text}");
-    bake("off", &["--receiver-blocks", "off"]);
+    // One value per receiver is the default.
+    let text = bake("off", &[]);
+    assert!(!text.contains("% shared"), "{text}");
     let e = fails(ortm(
         &[
             "bake",

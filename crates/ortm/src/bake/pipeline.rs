@@ -91,7 +91,7 @@ pub struct BakeSettings {
     /// ([`crate::bake::multires::to_block_maps`]); `false`: one value per receiver
     /// ([`crate::bake::multires::to_maps`]). Recorded in the bake's settings (and so its key)
     /// only when `levels` is set ([`Self::to_json`]).
-    #[serde(default = "default_true")]
+    #[serde(default)]
     pub receiver_blocks: bool,
     /// How the scene was named when baking (a built-in name or a scene-file path, as given), so
     /// that `ortm render DIR` can find it again; informational (the scene hash identifies it).
@@ -115,14 +115,10 @@ impl Default for BakeSettings {
             selection_receivers: 4096,
             cell_rule: CellRule::Integrated,
             levels: None,
-            receiver_blocks: true,
+            receiver_blocks: false,
             scene: None,
         }
     }
-}
-
-fn default_true() -> bool {
-    true
 }
 
 impl BakeSettings {
