@@ -140,76 +140,87 @@ fn render_writes_frame_and_lightmaps_consistent_with_cpu_reference() {
     assert!(!dir.join("bad_atlas.png").exists());
 }
 
-/// Multi-resolution maps end to end: `ortm bake --levels`, then `ortm render` packing in
-/// memory (blend path), then from `ortm bin`'s atlases (compute path). Each written
-/// `final.exr` equals the CPU reference of the level maps ([`ortm::maps::levels::apply_levels`])
-/// applied to the written `first.exr`, within the GPU's f32 sums (1e-4 relative + 1e-6 of the
-/// maximum: up to a few hundred terms of mixed sign per texel).
+/// Multi-resolution maps end to end, one value per receiver and with receiver blocks
+/// (`--receiver-blocks on`: maps of receiver level > 0, drawn into the block grids and
+/// resolved on the GPU): `ortm bake --levels`, then `ortm render` packing in memory (blend
+/// path), then from `ortm bin`'s atlases (compute path). Each written `final.exr` equals the
+/// CPU reference of the level maps ([`ortm::maps::levels::apply_levels`]) applied to the
+/// written `first.exr`, within the GPU's f32 sums (1e-4 relative + 1e-6 of the maximum: up to
+/// a few hundred terms of mixed sign per texel).
 #[test]
 fn render_applies_multi_resolution_maps_like_the_cpu() {
     let tmp = tempfile::tempdir().unwrap();
     let dir = tmp.path();
-    ok(ortm(
-        &[
-            "bake",
-            "cornell",
-            "--size",
-            "32",
-            "--levels",
-            "3e-3",
-            "--coarse-block",
-            "1",
-            "-o",
-            "bake",
-        ],
-        dir,
-    ));
-    let bake = dir.join("bake");
-    let maps = BakeIndex::read(&bake).unwrap().load_maps(&bake).unwrap();
-    assert!(maps.iter().any(|m| m.level() >= 2), "coarse levels in use");
     let grid =
         ortm::bake::texels::TexelGrid::build(&ortm::scene::cornell::cornell_box(32)).unwrap();
-    let check = || {
-        let first = read_lightmap_exr(&dir.join("first.exr")).unwrap();
-        let fin = read_lightmap_exr(&dir.join("final.exr")).unwrap();
-        let want = ortm::maps::levels::apply_levels(&maps, &first, &grid.area_map()).unwrap();
-        let max = want.data.iter().flatten().fold(0f32, |a, &b| a.max(b));
-        assert!(max > 1.0, "the box is lit");
-        for t in &grid.texels {
-            let i = (t.y * grid.width + t.x) as usize;
-            for ch in 0..3 {
-                let (g, c) = (fin.data[i][ch], want.data[i][ch]);
-                assert!(
-                    (g - c).abs() <= 1e-4 * c.abs() + 1e-6 * max,
-                    "texel ({}, {}) ch {ch}: final.exr {g} vs CPU {c}",
-                    t.x,
-                    t.y
-                );
-            }
-        }
-    };
-    let render = |path: &str| {
+    for (name, blocks) in [("bake", "off"), ("blocks", "on")] {
         ok(ortm(
             &[
-                "render",
                 "bake",
+                "cornell",
                 "--size",
-                "64x48",
-                "--path",
-                path,
+                "32",
+                "--levels",
+                "3e-3",
+                "--coarse-block",
+                "1",
+                "--receiver-blocks",
+                blocks,
                 "-o",
-                "frame.png",
-                "--lightmap-out",
-                "final.exr",
-                "--first-order-out",
-                "first.exr",
+                name,
             ],
             dir,
-        ))
-    };
-    render("blend");
-    check();
-    ok(ortm(&["bin", "bake", "--atlas", "256"], dir));
-    render("compute");
-    check();
+        ));
+        let bake = dir.join(name);
+        let maps = BakeIndex::read(&bake).unwrap().load_maps(&bake).unwrap();
+        assert!(maps.iter().any(|m| m.level() >= 2), "coarse levels in use");
+        assert_eq!(
+            maps.iter().any(|m| m.receiver_level() > 0),
+            blocks == "on",
+            "receiver blocks {blocks}"
+        );
+        let check = || {
+            let first = read_lightmap_exr(&dir.join("first.exr")).unwrap();
+            let fin = read_lightmap_exr(&dir.join("final.exr")).unwrap();
+            let want = ortm::maps::levels::apply_levels(&maps, &first, &grid.area_map()).unwrap();
+            let max = want.data.iter().flatten().fold(0f32, |a, &b| a.max(b));
+            assert!(max > 1.0, "the box is lit");
+            for t in &grid.texels {
+                let i = (t.y * grid.width + t.x) as usize;
+                for ch in 0..3 {
+                    let (g, c) = (fin.data[i][ch], want.data[i][ch]);
+                    assert!(
+                        (g - c).abs() <= 1e-4 * c.abs() + 1e-6 * max,
+                        "{name}: texel ({}, {}) ch {ch}: final.exr {g} vs CPU {c}",
+                        t.x,
+                        t.y
+                    );
+                }
+            }
+        };
+        let render = |path: &str| {
+            ok(ortm(
+                &[
+                    "render",
+                    name,
+                    "--size",
+                    "64x48",
+                    "--path",
+                    path,
+                    "-o",
+                    "frame.png",
+                    "--lightmap-out",
+                    "final.exr",
+                    "--first-order-out",
+                    "first.exr",
+                ],
+                dir,
+            ))
+        };
+        render("blend");
+        check();
+        ok(ortm(&["bin", name, "--atlas", "256"], dir));
+        render("compute");
+        check();
+    }
 }
