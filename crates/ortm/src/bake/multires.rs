@@ -25,8 +25,9 @@
 //! `G_r(c) = Σ V·P_ℓ(⌊c/2^(ℓ−r)⌋ + Δ)`, read back by every covered texel of the block
 //! ([`apply_blocks`], the CPU form). [`to_block_maps`] groups them into maps with a receiver
 //! level ([`TransferMap::receiver_level`]), one per `(r, ℓ, Δ)`, which the bake writes
-//! (`ortm bake --levels ε`, `--receiver-blocks on`, the default), the atlases pack and the
-//! renderer applies. `ortm bench accuracy --levels` measures both forms.
+//! (`ortm bake --levels ε --receiver-blocks on`; off by default: on a multi-chart mesh the
+//! maps' crops keep most zeros between shared blocks while the maps multiply, README), the
+//! atlases pack and the renderer applies. `ortm bench accuracy --levels` measures both forms.
 //!
 //! # Cost
 //! Rows come from a caller's closure (the dense transfer matrix, or the pair evaluator
