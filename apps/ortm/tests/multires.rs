@@ -550,3 +550,79 @@ fn head_256_receiver_blocks() {
         );
     }
 }
+
+/// Where the hierarchical rows err: the indirect light of the hierarchical transport's rows
+/// (τ = 1e-3, as `ortm bake --tolerance 1e-3`) against the exact rows, for the same first order,
+/// at chart-border receivers (covered, not all 4 neighbours covered) and interior ones: mean
+/// signed difference and RMS, each relative to the exact indirect light's RMS over the same
+/// receivers. Head 64², the reference's random point lights.
+#[test]
+#[ignore = "measurement: cargo test --release -p ortm-cli --test multires -- --ignored --nocapture border_receivers"]
+fn border_receivers_hierarchical_vs_exact() {
+    use ortm::bake::transport::{Transport, hier};
+    let scene = head(64);
+    let c = case(&scene, 4);
+    let tr = Transport::build_hierarchical(
+        &scene,
+        &c.grid,
+        Effects::default(),
+        1,
+        &hier::Settings {
+            tolerance: 1e-3,
+            ..Default::default()
+        },
+        &SetupProgress::none(),
+    )
+    .unwrap();
+    let row = multires::hierarchical_row(&tr).expect("the operator");
+    let n = c.grid.texels.len();
+    let (w, h) = (c.grid.width, c.grid.height);
+    let mut covered = vec![false; (w * h) as usize];
+    for t in &c.grid.texels {
+        covered[(t.y * w + t.x) as usize] = true;
+    }
+    let is_cov = |x: i64, y: i64| {
+        x >= 0 && y >= 0 && x < w as i64 && y < h as i64 && covered[(y * w as i64 + x) as usize]
+    };
+    let border: Vec<bool> = c
+        .grid
+        .texels
+        .iter()
+        .map(|t| {
+            let (x, y) = (t.x as i64, t.y as i64);
+            !(is_cov(x - 1, y) && is_cov(x + 1, y) && is_cov(x, y - 1) && is_cov(x, y + 1))
+        })
+        .collect();
+    let mut hrow = vec![[0f32; 3]; n];
+    // Per set-up and group (border, interior): Σ d, Σ d², Σ e², count (channel sums).
+    for (k, b_o) in c.reference.first_order.iter().enumerate() {
+        let mut acc = [[0f64; 4]; 2];
+        for i in 0..n {
+            row(i as u32, &mut hrow);
+            let (mut ie, mut ih) = (0f64, 0f64);
+            for j in 0..n {
+                let b = b_o[j];
+                let bo = [b.x as f64, b.y as f64, b.z as f64];
+                for ch in 0..3 {
+                    ie += c.rows[i * n + j][ch] as f64 * bo[ch];
+                    ih += hrow[j][ch] as f64 * bo[ch];
+                }
+            }
+            let g = &mut acc[if border[i] { 0 } else { 1 }];
+            g[0] += ih - ie;
+            g[1] += (ih - ie) * (ih - ie);
+            g[2] += ie * ie;
+            g[3] += 1.0;
+        }
+        for (name, g) in ["border", "interior"].iter().zip(acc) {
+            let rms = (g[2] / g[3]).sqrt();
+            eprintln!(
+                "set-up {k} {name} ({} texels): mean difference {:+.2} %, RMS difference {:.2} % of the exact indirect RMS {:.4e}",
+                g[3],
+                100.0 * g[0] / g[3] / rms,
+                100.0 * (g[1] / g[3]).sqrt() / rms,
+                rms
+            );
+        }
+    }
+}
