@@ -218,10 +218,10 @@ pub struct TransferScene {
     pair_gpu: Option<PairGpu>,
     /// A 1×1 texture bound as the pyramid when no piece has level > 0 (never read).
     dummy_pyramid: wgpu::TextureView,
-    /// Blend path with receiver blocks: the accumulation target (lightmap + `G_r` grids)
-    /// the pieces draw into before the resolve writes `final_tex`; `None` otherwise (the
-    /// pieces draw into `final_tex`).
-    accum_tex: Option<wgpu::Texture>,
+    /// Blend path with receiver blocks: a view of the accumulation target (lightmap + `G_r`
+    /// grids) the pieces draw into, and the resolve's bind group reading it (both fixed per
+    /// scene); `None` otherwise (the pieces draw into `final_tex`).
+    accum: Option<(wgpu::TextureView, wgpu::BindGroup)>,
     final_tex: wgpu::Texture,
 }
 
@@ -427,16 +427,7 @@ impl TransferPass {
             label: Some("ortm.transfer.resolve_layout"),
             entries: &[
                 util::uniform_entry(0, wgpu::ShaderStages::FRAGMENT),
-                wgpu::BindGroupLayoutEntry {
-                    binding: 1,
-                    visibility: wgpu::ShaderStages::FRAGMENT,
-                    ty: wgpu::BindingType::Texture {
-                        sample_type: wgpu::TextureSampleType::Float { filterable: false },
-                        view_dimension: wgpu::TextureViewDimension::D2,
-                        multisampled: false,
-                    },
-                    count: None,
-                },
+                util::texture_entry(1, wgpu::ShaderStages::FRAGMENT),
             ],
         });
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -530,7 +521,7 @@ impl TransferPass {
             bytemuck::bytes_of(&TransferParams::of(&schedule)),
             wgpu::BufferUsages::UNIFORM,
         );
-        let (instance_buffers, gather, final_tex, accum_tex) = match self.options.path {
+        let (instance_buffers, gather, final_tex, accum) = match self.options.path {
             TransferPath::Blend => {
                 let bufs = instance_buffers(device, "instances", &schedule.batches);
                 let usage = wgpu::TextureUsages::RENDER_ATTACHMENT
@@ -544,9 +535,18 @@ impl TransferPass {
                     format,
                     usage,
                 );
-                let accum = (schedule.receiver_levels > 0).then(|| {
-                    util::texture_2d(device, "ortm.transfer.accumulation", target, format, usage)
-                });
+                let accum = (schedule.receiver_levels > 0)
+                    .then(|| {
+                        let t = util::texture_2d(
+                            device,
+                            "ortm.transfer.accumulation",
+                            target,
+                            format,
+                            usage,
+                        );
+                        self.resolve_bind_group(device, &params, util::view(&t))
+                    })
+                    .transpose()?;
                 (bufs, None, tex, accum)
             }
             TransferPath::Compute => {
@@ -579,9 +579,38 @@ impl TransferPass {
             paired,
             pair_gpu,
             dummy_pyramid,
-            accum_tex,
+            accum,
             final_tex,
         })
+    }
+
+    /// The blend path's accumulation target `view` with the resolve's bind group reading it
+    /// (`params` + the target, `shaders/transfer_resolve.wgsl`).
+    fn resolve_bind_group(
+        &self,
+        device: &wgpu::Device,
+        params: &wgpu::Buffer,
+        view: wgpu::TextureView,
+    ) -> Result<(wgpu::TextureView, wgpu::BindGroup), PassError> {
+        let bp = self.blend.as_ref().ok_or_else(|| PassError::InvalidInput {
+            what: "TransferPass".into(),
+            problem: "blend path without its pipelines (internal bug)".into(),
+        })?;
+        let bg = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("ortm.transfer.resolve_bind_group"),
+            layout: &bp.resolve.0,
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: params.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: wgpu::BindingResource::TextureView(&view),
+                },
+            ],
+        });
+        Ok((view, bg))
     }
 
     /// One RGBA32F texture per atlas (RGB, A = 0); returns their views.
@@ -790,8 +819,9 @@ impl TransferPass {
             .collect();
         // With receiver blocks the pieces draw into the accumulation target (the lightmap and
         // the G_r grids below it), and the resolve writes the final lightmap from it.
-        let target = util::view(scene.accum_tex.as_ref().unwrap_or(&scene.final_tex));
-        let mut pass = util::clear_pass(encoder, "ortm.transfer.blend_pass", &target);
+        let final_view = util::view(&scene.final_tex);
+        let target = scene.accum.as_ref().map_or(&final_view, |(view, _)| view);
+        let mut pass = util::clear_pass(encoder, "ortm.transfer.blend_pass", target);
         pass.set_bind_group(0, &frame_bg, &[]);
         pass.set_pipeline(&bp.copy);
         let [lw, lh] = scene.schedule.lightmap_size;
@@ -824,27 +854,10 @@ impl TransferPass {
             }
         }
         drop(pass);
-        if let Some(accum) = &scene.accum_tex {
-            let (layout, pipeline) = &bp.resolve;
-            let accum_view = util::view(accum);
-            let bg = device.create_bind_group(&wgpu::BindGroupDescriptor {
-                label: Some("ortm.transfer.resolve_bind_group"),
-                layout,
-                entries: &[
-                    wgpu::BindGroupEntry {
-                        binding: 0,
-                        resource: scene.params.as_entire_binding(),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 1,
-                        resource: wgpu::BindingResource::TextureView(&accum_view),
-                    },
-                ],
-            });
-            let out = util::view(&scene.final_tex);
-            let mut pass = util::clear_pass(encoder, "ortm.transfer.resolve_pass", &out);
-            pass.set_bind_group(0, &bg, &[]);
-            pass.set_pipeline(pipeline);
+        if let Some((_, bg)) = &scene.accum {
+            let mut pass = util::clear_pass(encoder, "ortm.transfer.resolve_pass", &final_view);
+            pass.set_bind_group(0, bg, &[]);
+            pass.set_pipeline(&bp.resolve.1);
             pass.draw(0..3, 0..1);
         }
     }
