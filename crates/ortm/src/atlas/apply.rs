@@ -72,7 +72,9 @@ pub fn apply_atlas_pieces(
     };
     for p in order {
         let atlas = &set.atlases[p.atlas as usize];
-        if p.receiver_level > 0 {
+        if p.level > 0 {
+            // Receiver level r ≥ 0: each value at block c reads ⌊c/2^(ℓ−r)⌋ + Δ and adds into
+            // the covered texels of c (for r = 0, the texel c itself, covered or not).
             let pyr = pyramid.as_ref().expect("built for levels > 0");
             let lv = &pyr.levels[p.level as usize];
             let covered = &pyr.levels[0].weight;
@@ -87,31 +89,13 @@ pub fn apply_atlas_pieces(
                     for y in (cy << r)..((cy + 1) << r).min(h) {
                         for x in (cx << r)..((cx + 1) << r).min(w) {
                             let t = y as usize * w as usize + x as usize;
-                            if covered[t] <= 0.0 {
+                            if r > 0 && covered[t] <= 0.0 {
                                 continue;
                             }
                             for c in 0..3 {
                                 acc[t][c] += f64::from(v[c]) * f64::from(sv[c]);
                             }
                         }
-                    }
-                }
-            }
-            continue;
-        }
-        if p.level > 0 {
-            let lv = &pyramid.as_ref().expect("built for levels > 0").levels[p.level as usize];
-            let l = p.level;
-            for j in 0..p.h {
-                let y = p.dst_y + j;
-                let sy = i64::from(y >> l) + i64::from(p.offset[1]);
-                for i in 0..p.w {
-                    let x = p.dst_x + i;
-                    let s = lv.get(i64::from(x >> l) + i64::from(p.offset[0]), sy);
-                    let v = atlas[(p.src_y + j) as usize * aw + (p.src_x + i) as usize];
-                    let a = &mut acc[y as usize * w as usize + x as usize];
-                    for c in 0..3 {
-                        a[c] += f64::from(v[c]) * f64::from(s[c]);
                     }
                 }
             }
