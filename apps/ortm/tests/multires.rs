@@ -76,6 +76,28 @@ fn case(scene: &Scene, setups_n: usize) -> Case {
     }
 }
 
+/// The hierarchical transport of `scene` (`ortm bake --tolerance τ`) with `coarse_block`-texel
+/// remainder clusters (0: automatic).
+fn hierarchical(
+    scene: &Scene,
+    grid: &TexelGrid,
+    coarse_block: u32,
+    tolerance: f32,
+) -> ortm::bake::transport::Transport {
+    ortm::bake::transport::Transport::build_hierarchical(
+        scene,
+        grid,
+        Effects::default(),
+        coarse_block,
+        &ortm::bake::transport::hier::Settings {
+            tolerance,
+            ..Default::default()
+        },
+        &SetupProgress::none(),
+    )
+    .unwrap()
+}
+
 fn maps_at(c: &Case, settings: &MultiresSettings) -> Vec<TransferMap> {
     let row = |i: u32, out: &mut [[f32; 3]]| {
         let n = out.len();
@@ -365,7 +387,6 @@ fn level_bake_round_trips_through_files_and_atlases() {
 /// (Cornell 1.33 % as with exact rows; head 2.11 % against 1.95 %). Bounds: measured + 25 %.
 #[test]
 fn hierarchical_rows_carry_the_operators_error() {
-    use ortm::bake::transport::{Transport, hier};
     for (name, scene, bounds) in [
         (
             "cornell 32²",
@@ -375,18 +396,7 @@ fn hierarchical_rows_carry_the_operators_error() {
         ("head 24²", head(24), [0.0114, 0.0264]),
     ] {
         let c = case(&scene, 4);
-        let tr = Transport::build_hierarchical(
-            &scene,
-            &c.grid,
-            Effects::default(),
-            1,
-            &hier::Settings {
-                tolerance: 1e-4,
-                ..Default::default()
-            },
-            &SetupProgress::none(),
-        )
-        .unwrap();
+        let tr = hierarchical(&scene, &c.grid, 1, 1e-4);
         let row = multires::hierarchical_row(&tr).expect("the operator");
         let settings = [0.0, 3e-3].map(|tolerance| MultiresSettings {
             tolerance,
@@ -490,21 +500,9 @@ fn receiver_blocks_keep_power_and_error() {
 #[test]
 #[ignore = "measurement: cargo test --release -p ortm-cli --test multires -- --ignored --nocapture head_256_receiver_blocks"]
 fn head_256_receiver_blocks() {
-    use ortm::bake::transport::{Transport, hier};
     let scene = head(256);
     let grid = TexelGrid::build(&scene).unwrap();
-    let tr = Transport::build_hierarchical(
-        &scene,
-        &grid,
-        Effects::default(),
-        0,
-        &hier::Settings {
-            tolerance: 1e-3,
-            ..Default::default()
-        },
-        &SetupProgress::none(),
-    )
-    .unwrap();
+    let tr = hierarchical(&scene, &grid, 0, 1e-3);
     let row = multires::hierarchical_row(&tr).expect("the operator");
     let eps = [1e-2, 3e-3, 1e-3];
     let settings = eps.map(|tolerance| MultiresSettings {
@@ -559,37 +557,18 @@ fn head_256_receiver_blocks() {
 #[test]
 #[ignore = "measurement: cargo test --release -p ortm-cli --test multires -- --ignored --nocapture border_receivers"]
 fn border_receivers_hierarchical_vs_exact() {
-    use ortm::bake::transport::{Transport, hier};
     let scene = head(64);
     let c = case(&scene, 4);
-    let tr = Transport::build_hierarchical(
-        &scene,
-        &c.grid,
-        Effects::default(),
-        1,
-        &hier::Settings {
-            tolerance: 1e-3,
-            ..Default::default()
-        },
-        &SetupProgress::none(),
-    )
-    .unwrap();
+    let tr = hierarchical(&scene, &c.grid, 1, 1e-3);
     let row = multires::hierarchical_row(&tr).expect("the operator");
     let n = c.grid.texels.len();
-    let (w, h) = (c.grid.width, c.grid.height);
-    let mut covered = vec![false; (w * h) as usize];
-    for t in &c.grid.texels {
-        covered[(t.y * w + t.x) as usize] = true;
-    }
-    let is_cov = |x: i64, y: i64| {
-        x >= 0 && y >= 0 && x < w as i64 && y < h as i64 && covered[(y * w as i64 + x) as usize]
-    };
+    let is_cov = |x: i32, y: i32| c.grid.at(x, y).is_some();
     let border: Vec<bool> = c
         .grid
         .texels
         .iter()
         .map(|t| {
-            let (x, y) = (t.x as i64, t.y as i64);
+            let (x, y) = (t.x as i32, t.y as i32);
             !(is_cov(x - 1, y) && is_cov(x + 1, y) && is_cov(x, y - 1) && is_cov(x, y + 1))
         })
         .collect();
