@@ -82,6 +82,9 @@ cleanup() {
 trap cleanup EXIT
 trap 'exit 130' INT TERM
 
+if command -v ss >/dev/null 2>&1 && ss -ltn | awk '{ print $4 }' | grep -Eq ":($port|$((port + 1)))\$"; then
+    fail "port $port or $((port + 1)) is in use (another Slurm?): set ORTM_TEST_PORT"
+fi
 mkdir -p "$tmp"/{munge,state,spool,log,run}
 node=$(hostname -s)
 cpus=$(nproc)
@@ -140,6 +143,7 @@ state=
 for _ in $(seq 300); do
     state=$(sinfo -h -n "$node" -o %T 2>/dev/null || true)
     [[ $state == idle ]] && break
+    for pid in "${pids[@]}"; do kill -0 "$pid" 2>/dev/null || fail "a daemon exited at start-up"; done
     sleep 0.2
 done
 [[ $state == idle ]] || fail "node $node did not become idle (state '${state:-none}')"
