@@ -144,6 +144,32 @@ mod tests {
         .unwrap();
     }
 
+    /// Data points as the selection computes them (arbitrary `f64`s) survive the JSON file bit
+    /// for bit, so a resumed bake reuses its selection (serde_json's `float_roundtrip`; without
+    /// it some values came back one ulp off and every resume selected again).
+    #[test]
+    fn arbitrary_data_points_round_trip_and_are_reused() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut x = 0x9e37_79b9_7f4a_7c15u64;
+        let mut next = || {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            (x >> 11) as f64 / (1u64 << 53) as f64 * 10f64.powi((x % 9) as i32 - 6)
+        };
+        let points: Vec<[f64; 3]> = (0..2000).map(|_| [next(), next(), next()]).collect();
+        let good = SelectionRecord::new("k", vec![[1, 0], [0, -3]], points);
+        std::fs::write(
+            dir.path().join(SELECTION_FILE_NAME),
+            serde_json::to_vec_pretty(&good).unwrap(),
+        )
+        .unwrap();
+        match read_selection(dir.path(), "k", 2, (8, 8)).unwrap() {
+            SavedSelection::Reuse(r) => assert_eq!(r.data_points, good.data_points),
+            other => panic!("{other:?}"),
+        }
+    }
+
     #[test]
     fn only_an_unaltered_record_of_this_bake_is_reused() {
         let dir = tempfile::tempdir().unwrap();
