@@ -1,5 +1,6 @@
 //! `ortm bake SCENE -o DIR`: offsets, transfer maps, index and report, with progress bars,
-//! Ctrl-C handling and resume.
+//! Ctrl-C handling and resume; and the sharded bake's three steps (`--plan --shards N`,
+//! `--shard I/N`, `--merge`; [`ortm::bake::shard`], `docs/sharding.md`).
 
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -8,6 +9,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use super::progress::Progress;
 use anyhow::{Context, Result, bail};
 use ortm::bake::offsets::ImportanceMetric;
+use ortm::bake::shard::{self, ShardId};
 use ortm::bake::transport::Effects;
 use ortm::bake::transport::coarse::{AUTO_EXACT_TEXELS, AUTO_MAX_CLUSTERS};
 use ortm::bake::{BakeEvent, BakeSettings, CellRule, Selector, bake};
@@ -79,6 +81,34 @@ pub struct Args {
         help = "With --levels: share each kept block between the receivers of a 2^r×2^r receiver block when every receiver's own value is within the tolerance / 2 of their mean, stored once per block (on: for any lighting the same error bound per block, but the maps' crops keep most of the zeros between shared blocks, so the GPU work falls little: head 256² at 3e-3, 14.9 M stored texels and 148 k pieces instead of 15.9 M and 94 k), or keep one value per receiver (off, the default)"
     )]
     pub receiver_blocks: Option<String>,
+    /// Sharded bake, step 1: the plan (transport, offsets, work split) for `--shards N`.
+    #[arg(
+        long,
+        requires = "shards",
+        conflicts_with_all = ["shard", "merge"],
+        help = "Sharded bake, step 1 (one process): build the transport and the offset selection once and split the receivers into --shards N cost-balanced shares; writes plan.json and transport.bin into the output folder (docs/sharding.md)"
+    )]
+    pub plan: bool,
+    /// The number of shards (with --plan; with --shard when the index comes from
+    /// JOB_COMPLETION_INDEX).
+    #[arg(long, value_name = "N")]
+    pub shards: Option<u32>,
+    /// Sharded bake, step 2: shard I of N.
+    #[arg(
+        long,
+        value_name = "I/N",
+        num_args = 0..=1,
+        default_missing_value = "",
+        conflicts_with = "merge",
+        help = "Sharded bake, step 2: compute shard I (0-based) of N of the plan in the output folder, with the plan's scene and options (resumable: rerun it after a failure). Without I/N: from SLURM_ARRAY_TASK_ID − SLURM_ARRAY_TASK_MIN and SLURM_ARRAY_TASK_COUNT (Slurm job arrays), or JOB_COMPLETION_INDEX (Kubernetes Indexed Jobs) with --shards N or the plan's count"
+    )]
+    pub shard: Option<String>,
+    /// Sharded bake, step 3: merge the shards.
+    #[arg(
+        long,
+        help = "Sharded bake, step 3 (one process): `ortm bake DIR --merge` checks every shard's files, writes the maps, report and index.json — the same bytes as a single-process bake — and removes the plan, transport and shard folders. Scene and options are the plan's"
+    )]
+    pub merge: bool,
 }
 
 /// Parses `--effects`.
@@ -224,26 +254,57 @@ pub fn run(a: Args) -> Result<()> {
     result
 }
 
-/// `ortm bake` proper.
-fn run_bake(a: Args) -> Result<()> {
-    let scene = super::load_scene(&a.scene, a.size)?;
-    let s = settings(&a, scene.lightmap_size)?;
-    ortm::io::limits::check_lightmap_memory(s.size.0, s.size.1)?;
-    let cancel = Arc::new(AtomicBool::new(false));
-    {
-        let c = cancel.clone();
-        // A second Ctrl-C exits at once; the first lets the current map finish.
-        let _ = ctrlc::set_handler(move || {
-            if c.swap(true, Ordering::SeqCst) {
-                std::process::exit(130);
-            }
-            eprintln!(
-                "\ninterrupt: finishing the current map, then stopping (Ctrl-C again to abort)"
-            );
-        });
+/// The shard of `--shard [I/N]`: `value` when given, else from the scheduler's environment
+/// (`env` looks a variable up), with `shards` (`--shards`) or the plan's count `plan_count` when
+/// the environment gives only an index.
+pub fn shard_from(
+    value: &str,
+    shards: Option<u32>,
+    env: &dyn Fn(&str) -> Option<String>,
+    plan_count: &dyn Fn() -> Option<u32>,
+) -> Result<ShardId> {
+    if !value.is_empty() {
+        return ShardId::parse(value).map_err(anyhow::Error::msg);
     }
-    let bar = std::sync::Mutex::new(Progress::hidden());
-    let events = |e: BakeEvent| match e {
+    let num = |name: &str| -> Result<Option<u32>> {
+        env(name)
+            .map(|v| {
+                v.trim().parse::<u32>().map_err(|_| {
+                    anyhow::anyhow!("{name}='{v}' is not a shard number (an integer ≥ 0)")
+                })
+            })
+            .transpose()
+    };
+    let (index, count, source) = if let Some(id) = num("SLURM_ARRAY_TASK_ID")? {
+        let min = num("SLURM_ARRAY_TASK_MIN")?.unwrap_or(0);
+        let index = id.checked_sub(min).ok_or_else(|| {
+            anyhow::anyhow!("SLURM_ARRAY_TASK_ID {id} is below SLURM_ARRAY_TASK_MIN {min}")
+        })?;
+        (
+            index,
+            num("SLURM_ARRAY_TASK_COUNT")?.or(shards),
+            "SLURM_ARRAY_TASK_ID",
+        )
+    } else if let Some(index) = num("JOB_COMPLETION_INDEX")? {
+        (index, shards, "JOB_COMPLETION_INDEX")
+    } else {
+        bail!(
+            "--shard without I/N: give it (e.g. --shard 0/4), or run it as a Slurm array task \
+             (SLURM_ARRAY_TASK_ID) or a Kubernetes Indexed Job pod (JOB_COMPLETION_INDEX)"
+        );
+    };
+    let count = count.or_else(plan_count).ok_or_else(|| {
+        anyhow::anyhow!(
+            "--shard: {source} gives the index {index} but not the number of shards: add \
+             --shards N (or plan first, whose plan.json holds it)"
+        )
+    })?;
+    ShardId::new(index, count).map_err(|e| anyhow::anyhow!("--shard from {source}: {e}"))
+}
+
+/// The progress bars and messages of a bake's events.
+fn event_printer(bar: &std::sync::Mutex<Progress>) -> impl Fn(BakeEvent) + Sync + '_ {
+    move |e: BakeEvent| match e {
         BakeEvent::Phase { name, total } => {
             let mut b = bar.lock().expect("progress lock");
             b.finish();
@@ -251,7 +312,144 @@ fn run_bake(a: Args) -> Result<()> {
         }
         BakeEvent::Advance(n) => bar.lock().expect("progress lock").inc(n),
         BakeEvent::Message(m) => bar.lock().expect("progress lock").println(m),
+    }
+}
+
+/// Ctrl-C: the first lets the current map (or chunk) finish, a second exits at once.
+fn cancel_on_ctrl_c() -> Arc<AtomicBool> {
+    let cancel = Arc::new(AtomicBool::new(false));
+    let c = cancel.clone();
+    let _ = ctrlc::set_handler(move || {
+        if c.swap(true, Ordering::SeqCst) {
+            std::process::exit(130);
+        }
+        eprintln!("\ninterrupt: finishing the current map, then stopping (Ctrl-C again to abort)");
+    });
+    cancel
+}
+
+/// `ortm bake DIR --merge` (or `-o DIR --merge`): the plan's scene, then [`shard::merge`].
+fn run_merge(a: &Args) -> Result<()> {
+    let dir = if std::path::Path::new(&a.scene).is_dir() {
+        PathBuf::from(&a.scene)
+    } else {
+        a.output.clone()
     };
+    let plan = shard::read_plan(&dir)?;
+    let settings = plan.bake_settings()?;
+    let name = settings.scene.clone().ok_or_else(|| {
+        anyhow::anyhow!(
+            "the plan in '{}' does not record its scene: plan again",
+            dir.display()
+        )
+    })?;
+    let scene = super::load_scene(&name, Some(settings.size.0))
+        .with_context(|| format!("loading the plan's scene '{name}'"))?;
+    let cancel = cancel_on_ctrl_c();
+    let bar = std::sync::Mutex::new(Progress::hidden());
+    let events = event_printer(&bar);
+    let summary = shard::merge(&scene, &dir, &events, &cancel)
+        .with_context(|| format!("merging the shards in '{}'", dir.display()));
+    bar.lock().expect("progress lock").finish();
+    let summary = summary?;
+    let removed = remove_stale_files(&dir)?;
+    if removed > 0 {
+        println!(
+            "removed {removed} file(s) of an earlier bake in {}",
+            dir.display()
+        );
+    }
+    println!(
+        "merged {} shards: {} maps ({} reused) for {} texels into {}",
+        summary.shards,
+        summary.maps,
+        summary.reused,
+        summary.texels,
+        dir.display()
+    );
+    println!(
+        "time: verifying and reading shards {:.2} s, maps and index {:.2} s; stored {} texels; \
+         removed the plan, transport and {} shard folder(s)",
+        summary.seconds[0],
+        summary.seconds[1],
+        summary.stored_texels,
+        summary.removed.len().saturating_sub(2)
+    );
+    Ok(())
+}
+
+/// `ortm bake` proper.
+fn run_bake(a: Args) -> Result<()> {
+    if a.merge {
+        return run_merge(&a);
+    }
+    let scene = super::load_scene(&a.scene, a.size)?;
+    let s = settings(&a, scene.lightmap_size)?;
+    ortm::io::limits::check_lightmap_memory(s.size.0, s.size.1)?;
+    if a.shards.is_some() && !a.plan && a.shard.is_none() {
+        bail!("--shards N goes with --plan (or with --shard under a Kubernetes Indexed Job)");
+    }
+    if a.plan {
+        let n = a.shards.expect("clap: --plan requires --shards");
+        let cancel = cancel_on_ctrl_c();
+        let bar = std::sync::Mutex::new(Progress::hidden());
+        let events = event_printer(&bar);
+        let p = shard::plan(&scene, &s, &a.output, n, &events, &cancel)
+            .with_context(|| format!("planning '{}' into '{}'", a.scene, a.output.display()));
+        bar.lock().expect("progress lock").finish();
+        let p = p?;
+        let spread = p
+            .shares
+            .iter()
+            .fold((f64::MAX, 0.0f64), |(lo, hi), &x| (lo.min(x), hi.max(x)));
+        println!(
+            "planned {n} shards of {} {} ({} texels) in {}{}: estimated shares {:.1}–{:.1} %; \
+             transport {:.1} MB",
+            p.units,
+            match p.work {
+                shard::WorkKind::Cells => "receiving clusters",
+                shard::WorkKind::Rows => "receivers",
+            },
+            p.texels,
+            a.output.display(),
+            if p.reused {
+                " (kept the existing plan)"
+            } else {
+                ""
+            },
+            100.0 * spread.0,
+            100.0 * spread.1,
+            p.transport_bytes as f64 / 1e6
+        );
+        println!(
+            "time: transport {:.2} s, offset selection and work split {:.2} s, writing {:.2} s",
+            p.seconds[0], p.seconds[1], p.seconds[2]
+        );
+        return Ok(());
+    }
+    if let Some(v) = &a.shard {
+        let id = shard_from(v, a.shards, &|name| std::env::var(name).ok(), &|| {
+            shard::read_plan(&a.output)
+                .ok()
+                .map(|p| p.shards.len() as u32)
+        })?;
+        let cancel = cancel_on_ctrl_c();
+        let bar = std::sync::Mutex::new(Progress::hidden());
+        let events = event_printer(&bar);
+        let r = shard::run_shard(&scene, &s, &a.output, id, &events, &cancel)
+            .with_context(|| format!("shard {id} of '{}' in '{}'", a.scene, a.output.display()));
+        bar.lock().expect("progress lock").finish();
+        let r = r?;
+        println!(
+            "shard {id}: {} receivers, {} chunks written, {} kept; time: loading {:.2} s, \
+             computing and writing {:.2} s",
+            r.receivers, r.written, r.reused, r.seconds[0], r.seconds[1]
+        );
+        return Ok(());
+    }
+    let cancel = cancel_on_ctrl_c();
+    let bar = std::sync::Mutex::new(Progress::hidden());
+    let events = event_printer(&bar);
     let summary = bake(&scene, &s, &a.output, &events, &cancel)
         .with_context(|| format!("baking '{}' into '{}'", a.scene, a.output.display()));
     bar.lock().expect("progress lock").finish();

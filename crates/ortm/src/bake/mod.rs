@@ -42,6 +42,7 @@ pub mod offsets;
 pub mod pipeline;
 pub mod raycast;
 pub mod report;
+pub mod shard;
 pub mod texels;
 pub mod transport;
 

@@ -64,7 +64,7 @@ impl Default for MultiresSettings {
 }
 
 /// One kept block of one receiver's row.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Entry {
     /// Pyramid level.
     pub level: u8,
@@ -202,11 +202,27 @@ pub fn partition_rows(
     settings: &[MultiresSettings],
     progress: &SetupProgress,
 ) -> Result<Vec<Vec<Vec<Entry>>>, Cancelled> {
+    partition_rows_in(grid, row, settings, 0..grid.texels.len() as u32, progress)
+}
+
+/// [`partition_rows`] of the receivers `receivers` only (texel indices; `out[s][i]` is
+/// receiver `receivers.start + i`'s): what a shard of a sharded bake computes
+/// ([`crate::bake::shard`]). A receiver's entries do not depend on which others are computed.
+///
+/// # Errors
+/// [`Cancelled`] when `progress` is cancelled.
+pub fn partition_rows_in(
+    grid: &TexelGrid,
+    row: impl Fn(u32, &mut [[f32; 3]]) + Sync,
+    settings: &[MultiresSettings],
+    receivers: std::ops::Range<u32>,
+    progress: &SetupProgress,
+) -> Result<Vec<Vec<Vec<Entry>>>, Cancelled> {
     let layout = Layout::new(grid, level_count(grid.width, grid.height));
     let n = grid.texels.len();
     let w = grid.width;
-    progress.phase("multi-resolution rows", n as u64);
-    let per_receiver: Vec<Vec<Vec<Entry>>> = (0..n as u32)
+    progress.phase("multi-resolution rows", receivers.len() as u64);
+    let per_receiver: Vec<Vec<Vec<Entry>>> = receivers
         .into_par_iter()
         .map_init(
             || {
@@ -232,7 +248,9 @@ pub fn partition_rows(
             },
         )
         .collect::<Result<_, Cancelled>>()?;
-    let mut out: Vec<Vec<Vec<Entry>>> = settings.iter().map(|_| Vec::with_capacity(n)).collect();
+    let mut out: Vec<Vec<Vec<Entry>>> = (settings.iter())
+        .map(|_| Vec::with_capacity(per_receiver.len()))
+        .collect();
     for per_setting in per_receiver {
         for (o, e) in out.iter_mut().zip(per_setting) {
             o.push(e);

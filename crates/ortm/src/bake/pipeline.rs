@@ -517,6 +517,37 @@ impl MapPlan {
         self.map_prepared(transport, grid, k)
     }
 
+    /// A plan whose integrated cell values are already computed (a sharded bake's merge,
+    /// [`crate::bake::shard`]): maps come from `values` without the transport.
+    pub fn with_values(
+        grid: &TexelGrid,
+        offset_list: &[IVec2],
+        values: crate::bake::cells::CellValues,
+    ) -> Result<Self, BakeError> {
+        let mut plan = Self::new(grid, offset_list, CellRule::Integrated)?;
+        plan.integrated = Some(values);
+        Ok(plan)
+    }
+
+    /// The `k`-th map from the integrated values ([`MapPlan::prepare`] or
+    /// [`MapPlan::with_values`]).
+    ///
+    /// # Errors
+    /// [`BakeError::Settings`] when there are none.
+    pub fn integrated_map(&self, k: usize) -> Result<TransferMap, BakeError> {
+        let Some(iv) = &self.integrated else {
+            return Err(BakeError::Settings(
+                "internal: MapPlan::integrated_map without integrated values".into(),
+            ));
+        };
+        Ok(TransferMap::from_full(
+            self.offsets[k],
+            self.areas[k],
+            iv.peak[k],
+            &iv.map(k),
+        )?)
+    }
+
     /// The `k`-th map, without preparing: for [`CellRule::Integrated`], [`MapPlan::prepare`] must
     /// have run (else the map is computed by the sampled rule's code path, which is an error).
     ///
@@ -574,6 +605,122 @@ fn write_json_atomic<T: Serialize>(path: &Path, value: &T) -> Result<(), BakeErr
     })
 }
 
+/// What every way of baking needs before the transport: the checked settings, the covered
+/// texels and the bake's key.
+pub(crate) struct Setup {
+    /// Covered texels.
+    pub grid: TexelGrid,
+    /// Cluster size of the coarse solve (automatic resolved).
+    pub block: u32,
+    /// Clusters of the coarse solve.
+    pub clusters: usize,
+    /// Integrated cell values the bake will hold (memory estimate).
+    pub cell_values: u64,
+    /// The scene's hash.
+    pub hash: String,
+    /// The settings as recorded ([`BakeSettings::to_json`]).
+    pub settings_json: serde_json::Value,
+    /// The bake key (scene hash + settings).
+    pub key: BakeKey,
+}
+
+impl Setup {
+    /// Checks `settings` against the limits and rasterizes the texels.
+    pub(crate) fn new(scene: &Scene, settings: &BakeSettings) -> Result<Self, BakeError> {
+        if settings.offsets == 0 {
+            return Err(BakeError::Settings("--offsets must be at least 1".into()));
+        }
+        let (w, h) = settings.size;
+        crate::io::limits::check_bake_request(w, h, settings.offsets)
+            .map_err(|e| BakeError::Settings(e.to_string()))?;
+        crate::io::limits::check_lightmap_memory(w, h)
+            .map_err(|e| BakeError::Settings(e.to_string()))?;
+        let grid = TexelGrid::build_with_size(scene, w, h)?;
+        let block = match settings.coarse_block {
+            0 => crate::bake::transport::coarse::auto_block(&grid),
+            b => b,
+        };
+        let clusters = crate::bake::transport::coarse::cluster_count(&grid, block);
+        let cell_values = match settings.cell_rule {
+            CellRule::Integrated => u64::from(w) * u64::from(h) * settings.offsets as u64,
+            CellRule::Sampled => 0,
+        };
+        crate::io::limits::check_bake_memory(
+            clusters as u64,
+            grid.texels.len() as u64,
+            block,
+            cell_values,
+        )
+        .map_err(|e| BakeError::Settings(e.to_string()))?;
+        let hash = scene_hash(scene);
+        let settings_json = settings.to_json();
+        let key = BakeKey::new(&hash, &settings_json);
+        Ok(Self {
+            grid,
+            block,
+            clusters,
+            cell_values,
+            hash,
+            settings_json,
+            key,
+        })
+    }
+
+    /// Builds the transport the settings ask for (with progress and cancellation).
+    pub(crate) fn transport(
+        &self,
+        scene: &Scene,
+        settings: &BakeSettings,
+        events: &(dyn Fn(BakeEvent) + Sync),
+        cancel: &AtomicBool,
+    ) -> Result<Transport, BakeError> {
+        let (grid, block, clusters) = (&self.grid, self.block, self.clusters);
+        let (w, h) = settings.size;
+        let links = match settings.tolerance {
+            Some(t) => format!("; hierarchical first bounce at tolerance {t:e}"),
+            None => String::new(),
+        };
+        events(BakeEvent::Message(format!(
+            "{} covered texels at {w}x{h}; building the transport (BVH, coarse solve, {clusters} \
+             clusters of {block}² texels{links})",
+            grid.texels.len(),
+        )));
+        let interrupted = || BakeError::Interrupted {
+            done: 0,
+            total: settings.offsets,
+        };
+        let progress = SetupProgress::new(events, cancel);
+        Ok(match settings.tolerance {
+            None => Transport::build(scene, grid, settings.effects, block, &progress)
+                .map_err(|_| interrupted())?,
+            Some(tolerance) => {
+                // The links may take what the memory limit leaves after the rest of the bake.
+                let rest = crate::io::limits::bake_memory_bytes(
+                    clusters as u64,
+                    grid.texels.len() as u64,
+                    self.cell_values,
+                );
+                let max_bytes = crate::io::limits::memory_limit_bytes()
+                    .map_err(|e| BakeError::Settings(e.to_string()))?
+                    .map(|l| l.saturating_sub(rest));
+                let hs = hier::Settings {
+                    tolerance,
+                    max_bytes,
+                    ..hier::Settings::default()
+                };
+                Transport::build_hierarchical(scene, grid, settings.effects, block, &hs, &progress)
+                    .map_err(|e| match e {
+                        hier::BuildError::Cancelled => interrupted(),
+                        e @ hier::BuildError::TooLarge { .. } => BakeError::Settings(format!(
+                            "{e} (--tolerance {tolerance:e}; the links may use the memory limit \
+                             less the rest of the bake: physical memory or ORTM_MEMORY_LIMIT_BYTES)"
+                        )),
+                    })?
+            }
+        })
+    }
+}
+
 /// Bakes `scene` into `dir` (resumable; see the module docs). `cancel` is polled between maps.
 pub fn bake(
     scene: &Scene,
@@ -582,92 +729,35 @@ pub fn bake(
     events: &(dyn Fn(BakeEvent) + Sync),
     cancel: &AtomicBool,
 ) -> Result<BakeSummary, BakeError> {
-    if settings.offsets == 0 {
-        return Err(BakeError::Settings("--offsets must be at least 1".into()));
-    }
-    let (w, h) = settings.size;
     let t0 = std::time::Instant::now();
     // Held to the end: one writer per directory, and the stale-temp sweep only under it.
     let _lock = crate::io::DirLock::acquire(dir)?;
-    crate::io::limits::check_bake_request(w, h, settings.offsets)
-        .map_err(|e| BakeError::Settings(e.to_string()))?;
-    crate::io::limits::check_lightmap_memory(w, h)
-        .map_err(|e| BakeError::Settings(e.to_string()))?;
-    let grid = TexelGrid::build_with_size(scene, w, h)?;
-    let block = match settings.coarse_block {
-        0 => crate::bake::transport::coarse::auto_block(&grid),
-        b => b,
-    };
-    let clusters = crate::bake::transport::coarse::cluster_count(&grid, block);
-    let cell_values = match settings.cell_rule {
-        CellRule::Integrated => u64::from(w) * u64::from(h) * settings.offsets as u64,
-        CellRule::Sampled => 0,
-    };
-    crate::io::limits::check_bake_memory(
-        clusters as u64,
-        grid.texels.len() as u64,
-        block,
-        cell_values,
-    )
-    .map_err(|e| BakeError::Settings(e.to_string()))?;
-    let hash = scene_hash(scene);
-    let settings_json = settings.to_json();
-    let key = BakeKey::new(&hash, &settings_json);
-    let links = match settings.tolerance {
-        Some(t) => format!("; hierarchical first bounce at tolerance {t:e}"),
-        None => String::new(),
-    };
-    events(BakeEvent::Message(format!(
-        "{} covered texels at {w}x{h}; building the transport (BVH, coarse solve, {clusters} \
-         clusters of {block}² texels{links})",
-        grid.texels.len(),
-    )));
-    let interrupted = || BakeError::Interrupted {
-        done: 0,
-        total: settings.offsets,
-    };
-    let progress = SetupProgress::new(events, cancel);
-    let transport = match settings.tolerance {
-        None => Transport::build(scene, &grid, settings.effects, block, &progress)
-            .map_err(|_| interrupted())?,
-        Some(tolerance) => {
-            // The links may take what the memory limit leaves after the rest of the bake.
-            let rest = crate::io::limits::bake_memory_bytes(
-                clusters as u64,
-                grid.texels.len() as u64,
-                cell_values,
-            );
-            let max_bytes = crate::io::limits::memory_limit_bytes()
-                .map_err(|e| BakeError::Settings(e.to_string()))?
-                .map(|l| l.saturating_sub(rest));
-            let hs = hier::Settings {
-                tolerance,
-                max_bytes,
-                ..hier::Settings::default()
-            };
-            Transport::build_hierarchical(scene, &grid, settings.effects, block, &hs, &progress)
-                .map_err(|e| match e {
-                    hier::BuildError::Cancelled => interrupted(),
-                    e @ hier::BuildError::TooLarge { .. } => BakeError::Settings(format!(
-                        "{e} (--tolerance {tolerance:e}; the links may use the memory limit \
-                         less the rest of the bake: physical memory or ORTM_MEMORY_LIMIT_BYTES)"
-                    )),
-                })?
-        }
-    };
+    let setup = Setup::new(scene, settings)?;
+    let transport = setup.transport(scene, settings, events, cancel)?;
     let t_transport = t0.elapsed().as_secs_f64();
+    let Setup {
+        grid,
+        hash,
+        settings_json,
+        key,
+        ..
+    } = setup;
+    let (w, h) = settings.size;
 
     if let Some(tolerance) = settings.levels {
-        let written = write_level_maps(
+        let t = std::time::Instant::now();
+        let entries = level_rows(&transport, &grid, tolerance, events, cancel)?;
+        drop(transport);
+        let written = write_level_entries(
             dir,
             &key,
-            &transport,
             &grid,
+            entries,
             (tolerance, settings.receiver_blocks),
             events,
             cancel,
         )?;
-        let t_rows = written.seconds;
+        let t_rows = t.elapsed().as_secs_f64() - written.write_seconds;
         let maps = written.entries.len();
         let (reused, stored_texels) = (written.reused, written.stored_texels);
         bake_index((w, h), hash, settings_json, written.entries).write(dir)?;
@@ -689,30 +779,54 @@ pub fn bake(
     let t_select = t0.elapsed().as_secs_f64() - t_transport;
 
     let plan = MapPlan::new(&grid, &offset_list, settings.cell_rule)?;
-    let written = write_maps(dir, &key, &transport, &grid, plan, events, cancel)?;
-    let importance: Vec<f64> = written.entries.iter().map(|e| e.importance).collect();
-    let index = bake_index((w, h), hash, settings_json, written.entries);
-    crate::bake::report::write_bake_report(dir, &grid, &offset_list, &importance, &points)
-        .map_err(|e| BakeError::Io {
-            path: dir.join("report"),
-            source: std::io::Error::other(e.to_string()),
-        })?;
-    index.write(dir)?;
+    let written = write_maps(dir, &key, Some(&transport), &grid, plan, events, cancel)?;
+    let (reused, stored_texels) = (written.reused, written.stored_texels);
+    finish_offset_bake(
+        dir,
+        (&grid, hash, settings_json),
+        (&offset_list, &points),
+        written,
+    )?;
     Ok(BakeSummary {
         maps: offset_list.len(),
-        reused: written.reused,
+        reused,
         seconds: [
             t_transport,
             t_select,
             t0.elapsed().as_secs_f64() - t_transport - t_select,
         ],
         texels: grid.texels.len(),
-        stored_texels: written.stored_texels,
+        stored_texels,
     })
 }
 
+/// The end of an offset bake whose maps are written: the report pictures, then `index.json`
+/// (last, so a directory with an index is a complete bake).
+pub(crate) fn finish_offset_bake(
+    dir: &Path,
+    (grid, hash, settings_json): (&TexelGrid, String, serde_json::Value),
+    (offset_list, points): (&[IVec2], &[[f64; 3]]),
+    written: WrittenMaps,
+) -> Result<(), BakeError> {
+    let importance: Vec<f64> = written.entries.iter().map(|e| e.importance).collect();
+    let index = bake_index(
+        (grid.width, grid.height),
+        hash,
+        settings_json,
+        written.entries,
+    );
+    crate::bake::report::write_bake_report(dir, grid, offset_list, &importance, points).map_err(
+        |e| BakeError::Io {
+            path: dir.join("report"),
+            source: std::io::Error::other(e.to_string()),
+        },
+    )?;
+    index.write(dir)?;
+    Ok(())
+}
+
 /// The index of a finished bake of a `width × height` lightmap.
-fn bake_index(
+pub(crate) fn bake_index(
     (width, height): (u32, u32),
     scene_hash: String,
     settings: serde_json::Value,
@@ -724,7 +838,7 @@ fn bake_index(
 /// The offsets and importance data points of the bake `key`: those saved in `dir`'s
 /// `selection.json` when it belongs to the same bake and is plausible, else a new selection
 /// ([`select_offsets`]), saved atomically.
-fn saved_or_new_selection(
+pub(crate) fn saved_or_new_selection(
     dir: &Path,
     key: &BakeKey,
     transport: &Transport,
@@ -766,23 +880,23 @@ fn saved_or_new_selection(
 }
 
 /// The maps of a bake directory after [`write_maps`].
-struct WrittenMaps {
+pub(crate) struct WrittenMaps {
     /// Index entries, in offset order.
-    entries: Vec<bake_dir::MapEntry>,
+    pub(crate) entries: Vec<bake_dir::MapEntry>,
     /// Maps kept from an earlier run.
-    reused: usize,
+    pub(crate) reused: usize,
     /// Stored (cropped) texels over all maps.
-    stored_texels: u64,
+    pub(crate) stored_texels: u64,
 }
 
 /// Writes every map of `plan` that `dir` does not already hold for the bake `key`
 /// (stale temporary files are removed first). Maps are independent: they are computed,
 /// cropped, encoded and written in parallel, each atomically, so an interruption (`cancel`)
 /// leaves only whole maps behind, whatever the order.
-fn write_maps(
+pub(crate) fn write_maps(
     dir: &Path,
     key: &BakeKey,
-    transport: &Transport,
+    transport: Option<&Transport>,
     grid: &TexelGrid,
     mut plan: MapPlan,
     events: &(dyn Fn(BakeEvent) + Sync),
@@ -807,7 +921,9 @@ fn write_maps(
         if cancel.load(Ordering::Relaxed) {
             return Err(BakeError::Interrupted { done: 0, total });
         }
-        plan.prepare(transport, grid, events);
+        if let Some(transport) = transport {
+            plan.prepare(transport, grid, events);
+        }
     }
     write_each(
         total,
@@ -817,7 +933,10 @@ fn write_maps(
                 .filter(|e| e.offset == offset_list[k].to_array())
         },
         |k| {
-            let map = plan.map_prepared(transport, grid, k)?;
+            let map = match transport {
+                Some(transport) => plan.map_prepared(transport, grid, k)?,
+                None => plan.integrated_map(k)?,
+            };
             let entry = bake_dir::write_map_file(dir, k as u32, &map, key)?;
             Ok((entry, map.stored_texels()))
         },
@@ -868,47 +987,79 @@ fn write_each<'a>(
     gather_written(results, written.load(Ordering::Relaxed), total)
 }
 
-/// The multi-resolution maps at `tolerance` ([`crate::bake::multires`]): every receiver's row
-/// from the hierarchical transport when the bake has one
-/// ([`crate::bake::multires::hierarchical_row`], `--tolerance`), else from the pair evaluator
-/// ([`Transport::r`], `n²` evaluations with a visibility ray each), partitioned, grouped into one
-/// map per level and offset — or with `receiver_blocks`, shared between neighbouring receivers
-/// ([`crate::bake::multires::coarsen_receivers`] at the same tolerance) and grouped into one map
-/// per receiver level, level and offset ([`crate::bake::multires::to_block_maps`]) — and written
-/// like [`write_maps`] (in parallel, each atomically; a finished map of the same bake key, index,
-/// offset, level, receiver level and rectangles is kept: the rows are deterministic).
-fn write_level_maps(
-    dir: &Path,
-    key: &BakeKey,
+/// Every receiver's kept blocks at `tolerance` ([`crate::bake::multires`]): its row from the
+/// hierarchical transport when the bake has one ([`crate::bake::multires::hierarchical_row`],
+/// `--tolerance`), else from the pair evaluator ([`Transport::r`], `n²` evaluations with a
+/// visibility ray each), partitioned; `receivers` (texel indices), all of them for a
+/// single-process bake, a shard's share for a sharded one ([`crate::bake::shard`]).
+pub(crate) fn level_rows_in(
     transport: &Transport,
     grid: &TexelGrid,
-    (tolerance, receiver_blocks): (f64, bool),
+    tolerance: f64,
+    receivers: std::ops::Range<u32>,
     events: &(dyn Fn(BakeEvent) + Sync),
     cancel: &AtomicBool,
-) -> Result<LevelMapsWritten, BakeError> {
+) -> Result<Vec<Vec<crate::bake::multires::Entry>>, BakeError> {
     use crate::bake::multires::{self, MultiresSettings};
-    if !(tolerance.is_finite() && tolerance >= 0.0) {
-        return Err(BakeError::Settings(format!(
-            "--levels {tolerance}: give a tolerance ≥ 0, e.g. 3e-3"
-        )));
-    }
-    let t = std::time::Instant::now();
+    check_level_tolerance(tolerance)?;
     let progress = SetupProgress::new(events, cancel);
     let settings = MultiresSettings {
         tolerance,
         ..MultiresSettings::default()
     };
-    let entries = match multires::hierarchical_row(transport) {
-        Some(row) => multires::partition_rows(grid, row, &[settings], &progress),
-        None => multires::partition_rows(
+    Ok(match multires::hierarchical_row(transport) {
+        Some(row) => multires::partition_rows_in(grid, row, &[settings], receivers, &progress),
+        None => multires::partition_rows_in(
             grid,
             multires::transport_row(transport),
             &[settings],
+            receivers,
             &progress,
         ),
     }
     .map_err(|_| BakeError::Interrupted { done: 0, total: 0 })?
-    .remove(0);
+    .remove(0))
+}
+
+/// [`level_rows_in`] of every receiver.
+fn level_rows(
+    transport: &Transport,
+    grid: &TexelGrid,
+    tolerance: f64,
+    events: &(dyn Fn(BakeEvent) + Sync),
+    cancel: &AtomicBool,
+) -> Result<Vec<Vec<crate::bake::multires::Entry>>, BakeError> {
+    let n = grid.texels.len() as u32;
+    level_rows_in(transport, grid, tolerance, 0..n, events, cancel)
+}
+
+/// Refuses a `--levels` tolerance that is not a number ≥ 0.
+pub(crate) fn check_level_tolerance(tolerance: f64) -> Result<(), BakeError> {
+    if !(tolerance.is_finite() && tolerance >= 0.0) {
+        return Err(BakeError::Settings(format!(
+            "--levels {tolerance}: give a tolerance ≥ 0, e.g. 3e-3"
+        )));
+    }
+    Ok(())
+}
+
+/// The multi-resolution maps of every receiver's kept blocks `entries` (grid texel order):
+/// grouped into one map per level and offset — or with `receiver_blocks`, shared between
+/// neighbouring receivers ([`crate::bake::multires::coarsen_receivers`] at the same tolerance)
+/// and grouped into one map per receiver level, level and offset
+/// ([`crate::bake::multires::to_block_maps`]) — and written like [`write_maps`] (in parallel,
+/// each atomically; a finished map of the same bake key, index, offset, level, receiver level
+/// and rectangles is kept: the rows are deterministic).
+pub(crate) fn write_level_entries(
+    dir: &Path,
+    key: &BakeKey,
+    grid: &TexelGrid,
+    entries: Vec<Vec<crate::bake::multires::Entry>>,
+    (tolerance, receiver_blocks): (f64, bool),
+    events: &(dyn Fn(BakeEvent) + Sync),
+    cancel: &AtomicBool,
+) -> Result<LevelMapsWritten, BakeError> {
+    use crate::bake::multires;
     let maps = if receiver_blocks {
         let blocks = multires::coarsen_receivers(grid, &entries, tolerance);
         drop(entries);
@@ -934,7 +1085,7 @@ fn write_level_maps(
             crate::io::limits::MAX_OFFSETS
         )));
     }
-    let seconds = t.elapsed().as_secs_f64();
+    let t = std::time::Instant::now();
     let scan = bake_dir::scan_finished_maps(dir, key, grid.width, grid.height)?;
     for p in &scan.stale_temp {
         let _ = std::fs::remove_file(p);
@@ -961,16 +1112,16 @@ fn write_level_maps(
         entries: w.entries,
         reused: w.reused,
         stored_texels: w.stored_texels,
-        seconds,
+        write_seconds: t.elapsed().as_secs_f64(),
     })
 }
 
-/// What [`write_level_maps`] wrote, and the seconds its rows took.
-struct LevelMapsWritten {
-    entries: Vec<bake_dir::MapEntry>,
-    reused: usize,
-    stored_texels: u64,
-    seconds: f64,
+/// What [`write_level_entries`] wrote, and the seconds its writing took.
+pub(crate) struct LevelMapsWritten {
+    pub entries: Vec<bake_dir::MapEntry>,
+    pub reused: usize,
+    pub stored_texels: u64,
+    pub write_seconds: f64,
 }
 
 /// Joins the per-map results of [`write_maps`] (in offset order). A failed map's error comes

@@ -502,46 +502,132 @@ pub fn integrate(
     cells: &DiscreteCells,
     progress: &(dyn Fn(u64) + Sync),
 ) -> CellValues {
-    let (w, h) = (grid.width, grid.height);
-    let kmaps = offsets.len();
-    let rem = &transport.remainder;
-    let nc = rem.clusters.len();
-    let p = rem.block.max(1).next_power_of_two() as usize;
-    let table = CellTable::new(cells, w, h, p);
-    let origin = match table.cell(0, 0) {
-        NO_CELL => None,
-        c => Some(c),
-    };
-    let cand = Candidates::new(&cell_neighbours(&table, kmaps), origin);
-    let links = (transport.links.as_ref()).map(|op| links::LinkIndex::new(op, grid, &table));
-    let run = Integration {
-        transport,
+    let run = Integrator::new(transport, grid, offsets, cells);
+    let per_cluster = run.clusters_in(0..run.cluster_count(), progress);
+    assemble(
         grid,
-        offsets,
-        clusters: clusters(transport, grid),
-        table,
-        origin,
-        cand,
-        links,
-    };
-    let per_cluster: Vec<(Vec<[f32; 3]>, CellStats)> = (0..nc)
-        .into_par_iter()
-        .map(|ci| {
-            let out = run.receiving_cluster(ci);
-            progress(run.clusters.texels[ci].len() as u64);
-            out
+        offsets.len(),
+        &run.receivers_by_cluster(),
+        per_cluster,
+    )
+}
+
+/// The cell values of one receiving cluster: `K` values per receiver in the cluster's receiver
+/// order ([`Integrator::receivers_by_cluster`]), and what it took. What a sharded bake's
+/// shards compute ([`crate::bake::shard`]).
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct ClusterValues {
+    /// Receiver-major values, `K` per receiver.
+    pub values: Vec<[f32; 3]>,
+    /// What the integration did.
+    pub stats: ClusterStats,
+}
+
+/// [`CellStats`] in a serialisable form (one receiving cluster's counts, field by field).
+pub type ClusterStats = [u64; 10];
+
+/// The prepared integration of [`integrate`] (cell table, clusters, candidate sites, link
+/// index), from which receiving clusters are computed one by one — all of them by
+/// [`integrate`], a share of them by a shard of a sharded bake. A cluster's values do not
+/// depend on which other clusters are computed.
+pub struct Integrator<'a>(Integration<'a>);
+
+impl<'a> Integrator<'a> {
+    /// Prepares the integration of `offsets` and their discrete `cells`.
+    pub fn new(
+        transport: &'a Transport,
+        grid: &'a TexelGrid,
+        offsets: &'a [IVec2],
+        cells: &DiscreteCells,
+    ) -> Self {
+        let (w, h) = (grid.width, grid.height);
+        let kmaps = offsets.len();
+        let p = transport.remainder.block.max(1).next_power_of_two() as usize;
+        let table = CellTable::new(cells, w, h, p);
+        let origin = match table.cell(0, 0) {
+            NO_CELL => None,
+            c => Some(c),
+        };
+        let cand = Candidates::new(&cell_neighbours(&table, kmaps), origin);
+        let links = (transport.links.as_ref()).map(|op| links::LinkIndex::new(op, grid, &table));
+        Self(Integration {
+            transport,
+            grid,
+            offsets,
+            clusters: clusters(transport, grid),
+            table,
+            origin,
+            cand,
+            links,
         })
-        .collect();
+    }
+
+    /// Receiving clusters (the coarse level's clusters).
+    pub fn cluster_count(&self) -> usize {
+        self.0.clusters.texels.len()
+    }
+
+    /// The receivers (texel indices) of every cluster, in the order of their values.
+    pub fn receivers_by_cluster(&self) -> Vec<Vec<u32>> {
+        self.0.clusters.texels.clone()
+    }
+
+    /// An estimate of each receiving cluster's cost, for balancing shards: its receivers times
+    /// the sender clusters each visits plus the texels of its exact zone.
+    pub fn cluster_costs(&self) -> Vec<u64> {
+        let cl = &self.0.clusters;
+        let nc = cl.texels.len() as u64;
+        (0..cl.texels.len())
+            .map(|ci| {
+                let zone: u64 = (cl.near[ci].iter())
+                    .filter(|n| n.exact_zone)
+                    .map(|n| cl.texels[n.cluster as usize].len() as u64)
+                    .sum();
+                cl.texels[ci].len() as u64 * (nc + zone + 1)
+            })
+            .collect()
+    }
+
+    /// The values of receiving clusters `range`, in parallel; `progress` is called with the
+    /// receivers finished.
+    pub fn clusters_in(
+        &self,
+        range: std::ops::Range<usize>,
+        progress: &(dyn Fn(u64) + Sync),
+    ) -> Vec<ClusterValues> {
+        range
+            .into_par_iter()
+            .map(|ci| {
+                let (values, st) = self.0.receiving_cluster(ci);
+                progress(self.0.clusters.texels[ci].len() as u64);
+                ClusterValues {
+                    values,
+                    stats: st.to_array(),
+                }
+            })
+            .collect()
+    }
+}
+
+/// Every map's values from the values of every receiving cluster (`per_cluster[ci]` holding
+/// `receivers[ci]`'s, [`Integrator`]), `kmaps` maps.
+pub fn assemble(
+    grid: &TexelGrid,
+    kmaps: usize,
+    receivers: &[Vec<u32>],
+    per_cluster: Vec<ClusterValues>,
+) -> CellValues {
+    let (w, h) = (grid.width, grid.height);
     let mut values = vec![[0.0f32; 3]; (w * h) as usize * kmaps];
     let mut stats = CellStats::default();
-    for ((out, st), recv) in per_cluster.into_iter().zip(&run.clusters.texels) {
+    for (out, recv) in per_cluster.into_iter().zip(receivers) {
         for (r, &i) in recv.iter().enumerate() {
             let t = &grid.texels[i as usize];
             let slot = (t.y * w + t.x) as usize;
             values[slot * kmaps..(slot + 1) * kmaps]
-                .copy_from_slice(&out[r * kmaps..(r + 1) * kmaps]);
+                .copy_from_slice(&out.values[r * kmaps..(r + 1) * kmaps]);
         }
-        stats = stats.plus(&st);
+        stats = stats.plus(&CellStats::from_array(out.stats));
     }
     let mut peak = vec![0.0f64; kmaps];
     for px in values.chunks_exact(kmaps) {
@@ -560,6 +646,50 @@ pub fn integrate(
 }
 
 impl CellStats {
+    /// The counts in field order.
+    fn to_array(self) -> ClusterStats {
+        [
+            self.near_cluster_pairs,
+            self.near_texel_pairs,
+            self.uniform_windows,
+            self.split_windows,
+            self.rehomed,
+            self.rehomed_far,
+            self.moved_uncovered,
+            self.links,
+            self.link_nodes,
+            self.subsurface_nodes,
+        ]
+    }
+
+    /// The counts of [`CellStats::to_array`].
+    fn from_array(a: ClusterStats) -> Self {
+        let [
+            near_cluster_pairs,
+            near_texel_pairs,
+            uniform_windows,
+            split_windows,
+            rehomed,
+            rehomed_far,
+            moved_uncovered,
+            links,
+            link_nodes,
+            subsurface_nodes,
+        ] = a;
+        Self {
+            near_cluster_pairs,
+            near_texel_pairs,
+            uniform_windows,
+            split_windows,
+            rehomed,
+            rehomed_far,
+            moved_uncovered,
+            links,
+            link_nodes,
+            subsurface_nodes,
+        }
+    }
+
     /// The field-wise sum of two sets of counts.
     fn plus(&self, b: &CellStats) -> CellStats {
         CellStats {

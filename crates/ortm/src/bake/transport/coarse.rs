@@ -16,6 +16,7 @@ use super::{Cancelled, Kernels, Patch, SetupProgress};
 use crate::bake::texels::{Texel, TexelGrid};
 
 /// The higher-order remainder at the coarse level.
+#[derive(serde::Serialize, serde::Deserialize)]
 pub struct Remainder {
     /// Cluster of every texel (grid texel order).
     pub cluster_of: Vec<u32>,

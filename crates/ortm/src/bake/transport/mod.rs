@@ -159,7 +159,7 @@ impl Default for Effects {
 }
 
 /// A surface patch: one texel, or a cluster of texels at the coarse level.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, serde::Serialize, serde::Deserialize)]
 pub struct Patch {
     /// Centroid, metres.
     pub position_m: Vec3,
@@ -562,7 +562,7 @@ impl Kernels {
 /// once. Stored as f32 (16 bytes per pair: 200 MB for the head's 961,180 texels at 1024²;
 /// the normalisation itself sums the f64 values), so a kept weight differs from the one
 /// integrated anew by its rounding, ≤ 6·10⁻⁸ relative.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
 pub struct NearWeights {
     /// Receiver `i`'s pairs are `entries[start[i]..start[i + 1]]`, sorted by sender (empty
     /// when nothing is kept).
@@ -670,6 +670,11 @@ impl SupportGrid {
     }
 }
 
+/// First bytes of [`Transport::to_bytes`].
+const TRANSPORT_MAGIC: &[u8; 8] = b"ORTMTRNS";
+/// Version of [`Transport::to_bytes`]'s layout (the serde form of its parts, postcard-encoded).
+const TRANSPORT_VERSION: u32 = 1;
+
 /// Evaluates `R(t, t')` for any pair of covered texels of a lightmap (see the module docs).
 pub struct Transport {
     /// Covered texels as patches (texel order of the grid).
@@ -768,6 +773,78 @@ impl Transport {
             Some(op),
             progress,
         )?)
+    }
+
+    /// The transport as bytes (a sharded bake's plan hands it to its shards,
+    /// [`crate::bake::shard`]): everything but the kernels, which [`Transport::from_bytes`]
+    /// rebuilds from the scene (profiles, tables, BVH: cheap and deterministic). Floats are
+    /// stored bit for bit, so the shards compute exactly what one process would.
+    pub fn to_bytes(&self) -> Vec<u8> {
+        #[derive(Serialize)]
+        struct Parts<'a> {
+            effects: Effects,
+            patches: &'a [Patch],
+            remainder: &'a coarse::Remainder,
+            links: Option<&'a hier::Operator>,
+            near: &'a NearWeights,
+        }
+        let mut out = TRANSPORT_MAGIC.to_vec();
+        out.extend_from_slice(&TRANSPORT_VERSION.to_le_bytes());
+        postcard::to_io(
+            &Parts {
+                effects: self.kernels.effects,
+                patches: &self.patches,
+                remainder: &self.remainder,
+                links: self.links.as_ref(),
+                near: &self.near,
+            },
+            &mut out,
+        )
+        .expect("writing to a Vec cannot fail");
+        out
+    }
+
+    /// The transport of [`Transport::to_bytes`], with its kernels rebuilt for `scene`.
+    ///
+    /// # Errors
+    /// A message when the bytes are not a transport of this version, or were made with other
+    /// effects or for another number of texels than `grid`'s.
+    pub fn from_bytes(scene: &Scene, grid: &TexelGrid, bytes: &[u8]) -> Result<Self, String> {
+        #[derive(Deserialize)]
+        struct Parts {
+            effects: Effects,
+            patches: Vec<Patch>,
+            remainder: coarse::Remainder,
+            links: Option<hier::Operator>,
+            near: NearWeights,
+        }
+        let head = TRANSPORT_MAGIC.len();
+        if bytes.len() < head + 4 || &bytes[..head] != TRANSPORT_MAGIC {
+            return Err("not an ortm transport file".into());
+        }
+        let version = u32::from_le_bytes(bytes[head..head + 4].try_into().expect("4 bytes"));
+        if version != TRANSPORT_VERSION {
+            return Err(format!(
+                "transport version {version}, this ortm reads version {TRANSPORT_VERSION}"
+            ));
+        }
+        let p: Parts = postcard::from_bytes(&bytes[head + 4..]).map_err(|e| e.to_string())?;
+        if p.patches.len() != grid.texels.len() || p.remainder.cluster_of.len() != grid.texels.len()
+        {
+            return Err(format!(
+                "{} texels in the transport, {} in the lightmap",
+                p.patches.len(),
+                grid.texels.len()
+            ));
+        }
+        let visibility = Arc::new(Visibility::new(&scene.mesh));
+        Ok(Self {
+            patches: p.patches,
+            kernels: Kernels::new(scene, p.effects, visibility),
+            remainder: p.remainder,
+            links: p.links,
+            near: p.near,
+        })
     }
 
     /// True when texel `i` is translucent (its `R(i, i)` holds the subsurface point mass `−1`).

@@ -120,7 +120,7 @@ impl Default for Settings {
 /// One link into a receiver node: the receiver's texels get the irradiance
 /// `max(0, n_i · dir)·coef·B_S` (block receiver) or `coef·B_S` (texel receiver; `dir` = 0) from
 /// the sender node's area-weighted mean radiosity `B_S`.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, serde::Serialize, serde::Deserialize)]
 pub struct Link {
     /// Sender node.
     pub send: u32,
@@ -155,12 +155,14 @@ enum Refined {
 }
 
 /// The sparse subsurface operator: per translucent receiver, `(sender, S_ij per channel)`.
+#[derive(serde::Serialize, serde::Deserialize)]
 struct Subsurface {
     start: Vec<u32>,
     entries: Vec<(u32, [f32; 3])>,
 }
 
 /// The hierarchical first-bounce operator over a set of patches, and its solve.
+#[derive(serde::Serialize, serde::Deserialize)]
 pub struct Operator {
     patches: Vec<Patch>,
     tree: Tree,

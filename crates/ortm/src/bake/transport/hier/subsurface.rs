@@ -108,6 +108,7 @@ impl ProfileWalk<'_> {
 }
 
 /// The tree's per-node data for the subsurface walk.
+#[derive(serde::Serialize, serde::Deserialize)]
 pub struct SubsurfaceWalk {
     tolerance: f64,
     /// Per node: the material of all its members, or [`MIXED`].

@@ -27,7 +27,7 @@ pub const SPLIT_FLATNESS: f32 = 0.95;
 pub const NO_CHILD: u32 = u32::MAX;
 
 /// A cluster of patches.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, serde::Serialize, serde::Deserialize)]
 pub struct Node {
     /// First member in [`Tree::order`].
     pub first: u32,
@@ -65,6 +65,7 @@ impl Node {
 
 /// The tree: nodes in depth-first order (a parent before its children; node 0 the root) and
 /// the members of every node as a contiguous range of `order`.
+#[derive(serde::Serialize, serde::Deserialize)]
 pub struct Tree {
     /// Nodes; node 0 is the root.
     pub nodes: Vec<Node>,
