@@ -163,7 +163,12 @@ fn the_merge_refuses_missing_shards_and_damaged_chunks_naming_the_shard() {
     let tmp = tempfile::tempdir().unwrap();
     let cwd = tmp.path();
     let bake = "cornell --size 32 --offsets 12";
-    ok(step(cwd, bake, "out", &["--plan", "--shards", "3"]));
+    // An earlier plan for 2 shards, one of them run: planning again for 3 replaces it, and
+    // the merge removes its folder too.
+    ok(step(cwd, bake, "out", &["--plan", "--shards", "2"]));
+    ok(step(cwd, bake, "out", &["--shard", "0/2"]));
+    let log = ok(step(cwd, bake, "out", &["--plan", "--shards", "3"]));
+    assert!(!log.contains("kept the existing plan"), "{log}");
     ok(step(cwd, bake, "out", &["--shard", "0/3"]));
     ok(step(cwd, bake, "out", &["--shard", "1/3"]));
     let e = fails(ortm(&["bake", "out", "--merge"], cwd));

@@ -373,7 +373,12 @@ fn run_merge(a: &Args) -> Result<()> {
         summary.seconds[0],
         summary.seconds[1],
         summary.stored_texels,
-        summary.removed.len().saturating_sub(2)
+        (summary.removed.iter())
+            .filter(|p| p
+                .file_name()
+                .and_then(|n| n.to_str())
+                .is_some_and(|n| n.starts_with("shard_")))
+            .count()
     );
     Ok(())
 }

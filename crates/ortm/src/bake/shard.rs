@@ -991,10 +991,10 @@ pub fn merge(
                 .write(dir)?;
         }
     }
-    // The bake is complete: what only the sharded run needed goes.
+    // The bake is complete: what only the sharded run needed goes, shard folders of earlier
+    // plans with other counts included.
     let mut removed = Vec::new();
-    for i in 0..n {
-        let folder = dir.join(ShardId { index: i, count: n }.folder());
+    for folder in shard_folders(dir) {
         if std::fs::remove_dir_all(&folder).is_ok() {
             removed.push(folder);
         }
@@ -1014,6 +1014,26 @@ pub fn merge(
         seconds: [t_read, t0.elapsed().as_secs_f64() - t_read],
         removed,
     })
+}
+
+/// The folders `shard_I_of_N` of `dir` (any `I`, `N`).
+fn shard_folders(dir: &Path) -> Vec<PathBuf> {
+    let Ok(listing) = std::fs::read_dir(dir) else {
+        return Vec::new();
+    };
+    let is_shard = |name: &str| {
+        name.strip_prefix("shard_")
+            .and_then(|r| r.split_once("_of_"))
+            .is_some_and(|(i, n)| i.parse::<u32>().is_ok() && n.parse::<u32>().is_ok())
+    };
+    let mut out: Vec<PathBuf> = listing
+        .flatten()
+        .filter(|e| e.file_type().is_ok_and(|t| t.is_dir()))
+        .filter(|e| e.file_name().to_str().is_some_and(is_shard))
+        .map(|e| e.path())
+        .collect();
+    out.sort();
+    out
 }
 
 /// Refuses receivers that do not cover every covered texel exactly once.
