@@ -417,16 +417,29 @@ pub fn plan(
             }
         })
         .collect();
-    let bytes = transport.to_bytes();
-    drop(transport);
     let transport_path = dir.join(TRANSPORT_FILE_NAME);
+    let mut digest = None;
+    crate::io::write_atomic_with(&transport_path, |w| {
+        let mut hashing = Hashing {
+            inner: w,
+            sha: sha2::Sha256::default(),
+            bytes: 0,
+        };
+        transport.write_to(&mut hashing)?;
+        digest = Some((hashing.bytes, sha2::Digest::finalize(hashing.sha)));
+        Ok(())
+    })
+    .map_err(|e| BakeError::Io {
+        path: transport_path.clone(),
+        source: e,
+    })?;
+    drop(transport);
+    let (bytes, sha) = digest.expect("set by a successful write");
     let record = FileRecord {
         file: TRANSPORT_FILE_NAME.into(),
-        bytes: bytes.len() as u64,
-        sha256: crate::io::sha256_hex(&bytes),
+        bytes,
+        sha256: crate::io::hex(&sha),
     };
-    write_file(&transport_path, &bytes)?;
-    drop(bytes);
     let plan = PlanRecord {
         bake_key: setup.key.as_str().to_owned(),
         scene_hash: setup.hash.clone(),
@@ -453,6 +466,26 @@ pub fn plan(
         ],
         reused: false,
     })
+}
+
+/// A writer that passes bytes on to `inner` and hashes and counts them.
+struct Hashing<'w> {
+    inner: &'w mut dyn std::io::Write,
+    sha: sha2::Sha256,
+    bytes: u64,
+}
+
+impl std::io::Write for Hashing<'_> {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        let n = self.inner.write(buf)?;
+        sha2::Digest::update(&mut self.sha, &buf[..n]);
+        self.bytes += n as u64;
+        Ok(n)
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.inner.flush()
+    }
 }
 
 fn shares(shards: &[ShardPlan]) -> Vec<f64> {

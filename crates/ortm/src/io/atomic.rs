@@ -113,6 +113,34 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
     result
 }
 
+/// [`write_atomic`] for content produced by a writer: `fill` writes into a buffered temporary
+/// file in `path`'s directory, which is then `fsync`ed and renamed over `path` (removed on
+/// failure). For large outputs that should not be held in memory twice (a sharded bake's
+/// `transport.bin`). The test hooks of [`write_atomic`] do not apply.
+///
+/// # Errors
+/// The `std::io::Error` of creating, `fill`, syncing or renaming.
+pub fn write_atomic_with(
+    path: &Path,
+    fill: impl FnOnce(&mut dyn Write) -> std::io::Result<()>,
+) -> std::io::Result<()> {
+    let tmp = temp_path(path);
+    let result = (|| {
+        let mut w = std::io::BufWriter::with_capacity(1 << 20, fs::File::create(&tmp)?);
+        fill(&mut w)?;
+        let f = w
+            .into_inner()
+            .map_err(std::io::IntoInnerError::into_error)?;
+        f.sync_all()?;
+        drop(f);
+        fs::rename(&tmp, path)
+    })();
+    if result.is_err() {
+        let _ = fs::remove_file(&tmp);
+    }
+    result
+}
+
 /// Threads of [`with_write_pool`]: enough concurrent writers for the file system to commit
 /// their `fsync`s together. Measured on ext4, 2 cores, 6,678 small map files (`ortm bake
 /// cornell --size 64 --levels 3e-3`): the bake's maps phase 11.5 s with 2 writers, 1.8–4.3 s

@@ -27,7 +27,9 @@ mod lock;
 mod read;
 mod versioned;
 
-pub use atomic::{WRITE_THREADS, is_temp_name, with_write_pool, write_atomic, write_png_atomic};
+pub use atomic::{
+    WRITE_THREADS, is_temp_name, with_write_pool, write_atomic, write_atomic_with, write_png_atomic,
+};
 pub use digest::{hex, is_hex_digest, sha256_hex};
 pub use error::{DirKind, FileError};
 pub use lock::{DirLock, LOCK_FILE_NAME, LockError};

@@ -780,6 +780,17 @@ impl Transport {
     /// rebuilds from the scene (profiles, tables, BVH: cheap and deterministic). Floats are
     /// stored bit for bit, so the shards compute exactly what one process would.
     pub fn to_bytes(&self) -> Vec<u8> {
+        let mut out = Vec::new();
+        self.write_to(&mut out)
+            .expect("writing to a Vec cannot fail");
+        out
+    }
+
+    /// [`Transport::to_bytes`] written into `w` as it is encoded (no copy in memory).
+    ///
+    /// # Errors
+    /// The writer's error.
+    pub fn write_to(&self, w: &mut dyn std::io::Write) -> std::io::Result<()> {
         #[derive(Serialize)]
         struct Parts<'a> {
             effects: Effects,
@@ -788,8 +799,8 @@ impl Transport {
             links: Option<&'a hier::Operator>,
             near: &'a NearWeights,
         }
-        let mut out = TRANSPORT_MAGIC.to_vec();
-        out.extend_from_slice(&TRANSPORT_VERSION.to_le_bytes());
+        w.write_all(TRANSPORT_MAGIC)?;
+        w.write_all(&TRANSPORT_VERSION.to_le_bytes())?;
         postcard::to_io(
             &Parts {
                 effects: self.kernels.effects,
@@ -798,10 +809,10 @@ impl Transport {
                 links: self.links.as_ref(),
                 near: &self.near,
             },
-            &mut out,
+            w,
         )
-        .expect("writing to a Vec cannot fail");
-        out
+        .map_err(std::io::Error::other)?;
+        Ok(())
     }
 
     /// The transport of [`Transport::to_bytes`], with its kernels rebuilt for `scene`.
