@@ -238,13 +238,14 @@ fn shards_refuse_other_settings_and_take_their_index_from_the_scheduler() {
     let mut args: Vec<&str> = vec!["bake"];
     args.extend(bake.split(' '));
     args.extend(["-o", "out", "--shard"]);
-    // A Slurm array --array=5-6: task 6 is shard 1 of 2.
+    // A Slurm array task resubmitted alone (`sbatch --array=1`, a one-task array): the task id
+    // is the shard index, the count the plan's.
     let out = ortm_command()
         .args(&args)
         .current_dir(cwd)
-        .env("SLURM_ARRAY_TASK_ID", "6")
-        .env("SLURM_ARRAY_TASK_MIN", "5")
-        .env("SLURM_ARRAY_TASK_COUNT", "2")
+        .env("SLURM_ARRAY_TASK_ID", "1")
+        .env("SLURM_ARRAY_TASK_MIN", "1")
+        .env("SLURM_ARRAY_TASK_COUNT", "1")
         .output()
         .unwrap();
     assert!(ok(out).contains("shard 1/2:"));

@@ -100,7 +100,7 @@ pub struct Args {
         num_args = 0..=1,
         default_missing_value = "",
         conflicts_with = "merge",
-        help = "Sharded bake, step 2: compute shard I (0-based) of N of the plan in the output folder, with the plan's scene and options (resumable: rerun it after a failure). Without I/N: from SLURM_ARRAY_TASK_ID − SLURM_ARRAY_TASK_MIN and SLURM_ARRAY_TASK_COUNT (Slurm job arrays), or JOB_COMPLETION_INDEX (Kubernetes Indexed Jobs) with --shards N or the plan's count"
+        help = "Sharded bake, step 2: compute shard I (0-based) of N of the plan in the output folder, with the plan's scene and options (resumable: rerun it after a failure). Without I/N: I from SLURM_ARRAY_TASK_ID (Slurm job arrays, --array=0-(N-1)) or JOB_COMPLETION_INDEX (Kubernetes Indexed Jobs); N from --shards, else the plan, else SLURM_ARRAY_TASK_COUNT"
     )]
     pub shard: Option<String>,
     /// Sharded bake, step 3: merge the shards.
@@ -254,9 +254,9 @@ pub fn run(a: Args) -> Result<()> {
     result
 }
 
-/// The shard of `--shard [I/N]`: `value` when given, else from the scheduler's environment
-/// (`env` looks a variable up), with `shards` (`--shards`) or the plan's count `plan_count` when
-/// the environment gives only an index.
+/// The shard of `--shard [I/N]`: `value` when given, else the index from the scheduler's
+/// environment (`env` looks a variable up) and the count from `shards` (`--shards`), else the
+/// plan's count `plan_count`, else (Slurm) the array's size.
 pub fn shard_from(
     value: &str,
     shards: Option<u32>,
@@ -275,16 +275,15 @@ pub fn shard_from(
             })
             .transpose()
     };
-    let (index, count, source) = if let Some(id) = num("SLURM_ARRAY_TASK_ID")? {
-        let min = num("SLURM_ARRAY_TASK_MIN")?.unwrap_or(0);
-        let index = id.checked_sub(min).ok_or_else(|| {
-            anyhow::anyhow!("SLURM_ARRAY_TASK_ID {id} is below SLURM_ARRAY_TASK_MIN {min}")
-        })?;
-        (
-            index,
-            num("SLURM_ARRAY_TASK_COUNT")?.or(shards),
-            "SLURM_ARRAY_TASK_ID",
-        )
+    // The array task id is the shard index (arrays run 0..N−1), so a single index resubmitted
+    // alone (`sbatch --array=2`) is still shard 2; the count comes from --shards, else the
+    // plan, else the array's size.
+    let (index, count, source) = if let Some(index) = num("SLURM_ARRAY_TASK_ID")? {
+        let count = match shards.or_else(plan_count) {
+            Some(c) => Some(c),
+            None => num("SLURM_ARRAY_TASK_COUNT")?,
+        };
+        (index, count, "SLURM_ARRAY_TASK_ID")
     } else if let Some(index) = num("JOB_COMPLETION_INDEX")? {
         (index, shards, "JOB_COMPLETION_INDEX")
     } else {
