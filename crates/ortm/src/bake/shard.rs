@@ -72,8 +72,8 @@ pub const DONE_VERSION: u32 = 1;
 pub const DONE_FILE_NAME: &str = "done.json";
 /// Chunks per shard (fewer when a shard has fewer units): what a killed shard loses at most.
 pub const CHUNKS_PER_SHARD: usize = 16;
-/// Most shards a plan may have.
-pub const MAX_SHARDS: u32 = 10_000;
+/// Most shards a plan may have ([`crate::io::limits::MAX_SHARDS`]).
+pub use crate::io::limits::MAX_SHARDS;
 
 const CHUNK_MAGIC: &[u8; 8] = b"ORTMCHNK";
 const CHUNK_VERSION: u32 = 1;

@@ -63,6 +63,9 @@ pub const MAX_EXR_EXPANSION: u64 = 1100;
 /// Most offsets (transfer maps) in one bake.
 pub const MAX_OFFSETS: usize = 65_536;
 
+/// Most shards of a sharded bake (`ortm bake --plan --shards N`, `--shard I/N`).
+pub const MAX_SHARDS: u32 = 10_000;
+
 /// Most refinement draws of the importance density (`--iterations`): 100× the default of
 /// 1000; each draw evaluates the transference of one offset over the selection receivers, so
 /// an unbounded count would run for ever.
