@@ -661,7 +661,7 @@ pub fn run_shard(
     let t_load = t0.elapsed().as_secs_f64();
     let offsets: Vec<IVec2> = match plan.work {
         WorkKind::Rows => Vec::new(),
-        WorkKind::Cells => saved_offsets(dir, &setup.key, settings)?,
+        WorkKind::Cells => saved_selection(dir, &setup.key, settings)?.0,
     };
     let cells = match plan.work {
         WorkKind::Rows => None,
@@ -767,18 +767,19 @@ pub fn run_shard(
     })
 }
 
-/// The offsets the plan selected (`selection.json`).
-fn saved_offsets(
+/// The offsets the plan selected and the importance density's data points (`selection.json`).
+fn saved_selection(
     dir: &Path,
     key: &BakeKey,
     settings: &BakeSettings,
-) -> Result<Vec<IVec2>, BakeError> {
+) -> Result<(Vec<IVec2>, Vec<[f64; 3]>), BakeError> {
     match bake_dir::read_selection(dir, key.as_str(), settings.offsets, settings.size)
         .map_err(MapsError::from)?
     {
-        bake_dir::SavedSelection::Reuse(s) => {
-            Ok(s.offsets.iter().map(|o| IVec2::from_array(*o)).collect())
-        }
+        bake_dir::SavedSelection::Reuse(s) => Ok((
+            s.offsets.iter().map(|o| IVec2::from_array(*o)).collect(),
+            s.data_points,
+        )),
         bake_dir::SavedSelection::Discard(why) => Err(BakeError::Settings(format!(
             "the plan's offset selection cannot be used ({why}): plan again"
         ))),
@@ -903,15 +904,21 @@ pub fn merge(
     let _lock = crate::io::DirLock::acquire(dir)?;
     let plan = read_plan(dir)?;
     let settings = plan.bake_settings()?;
-    let setup = Setup::new(scene, &settings)?;
-    if setup.key.as_str() != plan.bake_key {
+    let Setup {
+        grid,
+        hash,
+        settings_json,
+        key,
+        ..
+    } = Setup::new(scene, &settings)?;
+    if key.as_str() != plan.bake_key {
         return Err(BakeError::Settings(format!(
-            "the scene given to the merge is not the plan's (its hash is {}, the plan's {}): \
+            "the scene given to the merge is not the plan's (its hash is {hash}, the plan's {}): \
              merge with the scene the plan was made from",
-            setup.hash, plan.scene_hash
+            plan.scene_hash
         )));
     }
-    let grid = &setup.grid;
+    let grid = &grid;
     let n = plan.shards.len() as u32;
     events(BakeEvent::Phase {
         name: "verifying shards",
@@ -923,18 +930,11 @@ pub fn merge(
         events(BakeEvent::Advance(1));
     }
     let t_read = t0.elapsed().as_secs_f64();
-    let Setup {
-        grid: _,
-        hash,
-        settings_json,
-        key,
-        ..
-    } = Setup::new(scene, &settings)?;
     let written_maps;
     let (reused, stored_texels);
     match plan.work {
         WorkKind::Cells => {
-            let offsets = saved_offsets(dir, &key, &settings)?;
+            let (offsets, points) = saved_selection(dir, &key, &settings)?;
             let mut receivers = Vec::new();
             let mut values = Vec::new();
             for c in chunks {
@@ -967,13 +967,6 @@ pub fn merge(
             let w = pipeline::write_maps(dir, &key, None, grid, map_plan, events, cancel)?;
             (reused, stored_texels) = (w.reused, w.stored_texels);
             written_maps = w.entries.len();
-            let points =
-                match bake_dir::read_selection(dir, key.as_str(), settings.offsets, settings.size)
-                    .map_err(MapsError::from)?
-                {
-                    bake_dir::SavedSelection::Reuse(s) => s.data_points,
-                    _ => Vec::new(),
-                };
             pipeline::finish_offset_bake(dir, (grid, hash, settings_json), (&offsets, &points), w)?;
         }
         WorkKind::Rows => {

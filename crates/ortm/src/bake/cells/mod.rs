@@ -100,7 +100,7 @@ pub struct CellValues {
 }
 
 /// What the integration did (for reports and benchmarks).
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct CellStats {
     /// Cluster pairs evaluated texel by texel (near field).
     pub near_cluster_pairs: u64,
@@ -520,11 +520,8 @@ pub struct ClusterValues {
     /// Receiver-major values, `K` per receiver.
     pub values: Vec<[f32; 3]>,
     /// What the integration did.
-    pub stats: ClusterStats,
+    pub stats: CellStats,
 }
-
-/// [`CellStats`] in a serialisable form (one receiving cluster's counts, field by field).
-pub type ClusterStats = [u64; 10];
 
 /// The prepared integration of [`integrate`] (cell table, clusters, candidate sites, link
 /// index), from which receiving clusters are computed one by one — all of them by
@@ -600,10 +597,7 @@ impl<'a> Integrator<'a> {
             .map(|ci| {
                 let (values, st) = self.0.receiving_cluster(ci);
                 progress(self.0.clusters.texels[ci].len() as u64);
-                ClusterValues {
-                    values,
-                    stats: st.to_array(),
-                }
+                ClusterValues { values, stats: st }
             })
             .collect()
     }
@@ -627,7 +621,7 @@ pub fn assemble(
             values[slot * kmaps..(slot + 1) * kmaps]
                 .copy_from_slice(&out.values[r * kmaps..(r + 1) * kmaps]);
         }
-        stats = stats.plus(&CellStats::from_array(out.stats));
+        stats = stats.plus(&out.stats);
     }
     let mut peak = vec![0.0f64; kmaps];
     for px in values.chunks_exact(kmaps) {
@@ -646,50 +640,6 @@ pub fn assemble(
 }
 
 impl CellStats {
-    /// The counts in field order.
-    fn to_array(self) -> ClusterStats {
-        [
-            self.near_cluster_pairs,
-            self.near_texel_pairs,
-            self.uniform_windows,
-            self.split_windows,
-            self.rehomed,
-            self.rehomed_far,
-            self.moved_uncovered,
-            self.links,
-            self.link_nodes,
-            self.subsurface_nodes,
-        ]
-    }
-
-    /// The counts of [`CellStats::to_array`].
-    fn from_array(a: ClusterStats) -> Self {
-        let [
-            near_cluster_pairs,
-            near_texel_pairs,
-            uniform_windows,
-            split_windows,
-            rehomed,
-            rehomed_far,
-            moved_uncovered,
-            links,
-            link_nodes,
-            subsurface_nodes,
-        ] = a;
-        Self {
-            near_cluster_pairs,
-            near_texel_pairs,
-            uniform_windows,
-            split_windows,
-            rehomed,
-            rehomed_far,
-            moved_uncovered,
-            links,
-            link_nodes,
-            subsurface_nodes,
-        }
-    }
-
     /// The field-wise sum of two sets of counts.
     fn plus(&self, b: &CellStats) -> CellStats {
         CellStats {
