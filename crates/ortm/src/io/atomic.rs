@@ -88,9 +88,7 @@ pub fn is_temp_name(name: &str) -> bool {
 /// The `std::io::Error` of creating, writing, syncing or renaming.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
     pause_in_this_write();
-    let tmp = temp_path(path);
-    let result = (|| {
-        let mut f = fs::File::create(&tmp)?;
+    write_temp_then_rename(path, |f, tmp| {
         if let Some(n) = stop_in_this_write() {
             f.write_all(&bytes[..bytes.len() / 2])?;
             eprintln!(
@@ -102,15 +100,8 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
                 "{STOP_IN_WRITE_VAR}: write {n} was not killed within {STOP_WAIT:?}"
             )));
         }
-        f.write_all(bytes)?;
-        f.sync_all()?;
-        drop(f);
-        fs::rename(&tmp, path)
-    })();
-    if result.is_err() {
-        let _ = fs::remove_file(&tmp);
-    }
-    result
+        f.write_all(bytes)
+    })
 }
 
 /// [`write_atomic`] for content produced by a writer: `fill` writes into a buffered temporary
@@ -124,13 +115,24 @@ pub fn write_atomic_with(
     path: &Path,
     fill: impl FnOnce(&mut dyn Write) -> std::io::Result<()>,
 ) -> std::io::Result<()> {
+    write_temp_then_rename(path, |f, _| {
+        let mut w = std::io::BufWriter::with_capacity(1 << 20, f);
+        fill(&mut w)?;
+        w.flush()
+    })
+}
+
+/// The mechanism of [`write_atomic`] and [`write_atomic_with`]: `fill` writes the temporary file
+/// ([`temp_path`], given with its path), which is `fsync`ed and renamed over `path`; on any
+/// failure it is removed and `path` is untouched.
+fn write_temp_then_rename(
+    path: &Path,
+    fill: impl FnOnce(&mut fs::File, &Path) -> std::io::Result<()>,
+) -> std::io::Result<()> {
     let tmp = temp_path(path);
     let result = (|| {
-        let mut w = std::io::BufWriter::with_capacity(1 << 20, fs::File::create(&tmp)?);
-        fill(&mut w)?;
-        let f = w
-            .into_inner()
-            .map_err(std::io::IntoInnerError::into_error)?;
+        let mut f = fs::File::create(&tmp)?;
+        fill(&mut f, &tmp)?;
         f.sync_all()?;
         drop(f);
         fs::rename(&tmp, path)
