@@ -114,8 +114,9 @@ fn maze_64_error_falls_with_the_tolerance() {
 }
 
 /// The head at 64², radiosity and subsurface scattering (the sparse profile operator).
-/// Measured: 0.044 (38 k links), 0.019 (75 k), 0.0081 (255 k of 14.3 M pairs). Bound: measured
-/// + 25 %.
+/// Measured: 0.048 (37 k links), 0.0215 (73 k), 0.0092 (255 k of 14.3 M pairs); 0.044 / 0.019
+/// / 0.0081 with each texel's area its covering triangle's Jacobian instead of its average over
+/// the texel's square. Bound: measured + 25 %.
 #[test]
 fn head_64_error_falls_with_the_tolerance() {
     let mut scene = ortm::scene::head::head_scene().expect("head scene (../shared/faces/head.obj)");
@@ -123,7 +124,7 @@ fn head_64_error_falls_with_the_tolerance() {
     check_falls(
         "head 64²",
         &errors(&scene, Effects::default(), &TOLERANCES),
-        0.0102,
+        0.0115,
     );
 }
 

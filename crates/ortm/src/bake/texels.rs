@@ -11,8 +11,16 @@
 //!
 //! # Patch attributes
 //! Position and shading normal are interpolated barycentrically at the texel centre. The area is
-//! the covering triangle's world area per texel-space area (its Jacobian), i.e. the surface area
-//! the texel stands for. Albedo is the material's (a texture is sampled at the texel's UV); for
+//! the surface area the texel stands for: the world area per texel-space area (the UV→3D
+//! Jacobian) averaged over the part of the texel's square that its chart covers — each of the
+//! chart's triangles weighted by the texel-space area it clips from the square, so a texel
+//! counts one texel of its chart's surface however its triangles are stretched. The footprint
+//! vectors are the mean `∂P/∂x`, `∂P/∂y` over the same part (the secants across the square),
+//! scaled so their parallelogram has that area. Where every triangle clipped shares the covering
+//! triangle's Jacobian within 10⁻⁵ (planar charts mapped affinely: the Cornell box, the maze),
+//! the covering triangle's own values are kept. On a scan whose triangles are smaller than a
+//! texel and unevenly stretched (the head), the covering triangle's Jacobian alone jumps 2–3×
+//! between neighbouring texels; the average does not. Albedo is the material's (a texture is sampled at the texel's UV); for
 //! subsurface materials it is the profile's total diffuse reflectance (the effective albedo that
 //! first-order lighting `B_o = ρ·E` uses).
 //!
@@ -24,7 +32,7 @@
 
 use std::collections::HashMap;
 
-use glam::{Vec2, Vec3};
+use glam::{DVec2, DVec3, Vec2, Vec3};
 use thiserror::Error;
 
 use crate::lightmap::uv_to_texel_space;
@@ -50,11 +58,13 @@ pub struct Texel {
     pub normal: Vec3,
     /// Unit geometric normal of the covering triangle.
     pub face_normal: Vec3,
-    /// Surface area the texel represents, m².
+    /// Surface area the texel represents, m² (the Jacobian averaged over the texel's square:
+    /// module docs, "Patch attributes").
     pub area_m2: f32,
-    /// The texel's footprint on its triangle's plane: the 3D steps (metres) of one texel in x
-    /// and in y (`∂P/∂x`, `∂P/∂y` in texel units), so the footprint is the parallelogram
-    /// `position_m + s·f[0] + t·f[1]`, `s, t ∈ [−½, ½]`, of area `|f[0] × f[1]| = area_m2`.
+    /// The texel's footprint: the 3D steps (metres) of one texel in x and in y (`∂P/∂x`,
+    /// `∂P/∂y` in texel units, averaged over the texel's square), so the footprint is the
+    /// parallelogram `position_m + s·f[0] + t·f[1]`, `s, t ∈ [−½, ½]`, of area
+    /// `|f[0] × f[1]| = area_m2`.
     pub footprint_m: [Vec3; 2],
     /// Effective diffuse albedo ρ (RGB).
     pub albedo: Vec3,
@@ -362,6 +372,138 @@ fn texel_patch(
     }
 }
 
+/// Relative difference below which a clipped triangle's Jacobian counts as the covering
+/// triangle's (module docs, "Patch attributes").
+const SAME_JACOBIAN: f64 = 1e-5;
+
+/// Area (texel² units) of the part of texel-space triangle `t` inside the square
+/// `[x, x+1] × [y, y+1]` (Sutherland–Hodgman against the square's four sides).
+fn clipped_area(t: [DVec2; 3], x: f64, y: f64) -> f64 {
+    let mut poly: Vec<DVec2> = t.to_vec();
+    let mut next = Vec::with_capacity(8);
+    // Each side as (axis, bound, keep the side where coordinate ≥ bound?).
+    for (axis, bound, keep_above) in [
+        (0, x, true),
+        (0, x + 1.0, false),
+        (1, y, true),
+        (1, y + 1.0, false),
+    ] {
+        next.clear();
+        let inside = |p: DVec2| {
+            let c = if axis == 0 { p.x } else { p.y };
+            if keep_above { c >= bound } else { c <= bound }
+        };
+        for i in 0..poly.len() {
+            let (a, b) = (poly[i], poly[(i + 1) % poly.len()]);
+            let (ia, ib) = (inside(a), inside(b));
+            if ia {
+                next.push(a);
+            }
+            if ia != ib {
+                let (ca, cb) = if axis == 0 { (a.x, b.x) } else { (a.y, b.y) };
+                let s = (bound - ca) / (cb - ca);
+                next.push(a + (b - a) * s);
+            }
+        }
+        std::mem::swap(&mut poly, &mut next);
+        if poly.len() < 3 {
+            return 0.0;
+        }
+    }
+    let mut twice = 0.0;
+    for i in 0..poly.len() {
+        twice += poly[i].perp_dot(poly[(i + 1) % poly.len()]);
+    }
+    0.5 * twice.abs()
+}
+
+/// Replaces each covered texel's area and footprint by their averages over the part of its
+/// square that its chart covers (module docs, "Patch attributes"); `slot` maps lightmap slots
+/// to `texels`, `triangle_chart` gives every triangle's chart.
+fn average_over_squares(
+    scene: &Scene,
+    (width, height): (u32, u32),
+    texels: &mut [Texel],
+    slot: &[u32],
+    triangle_chart: &[u32],
+) {
+    #[derive(Clone, Copy, Default)]
+    struct Sums {
+        /// Texel-space area clipped (texel²).
+        uv: f64,
+        /// World area clipped (m²).
+        area: f64,
+        /// Σ clipped area × `∂P/∂x`, `∂P/∂y` (m per texel).
+        f: [DVec3; 2],
+        /// Some clipped triangle's Jacobian differs from the covering triangle's.
+        mixed: bool,
+    }
+    let mesh = &scene.mesh;
+    let mut sums = vec![Sums::default(); texels.len()];
+    for (ti, tri) in mesh.triangles.iter().enumerate() {
+        let t: [DVec2; 3] = std::array::from_fn(|k| {
+            uv_to_texel_space(mesh.uvs[tri.uv[k] as usize], width, height).as_dvec2()
+        });
+        let pos: [DVec3; 3] =
+            std::array::from_fn(|k| mesh.positions_m[tri.position[k] as usize].as_dvec3());
+        let (d1, d2) = (t[1] - t[0], t[2] - t[0]);
+        let det = d1.perp_dot(d2);
+        if det == 0.0 || !det.is_finite() {
+            continue;
+        }
+        let (e1, e2) = (pos[1] - pos[0], pos[2] - pos[0]);
+        let jacobian = e1.cross(e2).length() / det.abs();
+        let f = [(e1 * d2.y - e2 * d1.y) / det, (e2 * d1.x - e1 * d2.x) / det];
+        let lo = t[0].min(t[1]).min(t[2]).floor().max(DVec2::ZERO);
+        let hi = t[0].max(t[1]).max(t[2]).ceil();
+        let (x1, y1) = (
+            (hi.x as i64).min(width as i64),
+            (hi.y as i64).min(height as i64),
+        );
+        let chart = triangle_chart[ti];
+        for y in lo.y as i64..y1 {
+            for x in lo.x as i64..x1 {
+                let k = slot[y as usize * width as usize + x as usize];
+                if k == NO_TEXEL || texels[k as usize].chart != chart {
+                    continue;
+                }
+                let a = clipped_area(t, x as f64, y as f64);
+                if a <= 0.0 {
+                    continue;
+                }
+                let texel = &texels[k as usize];
+                let s = &mut sums[k as usize];
+                s.uv += a;
+                s.area += a * jacobian;
+                s.f[0] += f[0] * a;
+                s.f[1] += f[1] * a;
+                if ti as u32 != texel.triangle {
+                    let own = texel.area_m2 as f64;
+                    let near = |p: DVec3, q: Vec3| {
+                        (p - q.as_dvec3()).length() <= SAME_JACOBIAN * q.length() as f64
+                    };
+                    s.mixed |= (jacobian - own).abs() > SAME_JACOBIAN * own
+                        || !near(f[0], texel.footprint_m[0])
+                        || !near(f[1], texel.footprint_m[1]);
+                }
+            }
+        }
+    }
+    for (texel, s) in texels.iter_mut().zip(&sums) {
+        if !s.mixed || s.uv <= 0.0 {
+            continue;
+        }
+        let area = s.area / s.uv;
+        let f = [s.f[0] / s.uv, s.f[1] / s.uv];
+        let parallelogram = f[0].cross(f[1]).length();
+        texel.area_m2 = area as f32;
+        if parallelogram > 0.0 && parallelogram.is_finite() {
+            let scale = (area / parallelogram).sqrt();
+            texel.footprint_m = [(f[0] * scale).as_vec3(), (f[1] * scale).as_vec3()];
+        }
+    }
+}
+
 /// The overlap rule of the module docs: an error when more than [`OVERLAP_TOLERANCE`] of the
 /// `covered` texels overlap and the scene does not allow it, else a warning for any overlap.
 fn check_overlap(
@@ -419,7 +561,6 @@ impl TexelGrid {
         let mut texels = Vec::new();
         let mut slot = vec![NO_TEXEL; n_slots];
         let mut overlapping = 0usize;
-        let mut area_total = 0.0f64;
         for y in 0..height {
             for x in 0..width {
                 let s = y as usize * width as usize + x as usize;
@@ -438,7 +579,6 @@ impl TexelGrid {
                     (ti, b),
                     triangle_chart[ti as usize],
                 );
-                area_total += texel.area_m2 as f64;
                 slot[s] = texels.len() as u32;
                 texels.push(texel);
             }
@@ -450,6 +590,8 @@ impl TexelGrid {
                 height,
             });
         }
+        average_over_squares(scene, (width, height), &mut texels, &slot, &triangle_chart);
+        let area_total = texels.iter().map(|t| t.area_m2 as f64).sum::<f64>();
         let warnings = check_overlap(scene, width, height, overlapping, texels.len(), &cov)?;
         Ok(Self {
             width,
