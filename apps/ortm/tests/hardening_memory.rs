@@ -41,7 +41,7 @@ fn huge_lightmap_is_refused_before_rasterizing_under_the_memory_limit() {
             .unwrap();
         let err = String::from_utf8_lossy(&out.stderr);
         assert_eq!(out.status.code(), Some(1), "{args:?}: {err}");
-        // 8192² texels × 104 bytes.
+        // 8192² texels × LIGHTMAP_BYTES_PER_TEXEL bytes.
         let need = 8192u64 * 8192 * ortm::io::limits::LIGHTMAP_BYTES_PER_TEXEL;
         assert!(
             err.contains(&format!("{need} bytes")) && err.contains("1000000000 bytes"),

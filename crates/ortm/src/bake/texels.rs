@@ -379,41 +379,47 @@ const SAME_JACOBIAN: f64 = 1e-5;
 /// Area (texel² units) of the part of texel-space triangle `t` inside the square
 /// `[x, x+1] × [y, y+1]` (Sutherland–Hodgman against the square's four sides).
 fn clipped_area(t: [DVec2; 3], x: f64, y: f64) -> f64 {
-    let mut poly: Vec<DVec2> = t.to_vec();
-    let mut next = Vec::with_capacity(8);
-    // Each side as (axis, bound, keep the side where coordinate ≥ bound?).
+    let (lo, hi) = (DVec2::new(x, y), DVec2::new(x + 1.0, y + 1.0));
+    if t.iter().all(|p| p.cmpge(lo).all() && p.cmple(hi).all()) {
+        return 0.5 * (t[1] - t[0]).perp_dot(t[2] - t[0]).abs();
+    }
+    // A triangle clipped by four half-planes has at most 7 corners.
+    let mut poly = [DVec2::ZERO; 8];
+    let mut next = [DVec2::ZERO; 8];
+    poly[..3].copy_from_slice(&t);
+    let mut n = 3;
+    // Each side as (axis, bound, keep the side where the coordinate ≥ bound?).
     for (axis, bound, keep_above) in [
         (0, x, true),
         (0, x + 1.0, false),
         (1, y, true),
         (1, y + 1.0, false),
     ] {
-        next.clear();
         let inside = |p: DVec2| {
             let c = if axis == 0 { p.x } else { p.y };
             if keep_above { c >= bound } else { c <= bound }
         };
-        for i in 0..poly.len() {
-            let (a, b) = (poly[i], poly[(i + 1) % poly.len()]);
+        let mut m = 0;
+        for i in 0..n {
+            let (a, b) = (poly[i], poly[(i + 1) % n]);
             let (ia, ib) = (inside(a), inside(b));
             if ia {
-                next.push(a);
+                next[m] = a;
+                m += 1;
             }
             if ia != ib {
                 let (ca, cb) = if axis == 0 { (a.x, b.x) } else { (a.y, b.y) };
-                let s = (bound - ca) / (cb - ca);
-                next.push(a + (b - a) * s);
+                next[m] = a + (b - a) * ((bound - ca) / (cb - ca));
+                m += 1;
             }
         }
         std::mem::swap(&mut poly, &mut next);
-        if poly.len() < 3 {
+        n = m;
+        if n < 3 {
             return 0.0;
         }
     }
-    let mut twice = 0.0;
-    for i in 0..poly.len() {
-        twice += poly[i].perp_dot(poly[(i + 1) % poly.len()]);
-    }
+    let twice: f64 = (0..n).map(|i| poly[i].perp_dot(poly[(i + 1) % n])).sum();
     0.5 * twice.abs()
 }
 
@@ -427,20 +433,23 @@ fn average_over_squares(
     slot: &[u32],
     triangle_chart: &[u32],
 ) {
+    /// Per texel, sums over the triangles clipped to its square (f32: at most a few hundred
+    /// terms each).
     #[derive(Clone, Copy, Default)]
     struct Sums {
         /// Texel-space area clipped (texel²).
-        uv: f64,
+        uv: f32,
         /// World area clipped (m²).
-        area: f64,
+        area: f32,
         /// Σ clipped area × `∂P/∂x`, `∂P/∂y` (m per texel).
-        f: [DVec3; 2],
+        f: [Vec3; 2],
         /// Some clipped triangle's Jacobian differs from the covering triangle's.
         mixed: bool,
     }
     let mesh = &scene.mesh;
-    let mut sums = vec![Sums::default(); texels.len()];
-    for (ti, tri) in mesh.triangles.iter().enumerate() {
+    let width_i = width as usize;
+    // Each triangle's texel-space corners, Jacobian (m² per texel²) and ∂P/∂x, ∂P/∂y.
+    let affine = |tri: &crate::scene::MeshTriangle| {
         let t: [DVec2; 3] = std::array::from_fn(|k| {
             uv_to_texel_space(mesh.uvs[tri.uv[k] as usize], width, height).as_dvec2()
         });
@@ -449,21 +458,57 @@ fn average_over_squares(
         let (d1, d2) = (t[1] - t[0], t[2] - t[0]);
         let det = d1.perp_dot(d2);
         if det == 0.0 || !det.is_finite() {
-            continue;
+            return None;
         }
         let (e1, e2) = (pos[1] - pos[0], pos[2] - pos[0]);
         let jacobian = e1.cross(e2).length() / det.abs();
         let f = [(e1 * d2.y - e2 * d1.y) / det, (e2 * d1.x - e1 * d2.x) / det];
+        Some((t, jacobian, f))
+    };
+    let same = |(j, f): (f64, [DVec3; 2]), (j0, f0): (f64, [DVec3; 2])| {
+        (j - j0).abs() <= SAME_JACOBIAN * j0
+            && (0..2).all(|i| (f[i] - f0[i]).length() <= SAME_JACOBIAN * f0[i].length())
+    };
+    // Charts whose triangles all share one Jacobian keep their texels as they are: skip them
+    // (no work, no memory, for the planar charts of rooms).
+    let n_charts = triangle_chart
+        .iter()
+        .map(|&c| c as usize + 1)
+        .max()
+        .unwrap_or(0);
+    let mut first: Vec<Option<(f64, [DVec3; 2])>> = vec![None; n_charts];
+    let mut uneven = vec![false; n_charts];
+    for (ti, tri) in mesh.triangles.iter().enumerate() {
+        let Some((_, j, f)) = affine(tri) else {
+            continue;
+        };
+        let c = triangle_chart[ti] as usize;
+        match first[c] {
+            None => first[c] = Some((j, f)),
+            Some(j0) => uneven[c] |= !same((j, f), j0),
+        }
+    }
+    if !uneven.iter().any(|&u| u) {
+        return;
+    }
+    let mut sums = vec![Sums::default(); texels.len()];
+    for (ti, tri) in mesh.triangles.iter().enumerate() {
+        let chart = triangle_chart[ti];
+        if !uneven[chart as usize] {
+            continue;
+        }
+        let Some((t, jacobian, f)) = affine(tri) else {
+            continue;
+        };
         let lo = t[0].min(t[1]).min(t[2]).floor().max(DVec2::ZERO);
         let hi = t[0].max(t[1]).max(t[2]).ceil();
         let (x1, y1) = (
             (hi.x as i64).min(width as i64),
             (hi.y as i64).min(height as i64),
         );
-        let chart = triangle_chart[ti];
         for y in lo.y as i64..y1 {
             for x in lo.x as i64..x1 {
-                let k = slot[y as usize * width as usize + x as usize];
+                let k = slot[y as usize * width_i + x as usize];
                 if k == NO_TEXEL || texels[k as usize].chart != chart {
                     continue;
                 }
@@ -473,18 +518,16 @@ fn average_over_squares(
                 }
                 let texel = &texels[k as usize];
                 let s = &mut sums[k as usize];
-                s.uv += a;
-                s.area += a * jacobian;
-                s.f[0] += f[0] * a;
-                s.f[1] += f[1] * a;
-                if ti as u32 != texel.triangle {
-                    let own = texel.area_m2 as f64;
-                    let near = |p: DVec3, q: Vec3| {
-                        (p - q.as_dvec3()).length() <= SAME_JACOBIAN * q.length() as f64
-                    };
-                    s.mixed |= (jacobian - own).abs() > SAME_JACOBIAN * own
-                        || !near(f[0], texel.footprint_m[0])
-                        || !near(f[1], texel.footprint_m[1]);
+                s.uv += a as f32;
+                s.area += (a * jacobian) as f32;
+                s.f[0] += (f[0] * a).as_vec3();
+                s.f[1] += (f[1] * a).as_vec3();
+                if ti as u32 != texel.triangle && !s.mixed {
+                    let own = (
+                        texel.area_m2 as f64,
+                        texel.footprint_m.map(|v| v.as_dvec3()),
+                    );
+                    s.mixed = !same((jacobian, f), own);
                 }
             }
         }
@@ -496,10 +539,10 @@ fn average_over_squares(
         let area = s.area / s.uv;
         let f = [s.f[0] / s.uv, s.f[1] / s.uv];
         let parallelogram = f[0].cross(f[1]).length();
-        texel.area_m2 = area as f32;
+        texel.area_m2 = area;
         if parallelogram > 0.0 && parallelogram.is_finite() {
             let scale = (area / parallelogram).sqrt();
-            texel.footprint_m = [(f[0] * scale).as_vec3(), (f[1] * scale).as_vec3()];
+            texel.footprint_m = [f[0] * scale, f[1] * scale];
         }
     }
 }
@@ -590,9 +633,11 @@ impl TexelGrid {
                 height,
             });
         }
+        let warnings = check_overlap(scene, width, height, overlapping, texels.len(), &cov)?;
+        let triangles_without_texels = cov.triangles_without_texels;
+        drop(cov);
         average_over_squares(scene, (width, height), &mut texels, &slot, &triangle_chart);
         let area_total = texels.iter().map(|t| t.area_m2 as f64).sum::<f64>();
-        let warnings = check_overlap(scene, width, height, overlapping, texels.len(), &cov)?;
         Ok(Self {
             width,
             height,
@@ -600,7 +645,7 @@ impl TexelGrid {
                 covered: texels.len(),
                 overlapping,
                 charts: n_charts,
-                triangles_without_texels: cov.triangles_without_texels,
+                triangles_without_texels,
                 area_m2: area_total,
                 warnings,
             },

@@ -253,11 +253,13 @@ pub fn check_bake_memory(
 }
 
 /// Upper bound of the memory rasterizing a lightmap takes per lightmap texel, bytes: the texel
-/// grid (per-texel lookup, covered-texel records, chart labels) plus `ortm inspect`'s coverage
-/// picture. Measured (`/usr/bin/time -f %M ortm inspect cornell --size N`): peaks of 79 MB,
-/// 296 MB and 1162 MB at 1024², 2048², 4096² (69 % covered), i.e. 70.5 bytes per lightmap
-/// texel or 102 per covered texel; 104 bounds a fully covered lightmap.
-pub const LIGHTMAP_BYTES_PER_TEXEL: u64 = 104;
+/// grid (per-texel lookup, covered-texel records, chart labels, and for charts of uneven
+/// stretch the sums that average each texel's area over its square) plus `ortm inspect`'s
+/// coverage picture. Measured (`/usr/bin/time -f %M ortm inspect SCENE --size N`): Cornell
+/// (69 % covered, even charts) 79 MB, 296 MB and 1162 MB at 1024², 2048², 4096², i.e. 70.5
+/// bytes per lightmap texel or 102 per covered texel; the head (92 % covered, uneven charts)
+/// 540 MB at 2048² and 2.06 GB at 4096², 129 and 123 bytes per lightmap texel; 136 bounds them.
+pub const LIGHTMAP_BYTES_PER_TEXEL: u64 = 136;
 
 /// Checks, before a `width×height` lightmap is rasterized, that its texel grid
 /// ([`LIGHTMAP_BYTES_PER_TEXEL`] per texel) fits the memory limit ([`memory_limit_bytes`]).
