@@ -322,3 +322,86 @@ fn head_scene_file_equals_the_built_in_head() {
     assert_eq!(file.materials[0].subsurface, built.materials[0].subsurface);
     assert_eq!(file.lights, built.lights);
 }
+
+/// Measurement (ignored; `cargo test --release --test faces_head -- --ignored --nocapture
+/// seam`): where a sender's raw subsurface weights go. A texel's footprint is a parallelogram
+/// of one texel around its centre; at a UV seam the border texels of both charts extend past
+/// the chart's edge over the surface the other chart covers, so a border texel's centre can
+/// lie within a millimetre of a sender of the other chart, inside its footprint, on the
+/// near-singular peak of the profile: that receiver takes most of the sender's light, the
+/// normalisation (`min(1, Q̂/Q)`) then scales the sender down, and the receiver is a bright
+/// texel beside darker ones (the faint lines of the face figures). Prints, at 64² and 256²,
+/// the senders whose largest raw share `A_i·S_ij / A_j` goes to a texel of another chart and
+/// exceeds the sender's own self share, and the worst cases.
+#[test]
+#[ignore = "measurement: cargo test --release --test faces_head -- --ignored --nocapture seam"]
+fn seam_senders_give_their_light_to_the_other_charts_border() {
+    use std::collections::HashMap;
+    for size in [64u32, 256] {
+        let scene = head(size);
+        let grid = TexelGrid::build(&scene).unwrap();
+        let vis = std::sync::Arc::new(Visibility::new(&scene.mesh));
+        let k = ortm::bake::transport::Kernels::new(&scene, Effects::default(), vis);
+        let patches = texel_patches(&grid);
+        let support = k.support_m[0] as f32;
+        let cell = |p: Vec3| (p / support).floor().as_ivec3();
+        let mut buckets: HashMap<glam::IVec3, Vec<usize>> = HashMap::new();
+        for (i, p) in patches.iter().enumerate() {
+            buckets.entry(cell(p.position_m)).or_default().push(i);
+        }
+        let worst: Vec<(f64, f64, usize, usize)> = (0..patches.len())
+            .into_par_iter()
+            .filter_map(|j| {
+                let b = &patches[j];
+                let c = cell(b.position_m);
+                let (mut own, mut best) = (0.0f64, (0.0f64, j));
+                for dz in -1..=1 {
+                    for dy in -1..=1 {
+                        for dx in -1..=1 {
+                            let Some(list) = buckets.get(&(c + glam::IVec3::new(dx, dy, dz)))
+                            else {
+                                continue;
+                            };
+                            for &i in list {
+                                let a = &patches[i];
+                                let Some(s) = k.subsurface_raw(a, b, i == j) else {
+                                    continue;
+                                };
+                                let share = s[0] * a.area_m2 as f64 / b.area_m2 as f64;
+                                if i == j {
+                                    own = share;
+                                } else if share > best.0 {
+                                    best = (share, i);
+                                }
+                            }
+                        }
+                    }
+                }
+                let other = grid.texels[best.1].chart != grid.texels[j].chart;
+                (other && best.0 > own).then_some((best.0, own, j, best.1))
+            })
+            .collect();
+        let mut worst = worst;
+        worst.sort_by(|p, q| q.0.total_cmp(&p.0));
+        println!(
+            "head {size}²: {} of {} senders give their largest share (red) to a texel of another \
+             chart, more than to themselves",
+            worst.len(),
+            patches.len()
+        );
+        for &(share, own, j, i) in worst.iter().take(5) {
+            let (s, r) = (&grid.texels[j], &grid.texels[i]);
+            println!(
+                "  sender ({}, {}) chart {} → ({}, {}) chart {}: {share:.3} against {own:.3} to \
+                 itself, {:.2} mm apart",
+                s.x,
+                s.y,
+                s.chart,
+                r.x,
+                r.y,
+                r.chart,
+                (s.position_m - r.position_m).length() * 1e3
+            );
+        }
+    }
+}
