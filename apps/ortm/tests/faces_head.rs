@@ -324,15 +324,14 @@ fn head_scene_file_equals_the_built_in_head() {
 }
 
 /// Measurement (ignored; `cargo test --release --test faces_head -- --ignored --nocapture
-/// seam`): where a sender's raw subsurface weights go. A texel's footprint is a parallelogram
-/// of one texel around its centre; at a UV seam the border texels of both charts extend past
-/// the chart's edge over the surface the other chart covers, so a border texel's centre can
-/// lie within a millimetre of a sender of the other chart, inside its footprint, on the
-/// near-singular peak of the profile: that receiver takes most of the sender's light, the
-/// normalisation (`min(1, Q̂/Q)`) then scales the sender down, and the receiver is a bright
-/// texel beside darker ones (the faint lines of the face figures). Prints, at 64² and 256²,
-/// the senders whose largest raw share `A_i·S_ij / A_j` goes to a texel of another chart and
-/// exceeds the sender's own self share, and the worst cases.
+/// seam`): where a sender's raw subsurface weights go. A receiver's weight is the sender's
+/// footprint integral seen from the receiver's centre, times the receiver's area; across a UV
+/// seam a large texel of the other chart whose centre lies a millimetre from the sender counts
+/// its whole area at the profile's near-singular peak: it takes most of the sender's light,
+/// the normalisation (`min(1, Q̂/Q)`) then scales the sender down, and the receiver is a bright
+/// texel beside darker ones (the brightest of the faint lines in the face figures). Prints, at
+/// 64² and 256², the senders whose largest raw share `A_i·S_ij / A_j` goes to a texel of
+/// another chart and exceeds the sender's own self share, and the worst cases.
 #[test]
 #[ignore = "measurement: cargo test --release --test faces_head -- --ignored --nocapture seam"]
 fn seam_senders_give_their_light_to_the_other_charts_border() {
