@@ -343,47 +343,30 @@ fn head_scene_file_equals_the_built_in_head() {
 #[test]
 #[ignore = "measurement: cargo test --release --test faces_head -- --ignored --nocapture seam"]
 fn seam_senders_give_their_light_to_the_other_charts_border() {
-    use std::collections::HashMap;
     for size in [64u32, 256] {
         let scene = head(size);
         let grid = TexelGrid::build(&scene).unwrap();
         let vis = std::sync::Arc::new(Visibility::new(&scene.mesh));
         let k = ortm::bake::transport::Kernels::new(&scene, Effects::default(), vis);
         let patches = texel_patches(&grid);
-        let support = k.support_m[0] as f32;
-        let cell = |p: Vec3| (p / support).floor().as_ivec3();
-        let mut buckets: HashMap<glam::IVec3, Vec<usize>> = HashMap::new();
-        for (i, p) in patches.iter().enumerate() {
-            buckets.entry(cell(p.position_m)).or_default().push(i);
-        }
+        let near = ortm::bake::transport::SupportGrid::new(&patches, &k);
         let worst: Vec<(f64, f64, usize, usize)> = (0..patches.len())
             .into_par_iter()
             .filter_map(|j| {
                 let b = &patches[j];
-                let c = cell(b.position_m);
                 let (mut own, mut best) = (0.0f64, (0.0f64, j));
-                for dz in -1..=1 {
-                    for dy in -1..=1 {
-                        for dx in -1..=1 {
-                            let Some(list) = buckets.get(&(c + glam::IVec3::new(dx, dy, dz)))
-                            else {
-                                continue;
-                            };
-                            for &i in list {
-                                let a = &patches[i];
-                                let Some(s) = k.subsurface_raw(a, b, i == j) else {
-                                    continue;
-                                };
-                                let share = s[0] * a.area_m2 as f64 / b.area_m2 as f64;
-                                if i == j {
-                                    own = share;
-                                } else if share > best.0 {
-                                    best = (share, i);
-                                }
-                            }
-                        }
+                near.for_each_near(b.position_m, |i| {
+                    let (i, a) = (i as usize, &patches[i as usize]);
+                    let Some(s) = k.subsurface_raw(a, b, i == j) else {
+                        return;
+                    };
+                    let share = s[0] * a.area_m2 as f64 / b.area_m2 as f64;
+                    if i == j {
+                        own = share;
+                    } else if share > best.0 {
+                        best = (share, i);
                     }
-                }
+                });
                 let other = grid.texels[best.1].chart != grid.texels[j].chart;
                 (other && best.0 > own).then_some((best.0, own, j, best.1))
             })
