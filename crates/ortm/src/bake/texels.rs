@@ -431,7 +431,7 @@ fn average_over_squares(
     (width, height): (u32, u32),
     texels: &mut [Texel],
     slot: &[u32],
-    triangle_chart: &[u32],
+    (triangle_chart, n_charts): (&[u32], usize),
 ) {
     /// Per texel, sums over the triangles clipped to its square (f32: at most a few hundred
     /// terms each).
@@ -471,11 +471,6 @@ fn average_over_squares(
     };
     // Charts whose triangles all share one Jacobian keep their texels as they are: skip them
     // (no work, no memory, for the planar charts of rooms).
-    let n_charts = triangle_chart
-        .iter()
-        .map(|&c| c as usize + 1)
-        .max()
-        .unwrap_or(0);
     let mut first: Vec<Option<(f64, [DVec3; 2])>> = vec![None; n_charts];
     let mut uneven = vec![false; n_charts];
     for (ti, tri) in mesh.triangles.iter().enumerate() {
@@ -491,6 +486,8 @@ fn average_over_squares(
     if !uneven.iter().any(|&u| u) {
         return;
     }
+    // `affine` again per triangle rather than a per-triangle table: cheap beside the clipping,
+    // and no memory that grows with the mesh.
     let mut sums = vec![Sums::default(); texels.len()];
     for (ti, tri) in mesh.triangles.iter().enumerate() {
         let chart = triangle_chart[ti];
@@ -636,7 +633,13 @@ impl TexelGrid {
         let warnings = check_overlap(scene, width, height, overlapping, texels.len(), &cov)?;
         let triangles_without_texels = cov.triangles_without_texels;
         drop(cov);
-        average_over_squares(scene, (width, height), &mut texels, &slot, &triangle_chart);
+        average_over_squares(
+            scene,
+            (width, height),
+            &mut texels,
+            &slot,
+            (&triangle_chart, n_charts),
+        );
         let area_total = texels.iter().map(|t| t.area_m2 as f64).sum::<f64>();
         Ok(Self {
             width,
