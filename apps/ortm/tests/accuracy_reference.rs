@@ -53,6 +53,9 @@ struct Agreement {
     within: f64,
     rmse: f64,
     indirect_power_ratio: f64,
+    /// The reference's noise over the mask as a relative RMSE, `sqrt(Σ σ² / Σ B²)`: what the
+    /// relative RMSE would be if the exact solve were the reference's expectation.
+    noise: f64,
 }
 
 fn agreement(
@@ -114,16 +117,24 @@ fn agreement(
         pe += a * (exact[i] - maps.first_order[i]).element_sum() as f64;
     }
     println!("indirect power reference / exact: {:.4}", pr / pe);
+    let (mut num, mut den) = (0.0f64, 0.0f64);
+    for i in (0..exact.len()).filter(|&i| mask[i]) {
+        num += maps.std_error[i].as_dvec3().length_squared();
+        den += maps.final_b[i].as_dvec3().length_squared();
+    }
     let a = Agreement {
         within: within as f64 / z.len() as f64,
         rmse: relative_rmse(&maps.final_b, exact, Some(mask)),
         indirect_power_ratio: pr / pe,
+        noise: (num / den).sqrt(),
     };
     println!(
-        "{} texels: within {k} σ: {:.4}; relative RMSE {:.5}; mean relative standard error {:.5}",
+        "{} texels: within {k} σ: {:.4}; relative RMSE {:.5}, of which noise {:.5}; mean relative \
+         standard error {:.5}",
         z.len(),
         a.within,
         a.rmse,
+        a.noise,
         maps.mean_relative_std_error(&maps.final_b)
     );
     a
@@ -142,6 +153,28 @@ fn near_creases(grid: &TexelGrid) -> Vec<bool> {
                     && a.normal.dot(b.normal) < 0.99
                     && (a.position_m - b.position_m).length()
                         < 2.0 * a.area_m2.max(b.area_m2).sqrt()
+            })
+        })
+        .collect()
+}
+
+/// Texels within 2.5 texel sizes of a texel whose first-order light (summed over the channels)
+/// differs from theirs by more than 2× either way: shadow edges and terminators that the
+/// lightmap resolves over a couple of texels. Both solvers take the first-order light as the
+/// texel centre's value, but the reference gathers the light around that centre continuously
+/// (its bounces and its subsurface exit points land anywhere), while the exact solve holds each
+/// texel's light constant over its square: there the two compute different things, and the
+/// difference is the texel discretisation, not an error of either.
+fn near_first_order_edges(grid: &TexelGrid, first_order: &[Vec3]) -> Vec<bool> {
+    let t = &grid.texels;
+    (0..t.len())
+        .map(|i| {
+            let own = first_order[i].element_sum();
+            (0..t.len()).any(|j| {
+                let o = first_order[j].element_sum();
+                (o > 2.0 * own || own > 2.0 * o)
+                    && (t[i].position_m - t[j].position_m).length()
+                        < 2.5 * t[i].area_m2.max(t[j].area_m2).sqrt()
             })
         })
         .collect()
@@ -236,23 +269,75 @@ fn head_64_agrees_with_the_exact_solve() {
     let _ = agreement(&grid, &maps, &exact, 3.0, &creases);
     println!("away from seams:");
     let _ = agreement(&grid, &maps, &exact, 3.0, &away);
+    let edges = near_first_order_edges(&grid, &maps.first_order);
+    let calm: Vec<bool> = edges.iter().map(|e| !e).collect();
+    println!("near first-order edges:");
+    let _ = agreement(&grid, &maps, &exact, 3.0, &edges);
+    println!("away from first-order edges:");
+    let _ = agreement(&grid, &maps, &exact, 3.0, &calm);
     let noise = maps.rms_relative_std_error(&maps.final_b);
     println!("the reference's noise as a relative RMSE: {noise:.4}");
-    // Measured (256 spp, seed 1): 0.815 of the 3,782 texels within 3σ, relative RMSE 0.1199, of
-    // which the reference's noise is 0.085 (sqrt Σσ² / sqrt ΣB²): ~0.085 is systematic, far from
-    // the 1 % target; the reference's indirect power is 1.75 × the exact solve's (away from
-    // seams 0.768 / 0.0903 / 1.47). With each texel's area and footprint its covering
-    // triangle's Jacobian instead of their averages over the texel's square: 0.815 / 0.1255 /
-    // 2.00 (away from seams 0.757 / 0.1039 / 1.77); with the midpoint rule and the senders
-    // capped at ρ̄: 0.834 / 0.155; with footprints and the cap at ρ̄: 0.815 / 0.140. The largest differences are where the 64²
-    // discretisation is coarse (texels of 4–9 mm against a profile of 1–3 mm mean free path):
-    // texels whose centre is shadowed but whose neighbourhood is lit — the first-order light
-    // is a point sample at each texel's centre, while the reference's exit points gather the
-    // lit skin a millimetre away. The flat-square test checks the subsurface estimator
-    // analytically. Bounds: measured + 25 % of the error.
-    assert!(a_all.within >= 0.769, "{:.4} within 3σ", a_all.within);
-    assert!(a_all.rmse < 0.150, "relative RMSE {:.4}", a_all.rmse);
-    assert!(noise < 0.106, "noise {noise:.4}");
+    // Measured (256 spp, seed 1): 0.9368 of the 3,782 texels within 3σ, relative RMSE 0.1167,
+    // of which the reference's noise is 0.0842 (sqrt Σσ² / sqrt ΣB²); the reference's indirect
+    // power is 1.52 × the exact solve's. Split by the first-order light's edges: the 1,673
+    // texels near them 0.9157 / 0.1248 / 1.58, the 2,109 away from them 0.9535 / 0.0808 (noise
+    // 0.0740) / 1.009 — away from the edges the two agree to the reference's noise, and
+    // [`head_64_agrees_away_from_first_order_edges_for_each_effect`] shows it for each effect
+    // alone. The gap is the 64² texel (4–9 mm, against a subsurface profile of 1–3 mm mean
+    // free path) holding the first-order light constant across shadow edges and terminators,
+    // where the reference's exit points and bounces gather the light beside the centre. With
+    // the first order sampled as a light on opaque surfaces only (cosine bounces alone on
+    // skin) the figures were 0.815 / 0.1199 / 1.75: rare paths from dark skin to lit skin left
+    // many texels at 0 ± 0. Bounds: measured + 25 % of the error.
+    assert!(a_all.within >= 0.921, "{:.4} within 3σ", a_all.within);
+    assert!(a_all.rmse < 0.146, "relative RMSE {:.4}", a_all.rmse);
+    assert!(noise < 0.105, "noise {noise:.4}");
+}
+
+/// The head at 64² with the scene's light, each effect alone: away from the first-order light's
+/// edges ([`near_first_order_edges`]) the reference and the exact solve must agree to the
+/// reference's noise — within 3 standard errors on ≥ 99 % of the texels, and a relative RMSE
+/// no larger than the reference's own noise (+ 25 %) — so whatever separates them there is
+/// the discretisation of the first-order light at those edges, not the radiosity or the
+/// subsurface model of either.
+#[test]
+fn head_64_agrees_away_from_first_order_edges_for_each_effect() {
+    let Ok(mut scene) = ortm::scene::head::head_scene() else {
+        panic!("head scene (../shared/faces/head.obj)");
+    };
+    scene.lightmap_size = (64, 64);
+    let grid = TexelGrid::build(&scene).unwrap();
+    let lights = scene.lights.clone();
+    let only_sss = Effects {
+        radiosity: false,
+        subsurface: true,
+    };
+    for (name, effects) in [("radiosity", RADIOSITY), ("subsurface", only_sss)] {
+        let maps = run(&scene, &grid, &lights, &settings(256, 1, effects));
+        let exact = exact(&scene, &grid, &lights, effects);
+        let edges = near_first_order_edges(&grid, &maps.first_order);
+        let calm: Vec<bool> = edges.iter().map(|e| !e).collect();
+        println!("{name}, near first-order edges:");
+        let near = agreement(&grid, &maps, &exact, 3.0, &edges);
+        println!("{name}, away from first-order edges:");
+        let away = agreement(&grid, &maps, &exact, 3.0, &calm);
+        // Measured (256 spp, seed 1; 1,673 texels near edges, 2,109 away): radiosity near
+        // 0.9468 within 3σ / RMSE 0.0174 (noise 0.0054), away 0.9948 / 0.0043 (noise 0.0040);
+        // subsurface near 0.8793 / 0.1134 (noise 0.0837), away 0.9986 / 0.0743 (noise 0.0726).
+        // At 1,024 spp the subsurface figures away from edges are 0.9986 / 0.0370 (the RMSE
+        // halves with the noise) and near them 0.8577 / 0.0900 (the gap stays: not noise).
+        assert!(away.within >= 0.99, "{name}: {:.4} within 3σ", away.within);
+        assert!(
+            away.rmse < 1.25 * away.noise,
+            "{name}: relative RMSE {:.4} against noise {:.4}",
+            away.rmse,
+            away.noise
+        );
+        assert!(
+            near.within < away.within,
+            "{name}: the edges are where they differ"
+        );
+    }
 }
 
 fn bits(m: &ReferenceMaps) -> Vec<[u32; 3]> {
@@ -302,14 +387,13 @@ fn trace_estimator(
     grid: &TexelGrid,
     lights: &[Light],
     estimator: reference::Estimator,
-    spp: u32,
-    seed: u64,
+    (spp, seed, effects): (u32, u64, Effects),
 ) -> (ReferenceMaps, f64) {
     let (maps, stats) = reference::trace_with_estimator(
         scene,
         grid,
         lights,
-        &settings(spp, seed, RADIOSITY),
+        &settings(spp, seed, effects),
         estimator,
         &|_, _| {},
         &AtomicBool::new(false),
@@ -332,21 +416,57 @@ fn first_order_light_agrees_with_cosine_bounces() {
         color: Vec3::ONE,
         intensity_w_sr: 1.0,
     }];
+    let (within, z_power) = estimators_agree(&scene, &grid, &lights, RADIOSITY, (1024, 512));
+    // Measured (cosine 1,024 spp seed 7, light 512 spp seed 8): 0.9954 within 3σ, total power
+    // z −0.54 (noise 0.0162 and 0.0139); seeds 1, 2: 0.9954, +1.71. Independent Gaussian errors
+    // put the largest of 3 channels within 3σ for ~0.992 of the texels.
+    assert!(within >= 0.99, "{within:.4} of the texels within 3σ");
+    assert!(z_power.abs() < 4.0, "total power differs by {z_power:.2}σ");
+}
+
+/// The same on translucent skin: the head at 64² with radiosity and subsurface, where the first
+/// order of the translucent surface is sampled as a light and its exit steps subtract the
+/// light sample's share (`reference::path`).
+#[test]
+fn first_order_light_agrees_with_cosine_bounces_on_skin() {
+    let Ok(mut scene) = ortm::scene::head::head_scene() else {
+        panic!("head scene (../shared/faces/head.obj)");
+    };
+    scene.lightmap_size = (64, 64);
+    let grid = TexelGrid::build(&scene).unwrap();
+    let lights = scene.lights.clone();
+    let (within, z_power) =
+        estimators_agree(&scene, &grid, &lights, Effects::default(), (512, 256));
+    // Measured (cosine 512 spp seed 7, light 256 spp seed 8): 0.9942 within 3σ, total power
+    // z +1.51 (noise 0.0602 and 0.0845: at equal paths the two are about as noisy on lit skin,
+    // whose exit points carry the variance); seeds 1, 2: 0.9942, −0.42.
+    assert!(within >= 0.99, "{within:.4} of the texels within 3σ");
+    assert!(z_power.abs() < 4.0, "total power differs by {z_power:.2}σ");
+}
+
+/// Cosine-sampled bounces (`spp.0` paths per texel, seed 7) against the first-order light
+/// (`spp.1`, seed 8): the fraction of texels whose difference is within 3 combined standard errors in
+/// every channel, and the difference of the total power in combined standard errors.
+fn estimators_agree(
+    scene: &Scene,
+    grid: &TexelGrid,
+    lights: &[Light],
+    effects: Effects,
+    spp: (u32, u32),
+) -> (f64, f64) {
     let (cosine, _) = trace_estimator(
-        &scene,
-        &grid,
-        &lights,
+        scene,
+        grid,
+        lights,
         reference::Estimator::Cosine,
-        1024,
-        7,
+        (spp.0, 7, effects),
     );
     let (light, _) = trace_estimator(
-        &scene,
-        &grid,
-        &lights,
+        scene,
+        grid,
+        lights,
         reference::Estimator::FirstOrderLight,
-        512,
-        8,
+        (spp.1, 8, effects),
     );
     let mut within = 0usize;
     let (mut dp, mut var_p) = (0.0f64, 0.0f64);
@@ -371,11 +491,7 @@ fn first_order_light_agrees_with_cosine_bounces() {
         cosine.rms_relative_std_error(&cosine.final_b),
         light.rms_relative_std_error(&light.final_b)
     );
-    // Measured (cosine 1,024 spp seed 7, light 512 spp seed 8): 0.9954 within 3σ, total power
-    // z −0.54 (noise 0.0162 and 0.0139); seeds 1, 2: 0.9954, +1.71. Independent Gaussian errors
-    // put the largest of 3 channels within 3σ for ~0.992 of the texels.
-    assert!(within >= 0.99, "{within:.4} of the texels within 3σ");
-    assert!(z_power.abs() < 4.0, "total power differs by {z_power:.2}σ");
+    (within, z_power)
 }
 
 /// The case the first-order light is for: Cornell 32² with its own lamp 2 cm under the ceiling
@@ -387,14 +503,15 @@ fn first_order_light_lowers_the_noise_under_a_lamp_near_the_ceiling() {
     let grid = TexelGrid::build(&scene).unwrap();
     let spp = 256;
     let noise = |estimator| {
-        let (m, seconds) = trace_estimator(&scene, &grid, &scene.lights, estimator, spp, 1);
+        let (m, seconds) =
+            trace_estimator(&scene, &grid, &scene.lights, estimator, (spp, 1, RADIOSITY));
         let noise = m.rms_relative_std_error(&m.final_b);
         println!("{estimator:?}: noise {noise:.4} at {spp} spp in {seconds:.1} s");
         noise
     };
     let cosine = noise(reference::Estimator::Cosine);
     let light = noise(reference::Estimator::FirstOrderLight);
-    // Measured: TODO.
+    // Measured (256 spp, seed 1): cosine 0.1124, first-order light 0.0188 (6.0×).
     assert!(
         cosine > 4.0 * light,
         "cosine {cosine:.4}, first-order light {light:.4}"

@@ -2,14 +2,15 @@
 //! reference's indirect paths towards brightly lit surfaces (a lamp just under a ceiling makes a
 //! small spot that cosine-sampled bounces rarely find and that then carries most of the light).
 //!
-//! Every opaque triangle (translucent ones emit nothing in this split, see [`super::path`]) is
-//! cut into `k²` equal sub-triangles ("cells", `k` from its share of the area, about
-//! [`TARGET_CELLS`] in all); each cell's probability is
-//! `(1 − α)·B̄_o(centroid)·A_cell / Σ + α·A_cell / A_opaque` with `B̄_o` the mean over channels
-//! of the first order `ρ·E_direct` evaluated exactly at the cell's centroid (same lights and
+//! Every triangle is cut into `k²` equal sub-triangles ("cells", `k` from its share of the
+//! area, about [`TARGET_CELLS`] in all); each cell's probability is
+//! `(1 − α)·B̄_o(centroid)·A_cell / Σ + α·A_cell / A_total` with `B̄_o` the mean over channels
+//! of the first order `ρ·E_direct` (`ρ̄`, the profile's total diffuse reflectance, on
+//! translucent surfaces; see [`super::path`] for their split) evaluated exactly at the cell's
+//! centroid (same lights and
 //! shadow rays as the paths) and `α =` [`UNIFORM_SHARE`] (no density when no centroid is
 //! lit). The density only shapes where points are drawn: the paths evaluate `B_o` exactly at
-//! the point they reach, so the cells' size enters no result. The uniform share keeps the density `> 0` on every opaque surface, so
+//! the point they reach, so the cells' size enters no result. The uniform share keeps the density `> 0` on every surface, so
 //! shadowed-centroid cells that are partly lit are still reached (and the cosine-sampled bounce
 //! covers them too under multiple importance sampling).
 //!
@@ -32,7 +33,7 @@ pub const TARGET_CELLS: f64 = 65_536.0;
 /// Largest subdivision of one triangle (cells per edge).
 const MAX_SUBDIVISION: u32 = 256;
 
-/// Share of the density spread uniformly by area over opaque surfaces.
+/// Share of the density spread uniformly by area over the surface.
 pub const UNIFORM_SHARE: f64 = 0.2;
 
 /// Cell layout of one triangle.
@@ -69,8 +70,8 @@ pub struct LightSample {
 }
 
 impl FirstOrderLight {
-    /// The density of `view`'s first order; `None` when the scene has no opaque surface or no
-    /// cell centroid is lit (the paths then keep cosine-sampled bounces alone).
+    /// The density of `view`'s first order; `None` when the scene has no surface or no cell
+    /// centroid is lit (the paths then keep cosine-sampled bounces alone).
     pub fn build(view: &SceneView<'_>) -> Option<Self> {
         let (triangles, slots, total_area) = cell_layout(view)?;
         let owners: Vec<(u32, u32)> = triangles
@@ -184,8 +185,8 @@ fn slot_centroid(k: u32, local: u32) -> Option<[f32; 3]> {
     Some([1.0 - b1 - b2, b1, b2])
 }
 
-/// The cells of every opaque triangle of `view`'s mesh, the number of slots and the opaque area
-/// (m²); `None` when that area is 0.
+/// The cells of every triangle of `view`'s mesh, the number of slots and the total area (m²);
+/// `None` when that area is 0.
 fn cell_layout(view: &SceneView<'_>) -> Option<(Vec<TriangleCells>, u32, f64)> {
     let mesh = &view.scene().mesh;
     let areas: Vec<f64> = mesh
@@ -196,18 +197,14 @@ fn cell_layout(view: &SceneView<'_>) -> Option<(Vec<TriangleCells>, u32, f64)> {
             0.5 * (p[1] - p[0]).cross(p[2] - p[0]).as_dvec3().length()
         })
         .collect();
-    let opaque = |t: usize| !view.translucent(mesh.triangles[t].material) && areas[t] > 0.0;
-    let total_area: f64 = (0..areas.len())
-        .filter(|&t| opaque(t))
-        .map(|t| areas[t])
-        .sum();
+    let total_area: f64 = areas.iter().filter(|&&a| a > 0.0).sum();
     if total_area <= 0.0 {
         return None;
     }
     let mut triangles = vec![TriangleCells::default(); areas.len()];
     let mut slots = 0u32;
     for (t, cells) in triangles.iter_mut().enumerate() {
-        if !opaque(t) {
+        if areas[t] <= 0.0 {
             continue;
         }
         let k = (areas[t] * TARGET_CELLS / total_area)

@@ -12,8 +12,9 @@
 //!   next-event estimation to every light at every vertex, Russian roulette); for a translucent
 //!   one (subsurface on) `∫ R_d(|x − y|) E(y) dA(y)` with `y` sampled by the profile and
 //!   probe rays ([`subsurface`]), by Euclidean distance, so light crosses seams and ears;
-//! - by default ([`Estimator::FirstOrderLight`]) the first-order radiosity of opaque surfaces is
-//!   also sampled as a light at every path vertex (module `emitters`: points drawn ∝ `B_o·A`, `B_o`
+//! - by default ([`Estimator::FirstOrderLight`]) the first-order radiosity of every surface
+//!   (`ρ̄·E_direct` on translucent ones, the rest of their light from the bounce) is also
+//!   sampled as a light at every path vertex (module `emitters`: points drawn ∝ `B_o·A`, `B_o`
 //!   evaluated exactly at the drawn point by the same lights and shadow rays), combined with the
 //!   cosine-sampled bounce by the balance heuristic: unbiased, and far less noisy where a lamp
 //!   nearly touches a surface (Cornell: ~6× lower standard error at equal paths per texel);
@@ -60,7 +61,7 @@ pub const FIRST_ORDER_LIGHT_VERTICES: u32 = u32::MAX;
 pub enum Estimator {
     /// Cosine-sampled bounces, next-event estimation to the lights.
     Cosine,
-    /// As [`Estimator::Cosine`], plus the first-order radiosity `B_o = ρ·E_direct` of opaque
+    /// As [`Estimator::Cosine`], plus the first-order radiosity `B_o = ρ·E_direct` of the
     /// surfaces sampled as a light (module `emitters`: points drawn ∝ `B_o·A`, one shadow ray,
     /// `B_o` evaluated exactly at the point) at the first [`FIRST_ORDER_LIGHT_VERTICES`]
     /// vertices, combined with the bounce by the balance heuristic.

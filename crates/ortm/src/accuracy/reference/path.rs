@@ -17,7 +17,10 @@
 //! exitance step's direct term): the first part gets two samples, one from a point drawn by the
 //! light and one from the bounce, weighted by the balance heuristic
 //! `w = p_technique / (p_cos + p_light)` in solid angle (`p_cos = cosθ/π`,
-//! `p_light = p_A·d²/|cos θ_z|`); the rest comes from the bounce as before. Russian
+//! `p_light = p_A·d²/|cos θ_z|`); the rest comes from the bounce as before. A translucent
+//! `z` takes the same split with `B_o(z) = ρ̄·E_direct(z)`: its exit step estimates all of
+//! `B(z)`, so the bounce subtracts the light sample's share `(1 − w)·B_o(z)` there (one more
+//! set of shadow rays at `z`; the sample can be negative, the estimate stays unbiased). Russian
 //! roulette after [`ROULETTE_AFTER`] bounces, once the throughput is below [`ROULETTE_WEIGHT`],
 //! keeps it unbiased. Positions in metres, `B` and
 //! `E` in W/m², linear RGB.
@@ -215,6 +218,12 @@ impl<'a> SceneView<'a> {
             } else {
                 let (q, weight) = match &self.samplers[p.material as usize] {
                     Some(sampler) => {
+                        if emitted_weight < 1.0 {
+                            // Reached by a bounce that shares `B_o(p) = ρ̄·E_direct(p)` with the
+                            // light sample: the exit step estimates all of `B(p)`, so the part
+                            // of `B_o(p)` the light sample carries, `1 − w`, comes off here.
+                            sum -= t * (1.0 - emitted_weight) * p.albedo * self.direct(&p, s);
+                        }
                         let Some(y) = self.exit_point(sampler, &p, rng, s) else {
                             break;
                         };
@@ -263,8 +272,9 @@ impl<'a> SceneView<'a> {
     /// first order exactly, `ρ·E_direct`), as a sample of `∫ B_o(z)/π cosθ dω`, weighted
     /// against the cosine-sampled bounce by the balance heuristic:
     /// `B_o(z)·cosθ / (cosθ + π·p_ω)`, `p_ω = p_A·d²/|cos θ_z|` the light's solid-angle density.
-    /// 0 when the point is hidden, faces away from `q`, lies below `q`'s horizon or is
-    /// translucent (the first order as a light is the opaque surfaces' only).
+    /// 0 when the point is hidden, faces away from `q` or lies below `q`'s horizon. A
+    /// translucent point's first order is `ρ̄·E_direct` too (its `B_o`, the transport's first
+    /// order); the rest of its `B`, `∫ R_d E dA − ρ̄·E_direct`, comes from the bounce.
     fn first_order_light(
         &self,
         light: &FirstOrderLight,
@@ -297,7 +307,7 @@ impl<'a> SceneView<'a> {
             return Vec3::ZERO;
         }
         let z = self.point_of_hit(&hit);
-        if z.normal.dot(dir) >= 0.0 || self.translucent(z.material) {
+        if z.normal.dot(dir) >= 0.0 {
             return Vec3::ZERO;
         }
         let p_omega = self.solid_angle_density(light, &hit, &z, dir);
@@ -364,7 +374,7 @@ impl<'a> SceneView<'a> {
             return None;
         }
         let weight = match light {
-            Some(light) if !self.translucent(p.material) => {
+            Some(light) => {
                 let cos_q = q.normal.dot(dir).max(0.0);
                 let p_omega = self.solid_angle_density(light, &hit, &p, dir);
                 if p_omega.is_finite() {
