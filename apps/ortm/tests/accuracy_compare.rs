@@ -2,7 +2,7 @@
 //! images with known figures: a 10 % scale on interior texels is a relative RMSE of exactly
 //! 0.1, errors on border texels only count for nothing, the indirect figure with both first
 //! orders, per-channel energy ratios, the interior mask of the Cornell charts, the worst texels
-//! and the false-colour picture; then the tool end to end on OpenEXRs written here (its printed
+//! and the false-colour picture, the first-order edge mask against a brute-force search; then the tool end to end on OpenEXRs written here (its printed
 //! figures are the library's), `ortm solve`'s OpenEXRs, and bad inputs (sizes, missing files,
 //! non-EXR files, non-finite values) refused with the file named.
 
@@ -15,7 +15,8 @@ use common::{fails, ok, ortm};
 use glam::{DVec3, Vec3};
 use ortm::Lightmap;
 use ortm::accuracy::compare::{
-    UNCOVERED_GREY, compare, error_image, interior_mask, power_w, reference_rms, viridis,
+    UNCOVERED_GREY, compare, error_image, interior_mask, near_first_order_edges, power_w,
+    reference_rms, viridis,
 };
 use ortm::bake::lighting::{from_lightmap, to_lightmap};
 use ortm::bake::texels::TexelGrid;
@@ -531,4 +532,50 @@ fn solve_methods_agree_and_the_dense_limit_names_the_other() {
         "{e}"
     );
     assert!(!dir.path().join("m").join("final.exr").exists());
+}
+
+/// The first-order edge mask (hashed cubes) against the plain search over every pair, on the
+/// Cornell box at 32² with a first order that jumps 4× across a plane through the room and is
+/// 0 on one wall: the same texels; a uniform first order has no edges.
+#[test]
+fn first_order_edges_match_the_plain_search() {
+    let grid = cornell_grid(32);
+    let t = &grid.texels;
+    assert!(
+        near_first_order_edges(&grid, &vec![Vec3::ONE; t.len()])
+            .iter()
+            .all(|e| !e)
+    );
+    let first: Vec<Vec3> = t
+        .iter()
+        .map(|x| {
+            let p = x.position_m;
+            if x.normal.x > 0.9 {
+                Vec3::ZERO
+            } else if p.y + 0.3 * p.z > 0.35 {
+                Vec3::splat(4.0)
+            } else {
+                Vec3::new(1.0, 0.5, 0.25)
+            }
+        })
+        .collect();
+    let fast = near_first_order_edges(&grid, &first);
+    let plain: Vec<bool> = (0..t.len())
+        .map(|i| {
+            let own = first[i].element_sum();
+            (0..t.len()).any(|j| {
+                let o = first[j].element_sum();
+                (o > 2.0 * own || own > 2.0 * o)
+                    && (t[i].position_m - t[j].position_m).length()
+                        < 2.5 * t[i].area_m2.max(t[j].area_m2).sqrt()
+            })
+        })
+        .collect();
+    let flagged = fast.iter().filter(|&&e| e).count();
+    assert!(
+        flagged > 0 && flagged < t.len(),
+        "{flagged} of {} flagged",
+        t.len()
+    );
+    assert_eq!(fast, plain);
 }

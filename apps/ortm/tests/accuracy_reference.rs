@@ -8,7 +8,7 @@ mod common;
 use std::sync::atomic::AtomicBool;
 
 use glam::Vec3;
-use ortm::accuracy::compare::relative_rmse;
+use ortm::accuracy::compare::{near_first_order_edges, relative_rmse};
 use ortm::accuracy::reference::{self, ReferenceMaps, Settings};
 use ortm::bake::lighting;
 use ortm::bake::raycast::Visibility;
@@ -158,28 +158,6 @@ fn near_creases(grid: &TexelGrid) -> Vec<bool> {
         .collect()
 }
 
-/// Texels within 2.5 texel sizes of a texel whose first-order light (summed over the channels)
-/// differs from theirs by more than 2× either way: shadow edges and terminators that the
-/// lightmap resolves over a couple of texels. Both solvers take the first-order light as the
-/// texel centre's value, but the reference gathers the light around that centre continuously
-/// (its bounces and its subsurface exit points land anywhere), while the exact solve holds each
-/// texel's light constant over its square: there the two compute different things, and the
-/// difference is the texel discretisation, not an error of either.
-fn near_first_order_edges(grid: &TexelGrid, first_order: &[Vec3]) -> Vec<bool> {
-    let t = &grid.texels;
-    (0..t.len())
-        .map(|i| {
-            let own = first_order[i].element_sum();
-            (0..t.len()).any(|j| {
-                let o = first_order[j].element_sum();
-                (o > 2.0 * own || own > 2.0 * o)
-                    && (t[i].position_m - t[j].position_m).length()
-                        < 2.5 * t[i].area_m2.max(t[j].area_m2).sqrt()
-            })
-        })
-        .collect()
-}
-
 fn settings(spp: u32, seed: u64, effects: Effects) -> Settings {
     Settings {
         samples_per_texel: spp,
@@ -295,11 +273,11 @@ fn head_64_agrees_with_the_exact_solve() {
 }
 
 /// The head at 64² with the scene's light, each effect alone: away from the first-order light's
-/// edges ([`near_first_order_edges`]) the reference and the exact solve must agree to the
-/// reference's noise — within 3 standard errors on ≥ 99 % of the texels, and a relative RMSE
-/// no larger than the reference's own noise (+ 25 %) — so whatever separates them there is
-/// the discretisation of the first-order light at those edges, not the radiosity or the
-/// subsurface model of either.
+/// edges (`ortm::accuracy::compare::near_first_order_edges`) the reference and the exact solve
+/// must agree to the reference's noise — within 3 standard errors on ≥ 99 % of the texels, and
+/// a relative RMSE no larger than the reference's own noise (+ 25 %) — so whatever separates
+/// them there is the discretisation of the first-order light at those edges, not the radiosity
+/// or the subsurface model of either.
 #[test]
 fn head_64_agrees_away_from_first_order_edges_for_each_effect() {
     let Ok(mut scene) = ortm::scene::head::head_scene() else {

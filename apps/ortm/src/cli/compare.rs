@@ -5,7 +5,8 @@
 //! `ortm render --lightmap-out` and `ortm reference` write them) is read and gathered at the
 //! covered texels; the library's [`ortm::accuracy::compare`] gives the figures — relative RMSE of
 //! the total and (with `--first REF_FIRST TEST_FIRST`) of the indirect term over interior
-//! covered texels, energy ratio per channel, worst texels — printed here, and
+//! covered texels, the same two away from the reference's first-order edges (with `--first`),
+//! energy ratio per channel, worst texels — printed here, and
 //! [`error_image`] the false-colour error PNG (`-o`).
 
 use std::path::{Path, PathBuf};
@@ -127,6 +128,14 @@ pub fn run(a: Args) -> Result<()> {
     match c.indirect {
         Some(e) => println!("indirect        relative RMSE {e:.6} ({:.2} %)", 100.0 * e),
         None => println!("indirect        (pass --first REF_FIRST.exr TEST_FIRST.exr)"),
+    }
+    if let Some((n, total, indirect)) = c.away_from_edges {
+        println!(
+            "away from edges {n} interior texels not within 2.5 texels of a 2x change of the \
+             reference's first order (shadow edges, terminators): total {:.2} %, indirect {:.2} %",
+            100.0 * total,
+            100.0 * indirect
+        );
     }
     let r = c.energy_ratio;
     println!(

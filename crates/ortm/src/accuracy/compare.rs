@@ -12,6 +12,8 @@
 //! scale as a false-colour picture (viridis ramp, uncovered texels grey, a colour bar under the
 //! map); `ortm compare` writes it with the reference's RMS over interior texels as the scale.
 
+use std::collections::HashMap;
+
 use glam::{DVec3, Vec3};
 use image::{Rgb, RgbImage};
 
@@ -26,6 +28,60 @@ pub fn interior_mask(grid: &TexelGrid) -> Vec<bool> {
             [(1, 0), (-1, 0), (0, 1), (0, -1)]
                 .iter()
                 .all(|(dx, dy)| grid.at(x + dx, y + dy).is_some())
+        })
+        .collect()
+}
+
+/// Per covered texel of `grid`: true when it lies within 2.5 texel sizes (3D distance, the
+/// larger texel's `sqrt(area)`; across charts and seams too) of a texel whose first-order light
+/// (`first_order`, summed over the channels) differs from its own by more than 2× either way —
+/// shadow edges and terminators that the lightmap resolves over a couple of texels. Every
+/// per-texel solver holds a texel's first-order light constant over it while the light gathered
+/// around its centre (bounces, subsurface exit points) varies there, so a comparison of a
+/// lightmap with a continuous reference reads the discretisation near these texels and the
+/// transport away from them.
+///
+/// # Panics
+/// When `first_order`'s length is not the grid's texel count.
+pub fn near_first_order_edges(grid: &TexelGrid, first_order: &[Vec3]) -> Vec<bool> {
+    assert_eq!(first_order.len(), grid.texels.len(), "first-order length");
+    let t = &grid.texels;
+    let reach = 2.5
+        * t.iter()
+            .map(|x| x.area_m2.max(0.0).sqrt())
+            .fold(0.0f32, f32::max);
+    if t.is_empty() || reach <= 0.0 {
+        return vec![false; t.len()];
+    }
+    // Texels hashed into cubes of side `reach`: every pair within it lies in neighbouring cubes.
+    let key = |p: Vec3| {
+        let q = (p / reach).floor();
+        (q.x as i64, q.y as i64, q.z as i64)
+    };
+    let mut cells: HashMap<(i64, i64, i64), Vec<usize>> = HashMap::new();
+    for (i, x) in t.iter().enumerate() {
+        cells.entry(key(x.position_m)).or_default().push(i);
+    }
+    let light: Vec<f32> = first_order.iter().map(|v| v.element_sum()).collect();
+    t.iter()
+        .enumerate()
+        .map(|(i, a)| {
+            let (cx, cy, cz) = key(a.position_m);
+            let own = light[i];
+            (-1..=1).any(|dz| {
+                (-1..=1).any(|dy| {
+                    (-1..=1).any(|dx| {
+                        cells.get(&(cx + dx, cy + dy, cz + dz)).is_some_and(|list| {
+                            list.iter().any(|&j| {
+                                let o = light[j];
+                                (o > 2.0 * own || own > 2.0 * o)
+                                    && (a.position_m - t[j].position_m).length()
+                                        < 2.5 * a.area_m2.max(t[j].area_m2).sqrt()
+                            })
+                        })
+                    })
+                })
+            })
         })
         .collect()
 }
@@ -94,6 +150,10 @@ pub struct Comparison {
     pub reference_rms: f64,
     /// Interior texels with the largest errors, largest first.
     pub worst: Vec<WorstTexel>,
+    /// With both first orders: the interior texels away from the reference's first-order edges
+    /// ([`near_first_order_edges`]) and the relative RMSE of the total and of the indirect term
+    /// over them.
+    pub away_from_edges: Option<(usize, f64, f64)>,
 }
 
 /// Root mean square of `|b|` (RGB length, W/m²) over the texels where `mask` is true; 0 when
@@ -132,12 +192,20 @@ pub fn compare(
     let mask = interior_mask(grid);
     let interior = mask.iter().filter(|&&m| m).count();
     let total = relative_rmse(test, reference, Some(&mask));
+    let sub = |a: &[Vec3], b: &[Vec3]| a.iter().zip(b).map(|(x, y)| *x - *y).collect::<Vec<_>>();
     let indirect = first.map(|(rf, tf)| {
         assert_eq!(rf.len(), grid.texels.len(), "reference first-order length");
         assert_eq!(tf.len(), grid.texels.len(), "test first-order length");
-        let sub =
-            |a: &[Vec3], b: &[Vec3]| a.iter().zip(b).map(|(x, y)| *x - *y).collect::<Vec<_>>();
         relative_rmse(&sub(test, tf), &sub(reference, rf), Some(&mask))
+    });
+    let away_from_edges = first.map(|(rf, tf)| {
+        let edges = near_first_order_edges(grid, rf);
+        let away: Vec<bool> = mask.iter().zip(&edges).map(|(m, e)| *m && !e).collect();
+        (
+            away.iter().filter(|&&a| a).count(),
+            relative_rmse(test, reference, Some(&away)),
+            relative_rmse(&sub(test, tf), &sub(reference, rf), Some(&away)),
+        )
     });
     let (p_ref, p_test) = (power_w(grid, reference), power_w(grid, test));
     let ratio = |a: f64, b: f64| {
@@ -176,6 +244,7 @@ pub fn compare(
         energy_ratio,
         reference_rms: rms,
         worst: ranked,
+        away_from_edges,
     }
 }
 
