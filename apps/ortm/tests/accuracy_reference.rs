@@ -158,6 +158,33 @@ fn near_creases(grid: &TexelGrid) -> Vec<bool> {
         .collect()
 }
 
+/// The head scene with a `size`² lightmap and its texels.
+fn head_at(size: u32) -> (Scene, TexelGrid) {
+    let Ok(mut scene) = ortm::scene::head::head_scene() else {
+        panic!("head scene (../shared/faces/head.obj)");
+    };
+    scene.lightmap_size = (size, size);
+    let grid = TexelGrid::build(&scene).unwrap();
+    (scene, grid)
+}
+
+/// [`agreement`] near the reference's first-order edges and away from them
+/// ([`near_first_order_edges`]), each printed under a heading that starts with `label`.
+fn by_first_order_edges(
+    grid: &TexelGrid,
+    maps: &ReferenceMaps,
+    exact: &[Vec3],
+    label: &str,
+) -> (Agreement, Agreement) {
+    let edges = near_first_order_edges(grid, &maps.first_order);
+    let calm: Vec<bool> = edges.iter().map(|e| !e).collect();
+    println!("{label}near first-order edges:");
+    let near = agreement(grid, maps, exact, 3.0, &edges);
+    println!("{label}away from first-order edges:");
+    let away = agreement(grid, maps, exact, 3.0, &calm);
+    (near, away)
+}
+
 fn settings(spp: u32, seed: u64, effects: Effects) -> Settings {
     Settings {
         samples_per_texel: spp,
@@ -228,11 +255,7 @@ fn cornell_64_agrees_with_the_exact_solve() {
 /// the measured distance between the reference and the exact solve (see the comment below).
 #[test]
 fn head_64_agrees_with_the_exact_solve() {
-    let Ok(mut scene) = ortm::scene::head::head_scene() else {
-        panic!("head scene (../shared/faces/head.obj)");
-    };
-    scene.lightmap_size = (64, 64);
-    let grid = TexelGrid::build(&scene).unwrap();
+    let (scene, grid) = head_at(64);
     let spp = 256;
     let effects = Effects::default();
     let lights = scene.lights.clone();
@@ -247,12 +270,7 @@ fn head_64_agrees_with_the_exact_solve() {
     let _ = agreement(&grid, &maps, &exact, 3.0, &creases);
     println!("away from seams:");
     let _ = agreement(&grid, &maps, &exact, 3.0, &away);
-    let edges = near_first_order_edges(&grid, &maps.first_order);
-    let calm: Vec<bool> = edges.iter().map(|e| !e).collect();
-    println!("near first-order edges:");
-    let _ = agreement(&grid, &maps, &exact, 3.0, &edges);
-    println!("away from first-order edges:");
-    let _ = agreement(&grid, &maps, &exact, 3.0, &calm);
+    let _ = by_first_order_edges(&grid, &maps, &exact, "");
     let noise = maps.rms_relative_std_error(&maps.final_b);
     println!("the reference's noise as a relative RMSE: {noise:.4}");
     // Measured (256 spp, seed 1): 0.9368 of the 3,782 texels within 3σ, relative RMSE 0.1167,
@@ -280,11 +298,7 @@ fn head_64_agrees_with_the_exact_solve() {
 /// or the subsurface model of either.
 #[test]
 fn head_64_agrees_away_from_first_order_edges_for_each_effect() {
-    let Ok(mut scene) = ortm::scene::head::head_scene() else {
-        panic!("head scene (../shared/faces/head.obj)");
-    };
-    scene.lightmap_size = (64, 64);
-    let grid = TexelGrid::build(&scene).unwrap();
+    let (scene, grid) = head_at(64);
     let lights = scene.lights.clone();
     let only_sss = Effects {
         radiosity: false,
@@ -293,12 +307,7 @@ fn head_64_agrees_away_from_first_order_edges_for_each_effect() {
     for (name, effects) in [("radiosity", RADIOSITY), ("subsurface", only_sss)] {
         let maps = run(&scene, &grid, &lights, &settings(256, 1, effects));
         let exact = exact(&scene, &grid, &lights, effects);
-        let edges = near_first_order_edges(&grid, &maps.first_order);
-        let calm: Vec<bool> = edges.iter().map(|e| !e).collect();
-        println!("{name}, near first-order edges:");
-        let near = agreement(&grid, &maps, &exact, 3.0, &edges);
-        println!("{name}, away from first-order edges:");
-        let away = agreement(&grid, &maps, &exact, 3.0, &calm);
+        let (near, away) = by_first_order_edges(&grid, &maps, &exact, &format!("{name}, "));
         // Measured (256 spp, seed 1; 1,673 texels near edges, 2,109 away): radiosity near
         // 0.9468 within 3σ / RMSE 0.0174 (noise 0.0054), away 0.9948 / 0.0043 (noise 0.0040);
         // subsurface near 0.8793 / 0.1134 (noise 0.0837), away 0.9986 / 0.0743 (noise 0.0726).
@@ -407,11 +416,7 @@ fn first_order_light_agrees_with_cosine_bounces() {
 /// light sample's share (`reference::path`).
 #[test]
 fn first_order_light_agrees_with_cosine_bounces_on_skin() {
-    let Ok(mut scene) = ortm::scene::head::head_scene() else {
-        panic!("head scene (../shared/faces/head.obj)");
-    };
-    scene.lightmap_size = (64, 64);
-    let grid = TexelGrid::build(&scene).unwrap();
+    let (scene, grid) = head_at(64);
     let lights = scene.lights.clone();
     let (within, z_power) =
         estimators_agree(&scene, &grid, &lights, Effects::default(), (512, 256));

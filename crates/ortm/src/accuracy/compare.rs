@@ -63,25 +63,24 @@ pub fn near_first_order_edges(grid: &TexelGrid, first_order: &[Vec3]) -> Vec<boo
         cells.entry(key(x.position_m)).or_default().push(i);
     }
     let light: Vec<f32> = first_order.iter().map(|v| v.element_sum()).collect();
+    let around = |(x, y, z): (i64, i64, i64)| {
+        (-1..=1).flat_map(move |dz| {
+            (-1..=1).flat_map(move |dy| (-1..=1).map(move |dx| (x + dx, y + dy, z + dz)))
+        })
+    };
     t.iter()
         .enumerate()
         .map(|(i, a)| {
-            let (cx, cy, cz) = key(a.position_m);
             let own = light[i];
-            (-1..=1).any(|dz| {
-                (-1..=1).any(|dy| {
-                    (-1..=1).any(|dx| {
-                        cells.get(&(cx + dx, cy + dy, cz + dz)).is_some_and(|list| {
-                            list.iter().any(|&j| {
-                                let o = light[j];
-                                (o > 2.0 * own || own > 2.0 * o)
-                                    && (a.position_m - t[j].position_m).length()
-                                        < 2.5 * a.area_m2.max(t[j].area_m2).sqrt()
-                            })
-                        })
-                    })
+            around(key(a.position_m))
+                .filter_map(|c| cells.get(&c))
+                .flatten()
+                .any(|&j| {
+                    let o = light[j];
+                    (o > 2.0 * own || own > 2.0 * o)
+                        && (a.position_m - t[j].position_m).length()
+                            < 2.5 * a.area_m2.max(t[j].area_m2).sqrt()
                 })
-            })
         })
         .collect()
 }
@@ -192,21 +191,26 @@ pub fn compare(
     let mask = interior_mask(grid);
     let interior = mask.iter().filter(|&&m| m).count();
     let total = relative_rmse(test, reference, Some(&mask));
-    let sub = |a: &[Vec3], b: &[Vec3]| a.iter().zip(b).map(|(x, y)| *x - *y).collect::<Vec<_>>();
-    let indirect = first.map(|(rf, tf)| {
-        assert_eq!(rf.len(), grid.texels.len(), "reference first-order length");
-        assert_eq!(tf.len(), grid.texels.len(), "test first-order length");
-        relative_rmse(&sub(test, tf), &sub(reference, rf), Some(&mask))
-    });
-    let away_from_edges = first.map(|(rf, tf)| {
-        let edges = near_first_order_edges(grid, rf);
-        let away: Vec<bool> = mask.iter().zip(&edges).map(|(m, e)| *m && !e).collect();
-        (
-            away.iter().filter(|&&a| a).count(),
-            relative_rmse(test, reference, Some(&away)),
-            relative_rmse(&sub(test, tf), &sub(reference, rf), Some(&away)),
-        )
-    });
+    let (indirect, away_from_edges) = match first {
+        Some((rf, tf)) => {
+            assert_eq!(rf.len(), grid.texels.len(), "reference first-order length");
+            assert_eq!(tf.len(), grid.texels.len(), "test first-order length");
+            let sub =
+                |a: &[Vec3], b: &[Vec3]| a.iter().zip(b).map(|(x, y)| *x - *y).collect::<Vec<_>>();
+            let (test_ind, ref_ind) = (sub(test, tf), sub(reference, rf));
+            let edges = near_first_order_edges(grid, rf);
+            let away: Vec<bool> = mask.iter().zip(&edges).map(|(m, e)| *m && !e).collect();
+            (
+                Some(relative_rmse(&test_ind, &ref_ind, Some(&mask))),
+                Some((
+                    away.iter().filter(|&&a| a).count(),
+                    relative_rmse(test, reference, Some(&away)),
+                    relative_rmse(&test_ind, &ref_ind, Some(&away)),
+                )),
+            )
+        }
+        None => (None, None),
+    };
     let (p_ref, p_test) = (power_w(grid, reference), power_w(grid, test));
     let ratio = |a: f64, b: f64| {
         if b == 0.0 {

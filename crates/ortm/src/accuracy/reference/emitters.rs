@@ -7,12 +7,12 @@
 //! `(1 − α)·B̄_o(centroid)·A_cell / Σ + α·A_cell / A_total` with `B̄_o` the mean over channels
 //! of the first order `ρ·E_direct` (`ρ̄`, the profile's total diffuse reflectance, on
 //! translucent surfaces; see [`super::path`] for their split) evaluated exactly at the cell's
-//! centroid (same lights and
-//! shadow rays as the paths) and `α =` [`UNIFORM_SHARE`] (no density when no centroid is
-//! lit). The density only shapes where points are drawn: the paths evaluate `B_o` exactly at
-//! the point they reach, so the cells' size enters no result. The uniform share keeps the density `> 0` on every surface, so
-//! shadowed-centroid cells that are partly lit are still reached (and the cosine-sampled bounce
-//! covers them too under multiple importance sampling).
+//! centroid (same lights and shadow rays as the paths) and `α =` [`UNIFORM_SHARE`] (no density
+//! when no centroid is lit). The density only shapes where points are drawn: the paths
+//! evaluate `B_o` exactly at the point they reach, so the cells' size enters no result. The
+//! uniform share keeps the density `> 0` on every surface, so shadowed-centroid cells that are
+//! partly lit are still reached (and the cosine-sampled bounce covers them too under multiple
+//! importance sampling).
 //!
 //! A point is drawn by the cell CDF (binary search), then uniformly inside the cell; its area
 //! density (m⁻²) is `P(cell) / A_cell`, found again from any hit's barycentrics by
