@@ -59,6 +59,7 @@ fn display(size: u32, direct: DirectLight, sampling: LightmapSampling) -> Displa
         side_by_side: false,
         direct,
         sampling,
+        ..Default::default()
     }
 }
 
@@ -407,7 +408,8 @@ fn per_pixel_direct_matches_ray_cast_mirror_away_from_edges() {
     let maps = PixelMaps {
         surface: &surface,
         first_order: &zero,
-        transferred: Some(&zero),
+        lightmap: Some(&zero),
+        subsurface: false,
         sampling: LightmapSampling::Bilinear,
     };
     let hits = cast_pixels(&scene, &cam, (img_size, img_size));
@@ -645,6 +647,105 @@ fn per_pixel_energy_equals_lightmap_image_subsurface_head() {
         100.0 * rel_no_split,
         100.0 * rel
     );
+}
+
+/// The split of the subsurface display (`passes::display_split`): triangles whose every
+/// pixel takes `w = 0` drawn with the lightmap display's shader, the rest with the full
+/// per-pixel one — the same bytes as every triangle with the full shader, for views where
+/// the split marks most, some or none of the triangles (head 64², 40 offsets, 256² image).
+#[test]
+fn split_display_draws_the_same_image_as_the_full_shader() {
+    let gpu = gpu();
+    let mut scene = ortm::scene::load_scene(&common::data("render/head.toml")).unwrap();
+    scene.lightmap_size = (64, 64);
+    let grid = TexelGrid::build_with_size(&scene, 64, 64).unwrap();
+    let inputs = transfer(&scene, &grid, 40);
+    let img = 256;
+    let renderers = [true, false].map(|split| {
+        let options = DisplayOptions {
+            split,
+            ..display(img, DirectLight::PerPixel, LightmapSampling::Bilinear)
+        };
+        let r = renderer(&gpu, &scene, 1024, options);
+        let rs = prepare(&gpu, &r, &scene, &grid, &inputs, true);
+        (r, rs)
+    });
+    let descs: Vec<_> = scene.lights.iter().map(render::light_desc).collect();
+    let (_, fin) = renderers[0]
+        .0
+        .render_lightmaps(&gpu, &renderers[0].1, &descs)
+        .unwrap();
+    let exposure = 0.5 * render::auto_exposure(&fin);
+    // The marks the pass draws with (recomputed from the public pieces).
+    let mesh = render::mesh_data(&scene.mesh);
+    let split = passes::display_split::DisplaySplit::build(&mesh);
+    let lengths = diffusion_lengths(&scene, &grid).unwrap();
+    let texels = passes::display::surface_texels(
+        &render::albedo_map(&grid),
+        Some(&lengths),
+        &renderers[0].1.dilate_plan,
+    )
+    .unwrap();
+    let min_lengths = split.min_lengths(&texels, [64, 64]);
+    let front = render::default_camera(&scene.mesh, 1.0, 40.0);
+    let centre = Vec3::from(front.target);
+    let dist = Vec3::from(front.eye).distance(centre);
+    let at = |dir: Vec3, scale: f32| Camera {
+        eye: (centre + dir.normalize() * dist * scale).to_array(),
+        near: front.near * scale,
+        far: front.far * scale,
+        ..front
+    };
+    let views = [
+        ("front", front, (0.1, 0.99)),
+        ("side", at(Vec3::X, 1.0), (0.1, 0.99)),
+        (
+            "above, close",
+            at(Vec3::new(0.0, 1.0, 1.0), 0.6),
+            (0.1, 0.99),
+        ),
+        ("farther", at(Vec3::Z, 2.0), (0.0, 0.0)),
+    ];
+    for (name, cam, (lo, hi)) in views {
+        let marks = split.diffused_only(&cam, img, &min_lengths);
+        let eye = Vec3::from(cam.eye);
+        // Share of the triangles facing the eye drawn without the light loop.
+        let facing = mesh
+            .indices
+            .chunks(3)
+            .map(|t| [0, 1, 2].map(|k| Vec3::from(mesh.positions_m[t[k] as usize])))
+            .map(|[a, b, c]| (b - a).cross(c - a).dot(eye - a) > 0.0);
+        let (mut n_facing, mut n_marked) = (0usize, 0usize);
+        for (f, m) in facing.zip(&marks) {
+            n_facing += usize::from(f);
+            n_marked += usize::from(*m);
+        }
+        let share = n_marked as f64 / n_facing as f64;
+        let [on, off] = [0, 1].map(|k| {
+            let (r, rs) = &renderers[k];
+            frame(&gpu, r, rs, &scene, cam, exposure)
+        });
+        let differing = on
+            .pixels()
+            .zip(off.pixels())
+            .filter(|(a, b)| a != b)
+            .count();
+        let mesh_pixels = off
+            .pixels()
+            .filter(|p| p.0 != passes::display::BACKGROUND)
+            .count();
+        eprintln!(
+            "{name}: {n_marked} of {n_facing} facing triangles without the light loop              ({:.1} %), {mesh_pixels} mesh pixels, {differing} pixels differ",
+            100.0 * share
+        );
+        assert!(
+            (lo..=hi).contains(&share),
+            "{name}: {:.1} % of the facing triangles marked, expected {lo}..{hi}",
+            100.0 * share
+        );
+        assert!(mesh_pixels > 2000, "{name}: only {mesh_pixels} mesh pixels");
+        assert_eq!(differing, 0, "{name}: the split changes {differing} pixels");
+    }
 }
 
 #[test]

@@ -10,12 +10,16 @@
 //   L = w·ρ·E/π + (1 − w)·B_o/π + T/π (+ shadowed specular), with E the shadowed irradiance
 //   of every light at the pixel's own surface point and normal (shadow.wgsl: the first-order
 //   pass's shadow maps, 2×2 PCF, normal offset), ρ and the diffusion length ℓ from the
-//   `surface` map, B_o the first-order lightmap, T the bound lightmap (the transferred light
-//   final − first order; left out when the instance index is 1: the side-by-side left half
-//   and the first-order view), and w = clamp(1 − ℓ/footprint, 0, 1) the share of per-pixel
-//   direct light (1 on diffuse surfaces, ℓ = 0; 0 on subsurface ones whose diffusion length
-//   exceeds the pixel's footprint on the surface, which keep the lightmap's diffused light;
-//   the direct-only view shows the unscattered first order, so w = 1 there).
+//   `surface` map, B_o the first-order lightmap, T the transferred light final − first
+//   order, and w = clamp(1 − ℓ/footprint, 0, 1) the share of per-pixel direct light (1 on
+//   diffuse surfaces, ℓ = 0; 0 on subsurface ones whose diffusion length exceeds the
+//   pixel's footprint on the surface, which keep the lightmap's diffused light; the
+//   direct-only view shows the unscattered first order, so w = 1 there). The bound
+//   lightmap is T (SUBSURFACE off: L = ρ·E/π + T/π), or with SUBSURFACE the final light
+//   B = B_o + T (L = w·ρ·E/π + (B − w·B_o)/π, so that w = 0 is B/π, what fs_filtered and
+//   fs_manual draw for the triangles whose every pixel takes w = 0, src/display_split.rs).
+//   Without lightmap (instance index 1: the side-by-side left half and the first-order
+//   view) L = ρ·E/π.
 // Then exposure, Reinhard L/(1+L) per channel, sRGB encoding, written to an Rgba8Unorm target.
 //
 // Lookups between texel centres: *_filtered entry points use the sampler's bilinear filter
@@ -329,11 +333,14 @@ fn fs_direct_filtered(in: DirectOut) -> @location(0) vec4<f32> {
         w = select(direct_share(s.a, pixel_footprint(in.world)), 1.0, in.direct_only != 0u);
     }
     var l = direct_radiance(in.world, in.normal, s.rgb, w);
-    if (SUBSURFACE && w < 1.0) {
-        l += (1.0 - w) * filtered_lookup(first_order_map, in.uv).rgb / PI;
-    }
     if (in.direct_only == 0u) {
-        l += filtered_lookup(lightmap, in.uv).rgb / PI;
+        if (SUBSURFACE) {
+            // The bound map is the final light B = B_o + T.
+            let b_o = filtered_lookup(first_order_map, in.uv).rgb;
+            l += (filtered_lookup(lightmap, in.uv).rgb - w * b_o) / PI;
+        } else {
+            l += filtered_lookup(lightmap, in.uv).rgb / PI;
+        }
     }
     return display(l);
 }
@@ -347,11 +354,15 @@ fn fs_direct_manual(in: DirectOut) -> @location(0) vec4<f32> {
         w = select(direct_share(s.a, pixel_footprint(in.world)), 1.0, in.direct_only != 0u);
     }
     var l = direct_radiance(in.world, in.normal, s.rgb, w);
-    if (SUBSURFACE && w < 1.0) {
-        l += (1.0 - w) * manual_lookup(first_order_map, in.uv).rgb / PI;
-    }
     if (in.direct_only == 0u) {
-        l += manual_lookup(lightmap, in.uv).rgb / PI;
+        if (SUBSURFACE) {
+            // The bound map is the final light B = B_o + T.
+            let b_o = manual_lookup(first_order_map, in.uv).rgb;
+            l += (manual_lookup(lightmap, in.uv).rgb - w * b_o) / PI;
+        } else {
+            l += manual_lookup(lightmap, in.uv).rgb / PI;
+        }
     }
     return display(l);
 }
+

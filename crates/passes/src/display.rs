@@ -35,7 +35,11 @@
 //!   exceeds the footprint, so scattering keeps its soft shadow edges and the total stays
 //!   the lightmap solution's. The specular term is shadowed here. The first-order view and
 //!   the left half of side-by-side show the direct light alone (`T` left out), per pixel on
-//!   every surface (`w = 1`: the first order is unscattered light).
+//!   every surface (`w = 1`: the first order is unscattered light). The lightmap bound is
+//!   `T` on scenes without subsurface texels (`w = 1`: `L = ρ·E/π + T/π`), else the final
+//!   light `B = B_o + T`, as `L = w·ρ·E/π + (B − w·B_o)/π`: where a triangle's every pixel
+//!   takes `w = 0` in this view it is drawn with the lightmap display's shader (`B/π`,
+//!   without the light loop; [`crate::display_split`], [`DisplayOptions::split`]).
 //! - Then `L·exposure`, Reinhard `x/(1+x)` per channel, sRGB encoding.
 //!
 //! # Lightmap filter
@@ -71,6 +75,8 @@
 //! One `encode` per submit (the view uniform is written with `Queue::write_buffer`). The
 //! per-pixel pipelines are built for one `max_shadow_layers`
 //! ([`DisplayPass::with_shadow_layers`]; the frame script passes the first-order pass's).
+
+use std::sync::Mutex;
 
 use bytemuck::{Pod, Zeroable};
 use glam::camera::rh::proj::directx as proj_dx;
@@ -149,6 +155,11 @@ pub struct DisplayOptions {
     pub direct: DirectLight,
     /// Lightmap filter.
     pub sampling: LightmapSampling,
+    /// Per-pixel direct light on subsurface surfaces: draw the triangles whose every pixel
+    /// takes `w = 0` with a pipeline without the light loop ([`crate::display_split`]; the
+    /// same image, cheaper on SIMD software rasterisers). `false` draws every triangle with
+    /// the full shader (for comparison).
+    pub split: bool,
 }
 
 impl Default for DisplayOptions {
@@ -159,6 +170,7 @@ impl Default for DisplayOptions {
             side_by_side: false,
             direct: DirectLight::default(),
             sampling: LightmapSampling::default(),
+            split: true,
         }
     }
 }
@@ -277,6 +289,9 @@ struct DirectPipelines {
     shadow_layers: u32,
     /// `[subsurface split off, on][specular off, on][both sides, back faces culled]`.
     pipelines: [[[wgpu::RenderPipeline; 2]; 2]; 2],
+    /// The triangles whose pixels all take `w = 0` (no specular): `vs_uv` + the lightmap
+    /// display's `fs_filtered` / `fs_manual` (`B/π`), `[both sides, back faces culled]`.
+    diffused: [wgpu::RenderPipeline; 2],
 }
 
 /// Per-scene GPU data.
@@ -290,6 +305,19 @@ pub struct DisplayScene {
     color: wgpu::Texture,
     color_view: wgpu::TextureView,
     depth_view: wgpu::TextureView,
+    /// The per-pixel display's split of the last frame that had one.
+    split: Mutex<Split>,
+}
+
+/// The index buffer of a split ([`DisplayPass::split_triangles`]), kept between frames.
+#[derive(Debug, Default)]
+struct Split {
+    /// Allocated by the first frame with a split (the mesh's index count).
+    buffer: Option<wgpu::Buffer>,
+    /// Per triangle, drawn without the light loop; empty before the first split.
+    marks: Vec<bool>,
+    /// Indices of those triangles, at the start of the buffer.
+    diffused_indices: u32,
 }
 
 impl DisplayScene {
@@ -321,7 +349,8 @@ pub struct DisplayInputs<'a> {
     pub specular: Option<Specular>,
     /// Per-pixel direct light: `Some` draws with it (the pass must have been created with
     /// [`DirectLight::PerPixel`]), and `final_lightmap` is then the *transferred* light
-    /// (final − first order) added on top; `None` draws from the lightmaps.
+    /// (final − first order) added on top, or with [`DirectInputs::subsurface`] the final
+    /// light itself (see the module docs); `None` draws from the lightmaps.
     pub direct: Option<DirectInputs<'a>>,
 }
 
@@ -343,6 +372,12 @@ pub struct DirectInputs<'a> {
     /// Some texel of the surface map has a diffusion length > 0: draw with the
     /// diffusion-length split (otherwise `w = 1` everywhere, without its cost).
     pub subsurface: bool,
+    /// Per triangle of the mesh the smallest diffusion length its pixels can look up
+    /// ([`crate::display_split::DisplaySplit::min_lengths`] of the surface map's texels,
+    /// [`GpuMesh::split`]). With `subsurface` and [`DisplayOptions::split`] the triangles
+    /// whose every pixel takes `w = 0` in this view are drawn without the light loop.
+    /// `None`: every triangle with the full shader.
+    pub triangle_lengths: Option<&'a [f32]>,
 }
 
 /// Output of the pass.
@@ -422,11 +457,21 @@ pub fn surface_map(
     plan: &DilatePlan,
 ) -> Result<wgpu::Texture, PassError> {
     let texels = surface_texels(albedo, diffusion_m, plan)?;
+    upload_surface(gpu, [albedo.width, albedo.height], &texels)
+}
+
+/// Uploads surface texels ([`surface_texels`]) of a `size[0] × size[1]` lightmap as the
+/// RGBA32F surface map.
+pub fn upload_surface(
+    gpu: &Gpu,
+    size: [u32; 2],
+    texels: &[[f32; 4]],
+) -> Result<wgpu::Texture, PassError> {
     gpu.create_rgba32f_texture(
         "ortm.display.surface",
-        albedo.width,
-        albedo.height,
-        &texels,
+        size[0],
+        size[1],
+        texels,
         wgpu::TextureUsages::TEXTURE_BINDING,
     )
 }
@@ -546,6 +591,21 @@ fn display_pipeline(
     })
 }
 
+/// `lengths` must hold one value per triangle.
+fn check_triangle_lengths(triangles: usize, lengths: &[f32]) -> Result<(), PassError> {
+    if lengths.len() == triangles {
+        return Ok(());
+    }
+    Err(PassError::InvalidInput {
+        what: "DirectInputs.triangle_lengths".into(),
+        problem: format!(
+            "{} values for {triangles} triangles; compute them with \
+             DisplaySplit::min_lengths for this mesh",
+            lengths.len()
+        ),
+    })
+}
+
 /// Whether back faces can be culled: a closed outward mesh hides its back faces behind its
 /// front faces for an eye outside it, unless the near plane cuts into the mesh — true when
 /// the eye is farther from the bounding box than any point of the near-plane rectangle of a
@@ -601,9 +661,10 @@ fn direct_pipelines(
         bind_group_layouts: &[Some(view_layout), Some(map_layout), Some(&layout)],
         immediate_size: 0,
     });
-    let fs_name = match filter {
-        LightmapFilter::Hardware => "fs_direct_filtered",
-        LightmapFilter::Manual => "fs_direct_manual",
+    // The triangles whose pixels all take w = 0 show B/π: the lightmap display's shader.
+    let (fs_name, fs_diffused) = match filter {
+        LightmapFilter::Hardware => ("fs_direct_filtered", "fs_filtered"),
+        LightmapFilter::Manual => ("fs_direct_manual", "fs_manual"),
     };
     let pipelines = [0.0, 1.0].map(|subsurface| {
         [0.0, 1.0].map(|specular| {
@@ -624,11 +685,23 @@ fn direct_pipelines(
             })
         })
     });
+    let diffused = [None, Some(wgpu::Face::Back)].map(|cull| {
+        let constants = [("BICUBIC", bicubic)];
+        display_pipeline(
+            device,
+            &pl,
+            module,
+            ("vs_uv", fs_diffused),
+            cull,
+            &constants,
+        )
+    });
     DirectPipelines {
         layout,
         shadow_sampler: crate::first_order::shadow_sampler(device),
         shadow_layers,
         pipelines,
+        diffused,
     }
 }
 
@@ -796,6 +869,7 @@ impl DisplayPass {
             color_view: util::view(&color),
             color,
             depth_view: util::view(&depth),
+            split: Mutex::default(),
         })
     }
 
@@ -824,27 +898,101 @@ impl DisplayPass {
             half_w as f32 / h as f32,
         ));
         let specular_on = usize::from(inputs.specular.is_some());
+        let diffused = self.split_triangles(gpu, inputs, h)?;
         match (&direct_group, &self.direct, &inputs.direct) {
             (Some(group), Some(d), Some(di)) => {
-                pass.set_pipeline(&d.pipelines[usize::from(di.subsurface)][specular_on][cull]);
+                let full = &d.pipelines[usize::from(di.subsurface)][specular_on][cull];
                 pass.set_bind_group(2, group, &[]);
+                pass.set_bind_group(0, &scene.view_group, &[]);
+                pass.set_vertex_buffer(0, scene.mesh.vertices.slice(..));
+                match &diffused {
+                    Some((buffer, _)) => {
+                        pass.set_index_buffer(buffer.slice(..), wgpu::IndexFormat::Uint32)
+                    }
+                    None => pass
+                        .set_index_buffer(scene.mesh.indices.slice(..), wgpu::IndexFormat::Uint32),
+                }
+                for (x, group, direct_only) in &draws {
+                    pass.set_viewport(*x as f32, 0.0, half_w as f32, h as f32, 0.0, 1.0);
+                    pass.set_bind_group(1, group, &[]);
+                    // The instance index tells `vs_direct` whether to add the lightmap.
+                    let i = u32::from(*direct_only);
+                    let mut start = 0;
+                    if let Some((_, n)) = diffused.as_ref().filter(|_| !*direct_only) {
+                        // The triangles whose pixels all take w = 0 come first.
+                        pass.set_pipeline(&d.diffused[cull]);
+                        pass.draw_indexed(0..*n, 0, i..i + 1);
+                        start = *n;
+                    }
+                    pass.set_pipeline(full);
+                    pass.draw_indexed(start..scene.mesh.index_count, 0, i..i + 1);
+                }
             }
-            _ => pass.set_pipeline(&self.pipelines[specular_on][cull]),
-        }
-        pass.set_bind_group(0, &scene.view_group, &[]);
-        pass.set_vertex_buffer(0, scene.mesh.vertices.slice(..));
-        pass.set_index_buffer(scene.mesh.indices.slice(..), wgpu::IndexFormat::Uint32);
-        for (x, group, direct_only) in &draws {
-            pass.set_viewport(*x as f32, 0.0, half_w as f32, h as f32, 0.0, 1.0);
-            pass.set_bind_group(1, group, &[]);
-            // The instance index tells `vs_direct` whether to add the lightmap.
-            let i = u32::from(*direct_only);
-            pass.draw_indexed(0..scene.mesh.index_count, 0, i..i + 1);
+            _ => {
+                pass.set_pipeline(&self.pipelines[specular_on][cull]);
+                pass.set_bind_group(0, &scene.view_group, &[]);
+                pass.set_vertex_buffer(0, scene.mesh.vertices.slice(..));
+                pass.set_index_buffer(scene.mesh.indices.slice(..), wgpu::IndexFormat::Uint32);
+                for (x, group, _) in &draws {
+                    pass.set_viewport(*x as f32, 0.0, half_w as f32, h as f32, 0.0, 1.0);
+                    pass.set_bind_group(1, group, &[]);
+                    pass.draw_indexed(0..scene.mesh.index_count, 0, 0..1);
+                }
+            }
         }
         drop(pass);
         Ok(DisplayOutput {
             color_tex: scene.color.clone(),
         })
+    }
+
+    /// With per-pixel direct light on subsurface surfaces (no specular,
+    /// [`DisplayOptions::split`], triangle lengths given): the scene's split index buffer —
+    /// first the triangles whose every pixel takes `w = 0` in this view
+    /// ([`crate::display_split`]), then the others, each in the mesh's order; rewritten only
+    /// when the split changes — and the number of indices of the first part. `None`
+    /// otherwise (the mesh's own index buffer, one pipeline).
+    fn split_triangles(
+        &self,
+        gpu: &Gpu,
+        inputs: &DisplayInputs<'_>,
+        height_px: u32,
+    ) -> Result<Option<(wgpu::Buffer, u32)>, PassError> {
+        let Some(di) = inputs.direct.as_ref() else {
+            return Ok(None);
+        };
+        let Some(lengths) = di.triangle_lengths else {
+            return Ok(None);
+        };
+        if !(di.subsurface && inputs.specular.is_none() && self.options.split) {
+            return Ok(None);
+        }
+        let scene = inputs.scene;
+        let triangles = scene.mesh.split();
+        check_triangle_lengths(triangles.triangles(), lengths)?;
+        let marks = triangles.diffused_only(&inputs.camera, height_px, lengths);
+        let mut split = scene.split.lock().unwrap_or_else(|e| e.into_inner());
+        let buffer = split
+            .buffer
+            .get_or_insert_with(|| {
+                gpu.device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("ortm.display.split_indices"),
+                    size: u64::from(scene.mesh.index_count.max(1)) * 4,
+                    usage: wgpu::BufferUsages::INDEX | wgpu::BufferUsages::COPY_DST,
+                    mapped_at_creation: false,
+                })
+            })
+            .clone();
+        if split.marks != marks {
+            let (indices, first) = triangles.indices(&marks);
+            if !indices.is_empty() {
+                gpu.queue
+                    .write_buffer(&buffer, 0, bytemuck::cast_slice(&indices));
+            }
+            split.diffused_indices = first;
+            split.marks = marks;
+        }
+        Ok(Some((buffer, split.diffused_indices)))
     }
 
     /// Writes the [`DisplayView`] uniform for a viewport of `aspect`, and the lights when

@@ -104,6 +104,9 @@ pub struct RenderScene {
     /// Whether some texel has a diffusion length > 0 (the display then reads the dilated
     /// first-order map too).
     subsurface: bool,
+    /// Per triangle, the smallest diffusion length its pixels can look up (`Some` with
+    /// `subsurface`; [`crate::display_split::DisplaySplit::min_lengths`]).
+    triangle_lengths: Option<Vec<f32>>,
     /// The indirect map, allocated by the first frame that shows it.
     indirect: OnceLock<IndirectTargets>,
 }
@@ -334,6 +337,7 @@ impl Renderer {
             surface,
             albedo: albedo.clone(),
             subsurface: false,
+            triangle_lengths: None,
             indirect: OnceLock::new(),
         })
     }
@@ -403,9 +407,13 @@ impl Renderer {
         scene: &mut RenderScene,
         lengths_m: &[f32],
     ) -> Result<(), PassError> {
-        scene.surface =
-            crate::display::surface_map(gpu, &scene.albedo, Some(lengths_m), &scene.dilate_plan)?;
+        let texels =
+            crate::display::surface_texels(&scene.albedo, Some(lengths_m), &scene.dilate_plan)?;
+        scene.surface = crate::display::upload_surface(gpu, scene.lightmap_size, &texels)?;
         scene.subsurface = lengths_m.iter().any(|&l| l > 0.0);
+        scene.triangle_lengths = scene
+            .subsurface
+            .then(|| scene.mesh.split().min_lengths(&texels, scene.lightmap_size));
         Ok(())
     }
 
@@ -495,6 +503,7 @@ impl Renderer {
                 first_order_map: left.as_ref().unwrap_or(&fo_view),
                 direct_only: matches!(options.shown, Shown::FirstOrder),
                 subsurface: scene.subsurface,
+                triangle_lengths: scene.triangle_lengths.as_deref(),
             });
             let inputs = DisplayInputs {
                 scene: &scene.display,
@@ -539,9 +548,11 @@ impl Renderer {
         })
     }
 
-    /// The map the per-pixel direct light adds: the transferred light `final − first
-    /// order` for the final view (dilated), nothing for the first-order view (the
-    /// first-order map is bound, not read, not dilated).
+    /// The map the per-pixel direct light adds: for the final view (dilated) the
+    /// transferred light `final − first order`, or on a scene with subsurface texels the
+    /// final light itself (the display subtracts its per-pixel share of the first order);
+    /// nothing for the first-order view (the first-order map is bound, not read, not
+    /// dilated).
     fn transferred_source(
         &self,
         gpu: &Gpu,
@@ -552,6 +563,7 @@ impl Renderer {
     ) -> Result<(wgpu::TextureView, bool), PassError> {
         Ok(match options.shown {
             Shown::FirstOrder => (fo_view.clone(), false),
+            _ if scene.subsurface => (util::view(scene.transfer.output()), true),
             _ => (
                 self.indirect_map(gpu, encoder, scene, options, fo_view)?,
                 true,

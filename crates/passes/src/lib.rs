@@ -29,6 +29,7 @@
 pub mod cpu;
 pub mod dilate;
 pub mod display;
+pub mod display_split;
 pub mod error;
 pub mod first_order;
 pub mod frame;

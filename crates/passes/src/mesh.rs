@@ -6,7 +6,13 @@
 //! - `vertices`: interleaved [`Vertex`] (position m, unit normal, lightmap UV), 32 bytes;
 //! - `positions`: positions only (`[f32; 3]`, m), for the shadow pass's depth-only draws;
 //! - `indices`: `u32`, three per triangle, CCW from the side the normals point to.
+//!
+//! Beside them, on the CPU, the triangles' planes and UV boxes for the display's split
+//! ([`DisplaySplit`]).
 
+use std::sync::Arc;
+
+use crate::display_split::DisplaySplit;
 use crate::error::PassError;
 use crate::first_order::{Bounds, Vertex};
 use crate::gpu::Gpu;
@@ -20,6 +26,8 @@ pub struct GpuMesh {
     pub(crate) positions: wgpu::Buffer,
     pub(crate) indices: wgpu::Buffer,
     pub(crate) index_count: u32,
+    /// The triangles as the display's split needs them.
+    pub(crate) split: Arc<DisplaySplit>,
     /// Axis-aligned bounds of the positions (shadow frusta, back-face culling).
     pub(crate) bounds: Bounds,
     /// [`MeshData::is_closed_outward`]: back faces may be culled for a light or an eye
@@ -58,6 +66,7 @@ impl GpuMesh {
                 wgpu::BufferUsages::INDEX,
             ),
             index_count: mesh.indices.len() as u32,
+            split: Arc::new(DisplaySplit::build(mesh)),
             bounds: Bounds::of(&mesh.positions_m),
             closed_outward: mesh.is_closed_outward(),
         })
@@ -66,5 +75,10 @@ impl GpuMesh {
     /// Mesh bounds.
     pub fn bounds(&self) -> &Bounds {
         &self.bounds
+    }
+
+    /// The triangles as the display's split needs them.
+    pub fn split(&self) -> &DisplaySplit {
+        &self.split
     }
 }

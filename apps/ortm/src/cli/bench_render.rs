@@ -124,6 +124,20 @@ pub struct Args {
     /// `storage`.
     #[arg(long, value_enum, default_value_t = Reads::Auto)]
     texel_reads: Reads,
+    /// Per-pixel display of subsurface surfaces: draw the triangles whose pixels all keep
+    /// the lightmap's diffused light without the light loop (`on`, the renderer's default;
+    /// the same image) or every triangle with the full shader (`off`).
+    #[arg(long, value_enum, default_value_t = Split::On)]
+    split: Split,
+}
+
+/// `--split` values.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Split {
+    /// Triangles that need no light loop are drawn without it.
+    On,
+    /// Every triangle with the full per-pixel shader.
+    Off,
 }
 
 /// `--texel-reads` values.
@@ -301,6 +315,7 @@ fn renderer_options(
             side_by_side: false,
             direct: a.display.direct.direct(),
             sampling: a.display.filter.sampling(),
+            split: a.split == Split::On,
         },
         ..Default::default()
     }

@@ -372,6 +372,7 @@ fn renderer_options(
             side_by_side: a.side_by_side,
             direct: a.display.direct.direct(),
             sampling: a.display.filter.sampling(),
+            ..Default::default()
         },
         ..Default::default()
     }

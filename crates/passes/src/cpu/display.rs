@@ -103,8 +103,11 @@ pub struct PixelMaps<'a> {
     pub surface: &'a TexelImage,
     /// First-order lightmap (read where the diffusion length is > 0).
     pub first_order: &'a TexelImage,
-    /// Transferred light `final − first order`; `None`: direct light only.
-    pub transferred: Option<&'a TexelImage>,
+    /// The lightmap added: the transferred light `T = final − first order`, or with
+    /// `subsurface` the final light `B`; `None`: direct light only.
+    pub lightmap: Option<&'a TexelImage>,
+    /// The scene has subsurface texels (the `SUBSURFACE` pipelines): `lightmap` is `B`.
+    pub subsurface: bool,
     /// Lightmap filter.
     pub sampling: LightmapSampling,
 }
@@ -113,7 +116,8 @@ pub struct PixelMaps<'a> {
 /// display.wgsl, without specular): `w·ρ·E/π + (1 − w)·B_o/π + T/π`, with `E` the irradiance
 /// of `lights` at the pixel's surface point scaled by `visibility(light index)` (1 lit, 0
 /// shadowed), ρ bilinear from the surface map, `w` = [`direct_share`] (1 without the
-/// transferred map: the direct-only view).
+/// lightmap: the direct-only view; 1 without `subsurface`), computed as the shader does:
+/// `ρ·E/π + T/π` without `subsurface`, `w·ρ·E/π + (B − w·B_o)/π` with it.
 pub fn pixel_radiance(
     lights: &[GpuLight],
     px: &PixelSurface,
@@ -124,7 +128,7 @@ pub fn pixel_radiance(
     let n = px.normal.normalize();
     let s = bilinear_rgba(maps.surface, px.uv);
     // The direct-only view is the unscattered first order: per pixel everywhere.
-    let w = if maps.transferred.is_some() {
+    let w = if maps.lightmap.is_some() && maps.subsurface {
         direct_share(s[3], px.footprint_m)
     } else {
         1.0
@@ -138,11 +142,13 @@ pub fn pixel_radiance(
         }
     }
     let mut out = Vec3::new(s[0], s[1], s[2]) * e * (w / pi);
-    if w < 1.0 {
-        out += Vec3::from(lookup(maps.first_order, px.uv, maps.sampling)) * ((1.0 - w) / pi);
-    }
-    if let Some(t) = maps.transferred {
-        out += Vec3::from(lookup(t, px.uv, maps.sampling)) / pi;
+    if let Some(map) = maps.lightmap {
+        let added = Vec3::from(lookup(map, px.uv, maps.sampling));
+        out += if maps.subsurface {
+            (added - w * Vec3::from(lookup(maps.first_order, px.uv, maps.sampling))) / pi
+        } else {
+            added / pi
+        };
     }
     out
 }
