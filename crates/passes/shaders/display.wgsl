@@ -27,7 +27,8 @@
 // BICUBIC turns the lightmap lookups (not ρ) into a uniform cubic B-spline (4 bilinear taps,
 // or 16 loads). Without specular the lightmap pipelines use vs_uv (only the UV is
 // interpolated, no light loop); the override SPECULAR switches the direct pipelines' term,
-// SUBSURFACE their diffusion-length split (off: w = 1, no derivatives, no first-order lookup).
+// SUBSURFACE their diffusion-length split (off: w = 1, no derivatives, no first-order lookup),
+// LIGHTS their light loop (off where no light reaches a triangle).
 //
 // Bindings (bind-group order = @binding order; must match `DisplayPass` in display.rs):
 //   group 0: 0 = View (uniform), 1 = spec_lights (storage, read; lightmap specular only)
@@ -40,6 +41,8 @@
 override BICUBIC: bool = false;
 override SPECULAR: bool = false;
 override SUBSURFACE: bool = false;
+// Off for the triangles no light reaches (src/display_split.rs): no light loop, E = 0.
+override LIGHTS: bool = true;
 
 const PI: f32 = 3.14159265358979;
 
@@ -332,7 +335,10 @@ fn fs_direct_filtered(in: DirectOut) -> @location(0) vec4<f32> {
         // The direct-only view shows the unscattered first order: per pixel everywhere.
         w = select(direct_share(s.a, pixel_footprint(in.world)), 1.0, in.direct_only != 0u);
     }
-    var l = direct_radiance(in.world, in.normal, s.rgb, w);
+    var l = vec3<f32>(0.0);
+    if (LIGHTS) {
+        l = direct_radiance(in.world, in.normal, s.rgb, w);
+    }
     if (in.direct_only == 0u) {
         if (SUBSURFACE) {
             // The bound map is the final light B = B_o + T.
@@ -353,7 +359,10 @@ fn fs_direct_manual(in: DirectOut) -> @location(0) vec4<f32> {
         // The direct-only view shows the unscattered first order: per pixel everywhere.
         w = select(direct_share(s.a, pixel_footprint(in.world)), 1.0, in.direct_only != 0u);
     }
-    var l = direct_radiance(in.world, in.normal, s.rgb, w);
+    var l = vec3<f32>(0.0);
+    if (LIGHTS) {
+        l = direct_radiance(in.world, in.normal, s.rgb, w);
+    }
     if (in.direct_only == 0u) {
         if (SUBSURFACE) {
             // The bound map is the final light B = B_o + T.

@@ -39,7 +39,8 @@
 //!   `T` on scenes without subsurface texels (`w = 1`: `L = ρ·E/π + T/π`), else the final
 //!   light `B = B_o + T`, as `L = w·ρ·E/π + (B − w·B_o)/π`: where a triangle's every pixel
 //!   takes `w = 0` in this view it is drawn with the lightmap display's shader (`B/π`,
-//!   without the light loop; [`crate::display_split`], [`DisplayOptions::split`]).
+//!   without the light loop), and where no light reaches a triangle without the light loop
+//!   ([`crate::display_split`], [`DisplayOptions::split`]; the same image).
 //! - Then `L·exposure`, Reinhard `x/(1+x)` per channel, sRGB encoding.
 //!
 //! # Lightmap filter
@@ -155,10 +156,10 @@ pub struct DisplayOptions {
     pub direct: DirectLight,
     /// Lightmap filter.
     pub sampling: LightmapSampling,
-    /// Per-pixel direct light on subsurface surfaces: draw the triangles whose every pixel
-    /// takes `w = 0` with a pipeline without the light loop ([`crate::display_split`]; the
-    /// same image, cheaper on SIMD software rasterisers). `false` draws every triangle with
-    /// the full shader (for comparison).
+    /// Per-pixel direct light: draw the triangles whose every pixel takes `w = 0`
+    /// (subsurface surfaces) or that no light reaches with pipelines without the light loop
+    /// ([`crate::display_split`]; the same image, cheaper on SIMD software rasterisers).
+    /// `false` draws every triangle with the full shader (for comparison).
     pub split: bool,
 }
 
@@ -289,9 +290,14 @@ struct DirectPipelines {
     shadow_layers: u32,
     /// `[subsurface split off, on][specular off, on][both sides, back faces culled]`.
     pipelines: [[[wgpu::RenderPipeline; 2]; 2]; 2],
-    /// The triangles whose pixels all take `w = 0` (no specular): `vs_uv` + the lightmap
-    /// display's `fs_filtered` / `fs_manual` (`B/π`), `[both sides, back faces culled]`.
+    /// The triangles whose pixels all take `w = 0`, and on scenes without subsurface
+    /// texels those no light reaches (no specular): `vs_uv` + the lightmap display's
+    /// `fs_filtered` / `fs_manual` (`B/π`, resp. `T/π`), `[both sides, back faces culled]`.
     diffused: [wgpu::RenderPipeline; 2],
+    /// The triangles no light reaches on scenes with subsurface texels: the per-pixel
+    /// shader with `SUBSURFACE` and without the light loop (`LIGHTS` off), `[both sides,
+    /// back faces culled]`.
+    unlit: [wgpu::RenderPipeline; 2],
 }
 
 /// Per-scene GPU data.
@@ -312,12 +318,13 @@ pub struct DisplayScene {
 /// The index buffer of a split ([`DisplayPass::split_triangles`]), kept between frames.
 #[derive(Debug, Default)]
 struct Split {
-    /// Allocated by the first frame with a split (the mesh's index count).
+    /// Allocated by the first frame whose split has triangles without the light loop (the
+    /// mesh's index count).
     buffer: Option<wgpu::Buffer>,
-    /// Per triangle, drawn without the light loop; empty before the first split.
-    marks: Vec<bool>,
-    /// Indices of those triangles, at the start of the buffer.
-    diffused_indices: u32,
+    /// Per triangle, its class; empty before the first split.
+    classes: Vec<crate::display_split::Class>,
+    /// Indices of the first two classes, at the start of the buffer in that order.
+    counts: [u32; 2],
 }
 
 impl DisplayScene {
@@ -696,12 +703,24 @@ fn direct_pipelines(
             &constants,
         )
     });
+    let unlit = [None, Some(wgpu::Face::Back)].map(|cull| {
+        let constants = [("BICUBIC", bicubic), ("SUBSURFACE", 1.0), ("LIGHTS", 0.0)];
+        display_pipeline(
+            device,
+            &pl,
+            module,
+            ("vs_direct", fs_name),
+            cull,
+            &constants,
+        )
+    });
     DirectPipelines {
         layout,
         shadow_sampler: crate::first_order::shadow_sampler(device),
         shadow_layers,
         pipelines,
         diffused,
+        unlit,
     }
 }
 
@@ -898,14 +917,14 @@ impl DisplayPass {
             half_w as f32 / h as f32,
         ));
         let specular_on = usize::from(inputs.specular.is_some());
-        let diffused = self.split_triangles(gpu, inputs, h)?;
+        let split = self.split_triangles(gpu, inputs, h)?;
         match (&direct_group, &self.direct, &inputs.direct) {
             (Some(group), Some(d), Some(di)) => {
                 let full = &d.pipelines[usize::from(di.subsurface)][specular_on][cull];
                 pass.set_bind_group(2, group, &[]);
                 pass.set_bind_group(0, &scene.view_group, &[]);
                 pass.set_vertex_buffer(0, scene.mesh.vertices.slice(..));
-                match &diffused {
+                match &split {
                     Some((buffer, _)) => {
                         pass.set_index_buffer(buffer.slice(..), wgpu::IndexFormat::Uint32)
                     }
@@ -918,11 +937,21 @@ impl DisplayPass {
                     // The instance index tells `vs_direct` whether to add the lightmap.
                     let i = u32::from(*direct_only);
                     let mut start = 0;
-                    if let Some((_, n)) = diffused.as_ref().filter(|_| !*direct_only) {
-                        // The triangles whose pixels all take w = 0 come first.
-                        pass.set_pipeline(&d.diffused[cull]);
-                        pass.draw_indexed(0..*n, 0, i..i + 1);
-                        start = *n;
+                    if let Some((_, counts)) = split.as_ref().filter(|_| !*direct_only) {
+                        // Triangles without the light loop first: those whose pixels all
+                        // take w = 0, then those no light reaches (module docs).
+                        let unlit = if di.subsurface {
+                            &d.unlit[cull]
+                        } else {
+                            &d.diffused[cull]
+                        };
+                        for (pipeline, n) in [(&d.diffused[cull], counts[0]), (unlit, counts[1])] {
+                            if n > 0 {
+                                pass.set_pipeline(pipeline);
+                                pass.draw_indexed(start..start + n, 0, i..i + 1);
+                                start += n;
+                            }
+                        }
                     }
                     pass.set_pipeline(full);
                     pass.draw_indexed(start..scene.mesh.index_count, 0, i..i + 1);
@@ -946,53 +975,58 @@ impl DisplayPass {
         })
     }
 
-    /// With per-pixel direct light on subsurface surfaces (no specular,
-    /// [`DisplayOptions::split`], triangle lengths given): the scene's split index buffer —
-    /// first the triangles whose every pixel takes `w = 0` in this view
-    /// ([`crate::display_split`]), then the others, each in the mesh's order; rewritten only
-    /// when the split changes — and the number of indices of the first part. `None`
-    /// otherwise (the mesh's own index buffer, one pipeline).
+    /// With per-pixel direct light (no specular, [`DisplayOptions::split`]): the scene's
+    /// split index buffer — the triangles by [`crate::display_split::Class`] in this view:
+    /// those whose every pixel takes `w = 0` (with [`DirectInputs::triangle_lengths`]), those
+    /// no light reaches, the rest; each class in the mesh's order, rewritten only when the
+    /// classes change — and the index counts of the first two classes. `None` when neither
+    /// class has a triangle, or without the split (the mesh's own index buffer, one
+    /// pipeline).
     fn split_triangles(
         &self,
         gpu: &Gpu,
         inputs: &DisplayInputs<'_>,
         height_px: u32,
-    ) -> Result<Option<(wgpu::Buffer, u32)>, PassError> {
+    ) -> Result<Option<(wgpu::Buffer, [u32; 2])>, PassError> {
         let Some(di) = inputs.direct.as_ref() else {
             return Ok(None);
         };
-        let Some(lengths) = di.triangle_lengths else {
-            return Ok(None);
-        };
-        if !(di.subsurface && inputs.specular.is_none() && self.options.split) {
+        if !(inputs.specular.is_none() && self.options.split) {
             return Ok(None);
         }
         let scene = inputs.scene;
         let triangles = scene.mesh.split();
-        check_triangle_lengths(triangles.triangles(), lengths)?;
-        let marks = triangles.diffused_only(&inputs.camera, height_px, lengths);
-        let mut split = scene.split.lock().unwrap_or_else(|e| e.into_inner());
-        let buffer = split
-            .buffer
-            .get_or_insert_with(|| {
-                gpu.device.create_buffer(&wgpu::BufferDescriptor {
-                    label: Some("ortm.display.split_indices"),
-                    size: u64::from(scene.mesh.index_count.max(1)) * 4,
-                    usage: wgpu::BufferUsages::INDEX | wgpu::BufferUsages::COPY_DST,
-                    mapped_at_creation: false,
-                })
-            })
-            .clone();
-        if split.marks != marks {
-            let (indices, first) = triangles.indices(&marks);
-            if !indices.is_empty() {
-                gpu.queue
-                    .write_buffer(&buffer, 0, bytemuck::cast_slice(&indices));
+        let diffused = match di.triangle_lengths.filter(|_| di.subsurface) {
+            Some(lengths) => {
+                check_triangle_lengths(triangles.triangles(), lengths)?;
+                Some(triangles.diffused_only(&inputs.camera, height_px, lengths))
             }
-            split.diffused_indices = first;
-            split.marks = marks;
+            None => None,
+        };
+        let classes = triangles.classes(diffused.as_deref(), &triangles.unlit(inputs.lights));
+        let mut split = scene.split.lock().unwrap_or_else(|e| e.into_inner());
+        if split.classes != classes {
+            let (indices, counts) = triangles.indices(&classes);
+            split.counts = [counts[0], counts[1]];
+            if counts[0] + counts[1] > 0 {
+                let buffer = split.buffer.get_or_insert_with(|| {
+                    gpu.device.create_buffer(&wgpu::BufferDescriptor {
+                        label: Some("ortm.display.split_indices"),
+                        size: u64::from(scene.mesh.index_count.max(1)) * 4,
+                        usage: wgpu::BufferUsages::INDEX | wgpu::BufferUsages::COPY_DST,
+                        mapped_at_creation: false,
+                    })
+                });
+                gpu.queue
+                    .write_buffer(buffer, 0, bytemuck::cast_slice(&indices));
+            }
+            split.classes = classes;
         }
-        Ok(Some((buffer, split.diffused_indices)))
+        if split.counts == [0, 0] {
+            return Ok(None);
+        }
+        let buffer = split.buffer.clone().expect("written with the classes");
+        Ok(Some((buffer, split.counts)))
     }
 
     /// Writes the [`DisplayView`] uniform for a viewport of `aspect`, and the lights when

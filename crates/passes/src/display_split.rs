@@ -1,6 +1,6 @@
 //! Which triangles need the per-pixel light loop in this frame: the display pass's split of
-//! subsurface surfaces into triangles whose every pixel keeps the lightmap's diffused light
-//! and the others.
+//! the mesh into triangles whose every pixel keeps the lightmap's diffused light (subsurface
+//! surfaces), triangles no light reaches, and the others ([`Class`]).
 //!
 //! # Why
 //! On subsurface surfaces the per-pixel display takes the share `w = clamp(1 − ℓ/f, 0, 1)` of
@@ -10,11 +10,15 @@
 //! are multiplied by zero. SIMD software rasterisers (lavapipe) run a divergent branch's
 //! body under a mask, so skipping the loop per pixel saves nothing; choosing the pipeline
 //! per draw does. So per frame [`DisplaySplit::diffused_only`] marks the triangles whose every
-//! pixel provably has `f ≤ ℓ`, the display draws them first with the lightmap display's
-//! shader (`fs_filtered` / `fs_manual` in `shaders/display.wgsl`: `B/π`, the final light,
-//! which is what the per-pixel shader computes at `w = 0`), then the others with the full
-//! one: two draws from an index buffer rewritten when the split changes. The image is the
-//! same (`apps/ortm/tests/display_direct.rs`).
+//! pixel provably has `f ≤ ℓ`, and [`DisplaySplit::unlit`] those that face away from every
+//! light (the shader's cosine test fails at each of their points, so `E = 0`). The display
+//! draws the first with the lightmap display's shader (`fs_filtered` / `fs_manual` in
+//! `shaders/display.wgsl`: `B/π`, the final light, which is what the per-pixel shader
+//! computes at `w = 0`), the second without the light loop (the override `LIGHTS` off; on
+//! scenes without subsurface texels the lightmap display's shader on `T`, the same), then
+//! the rest with the full shader: up to three draws from an index buffer rewritten when the
+//! classes change. The image is the same byte for byte
+//! (`apps/ortm/tests/display_direct.rs`, the `split_display_*` tests).
 //!
 //! # The footprint bound
 //! A pixel's view ray `D = F + x·s·X + y·s·Y` (unit forward, right and up vectors, `s` the
@@ -32,20 +36,38 @@
 //! (`c ≤ 4s`), or can read a texel with `ℓ = 0`, never is.
 //!
 //! # Data flow and units
-//! [`DisplaySplit::build`] at upload (planes of the triangles, their UV boxes);
+//! [`DisplaySplit::build`] at upload (planes of the triangles, vertex normals, UV boxes);
 //! [`DisplaySplit::min_lengths`] when the diffusion lengths are set (per triangle, from the
-//! dilated surface texels); [`DisplaySplit::diffused_only`] and [`DisplaySplit::indices`]
-//! per frame. Metres, radians; UVs as in [`crate::types::MeshData`].
+//! dilated surface texels); per frame [`DisplaySplit::diffused_only`],
+//! [`DisplaySplit::unlit`], [`DisplaySplit::classes`] and [`DisplaySplit::indices`]
+//! (`O(triangles × lights)` on the CPU). Metres, radians; UVs as in
+//! [`crate::types::MeshData`].
 
 use glam::Vec3;
 
 use crate::display::Camera;
-use crate::types::MeshData;
+use crate::types::{LightDesc, MeshData};
+
+/// How a triangle is drawn this frame ([`DisplaySplit::classes`]); the index buffer holds
+/// the classes in this order.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+pub enum Class {
+    /// Every pixel takes `w = 0`: the lightmap display's shader (`B/π`).
+    Diffused,
+    /// No light reaches it by the shader's cosine test: the per-pixel shader without the
+    /// light loop (on scenes without subsurface texels, the lightmap display's shader on
+    /// `T`, which is the same).
+    Unlit,
+    /// The full per-pixel shader.
+    Full,
+}
 
 /// The mesh's triangles as the split needs them.
 #[derive(Clone, Debug, PartialEq)]
 pub struct DisplaySplit {
     positions: Vec<Vec3>,
+    /// Vertex normals, as given (the shader interpolates and normalises them).
+    normals: Vec<Vec3>,
     /// Three vertex indices per triangle (the mesh's order).
     indices: Vec<u32>,
     /// Per triangle: unit normal by the winding (counter-clockwise seen from the front)
@@ -75,6 +97,7 @@ impl DisplaySplit {
         }
         Self {
             positions,
+            normals: mesh.normals.iter().map(|&n| n.into()).collect(),
             indices: mesh.indices[..planes.len() * 3].to_vec(),
             planes,
             triangle_uv,
@@ -149,23 +172,99 @@ impl DisplaySplit {
             .collect()
     }
 
-    /// The index list with the triangles marked in `first` first, then the others, each in
-    /// the mesh's order; and the number of indices of the first part.
-    pub fn indices(&self, first: &[bool]) -> (Vec<u32>, u32) {
+    /// Per triangle, whether no light of `lights` reaches any point of it by the per-pixel
+    /// shader's test `n·(L − p) > 0` (`lights.wgsl`; `n` the interpolated vertex normal, `p`
+    /// the point; for a directional light `n·(−direction) > 0`), or the light is black.
+    /// Both `n` and `L − p` are convex combinations of the vertices' (the same barycentric
+    /// weights, normalisation keeps the sign), so `n·(L − p)` is a convex combination of
+    /// `n_i·(L − v_j)`: all of those below `−10⁻⁴·|n_i|·|L − v_j|` (a margin for the shader's
+    /// rounding) mean no light there.
+    pub fn unlit(&self, lights: &[LightDesc]) -> Vec<bool> {
+        let margin = 1e-4;
+        self.indices
+            .chunks_exact(3)
+            .map(|t| {
+                let n = [0, 1, 2].map(|k| self.normals[t[k] as usize]);
+                let v = [0, 1, 2].map(|k| self.positions[t[k] as usize]);
+                lights.iter().all(|light| match *light {
+                    LightDesc::Directional {
+                        direction,
+                        color,
+                        irradiance_w_m2,
+                    } => {
+                        let to = -Vec3::from(direction);
+                        black(color, irradiance_w_m2)
+                            || n.iter()
+                                .all(|n| n.dot(to) < -margin * n.length() * to.length())
+                    }
+                    LightDesc::Point {
+                        position_m,
+                        color,
+                        intensity_w_sr,
+                    }
+                    | LightDesc::Spot {
+                        position_m,
+                        color,
+                        intensity_w_sr,
+                        ..
+                    } => {
+                        let l = Vec3::from(position_m);
+                        black(color, intensity_w_sr)
+                            || n.iter().all(|n| {
+                                v.iter().all(|v| {
+                                    let to = l - *v;
+                                    n.dot(to) < -margin * n.length() * to.length()
+                                })
+                            })
+                    }
+                })
+            })
+            .collect()
+    }
+
+    /// Per triangle, its [`Class`]: [`Class::Diffused`] where `diffused` (from
+    /// [`DisplaySplit::diffused_only`]; `None` on scenes without subsurface texels), else
+    /// [`Class::Unlit`] where `unlit` ([`DisplaySplit::unlit`]), else [`Class::Full`].
+    pub fn classes(&self, diffused: Option<&[bool]>, unlit: &[bool]) -> Vec<Class> {
+        (0..self.triangles())
+            .map(|t| {
+                if diffused.is_some_and(|d| d[t]) {
+                    Class::Diffused
+                } else if unlit[t] {
+                    Class::Unlit
+                } else {
+                    Class::Full
+                }
+            })
+            .collect()
+    }
+
+    /// The index list ordered by class ([`Class`] order), each class in the mesh's order, and
+    /// the index counts of the classes.
+    pub fn indices(&self, classes: &[Class]) -> (Vec<u32>, [u32; 3]) {
         let mut out = Vec::with_capacity(self.indices.len());
-        for part in [true, false] {
+        let mut counts = [0u32; 3];
+        for (k, class) in [Class::Diffused, Class::Unlit, Class::Full]
+            .into_iter()
+            .enumerate()
+        {
             for (t, _) in self
                 .indices
                 .chunks_exact(3)
-                .zip(first)
-                .filter(|(_, f)| **f == part)
+                .zip(classes)
+                .filter(|(_, c)| **c == class)
             {
                 out.extend_from_slice(t);
+                counts[k] += 3;
             }
         }
-        let n = 3 * first.iter().filter(|&&f| f).count() as u32;
-        (out, n)
+        (out, counts)
     }
+}
+
+/// A light of this colour and strength adds nothing.
+fn black(color: [f32; 3], strength: f32) -> bool {
+    strength == 0.0 || color == [0.0; 3]
 }
 
 #[cfg(test)]
@@ -355,14 +454,59 @@ mod tests {
     }
 
     #[test]
-    fn indices_put_the_marked_triangles_first_in_mesh_order() {
+    fn indices_put_the_classes_in_order_each_in_mesh_order() {
         let mesh = grid(2);
         let split = DisplaySplit::build(&mesh);
-        let marks = [false, true, true, false, false, false, true, false];
-        let (idx, n) = split.indices(&marks);
-        assert_eq!(n, 9);
+        let (d, u, f) = (Class::Diffused, Class::Unlit, Class::Full);
+        let classes = [f, d, u, f, d, f, d, u];
+        let (idx, counts) = split.indices(&classes);
+        assert_eq!(counts, [9, 6, 9]);
         let tri = |k: usize| mesh.indices[3 * k..3 * k + 3].to_vec();
-        let want: Vec<u32> = [1, 2, 6, 0, 3, 4, 5, 7].into_iter().flat_map(tri).collect();
+        let want: Vec<u32> = [1, 4, 6, 2, 7, 0, 3, 5].into_iter().flat_map(tri).collect();
         assert_eq!(idx, want);
+        let diffused = [false, true, false, false, true, false, true, false];
+        let unlit = [false, true, true, false, false, false, false, true];
+        assert_eq!(split.classes(Some(&diffused), &unlit), classes);
+        assert_eq!(split.classes(None, &unlit)[1], u);
+    }
+
+    /// The plane z = 0 (normals +z) against lights above, below, beside and grazing it.
+    #[test]
+    fn unlit_triangles_face_away_from_every_light() {
+        let mesh = grid(4);
+        let split = DisplaySplit::build(&mesh);
+        let point = |z: f32| LightDesc::Point {
+            position_m: [0.5, 0.5, z],
+            color: [1.0; 3],
+            intensity_w_sr: 1.0,
+        };
+        let sun = |z: f32| LightDesc::Directional {
+            direction: [0.3, 0.0, -z],
+            color: [1.0; 3],
+            irradiance_w_m2: 1.0,
+        };
+        let all = |lights: &[LightDesc], want: bool| split.unlit(lights).iter().all(|&u| u == want);
+        assert!(all(&[point(-1.0)], true));
+        assert!(all(&[point(1.0)], false));
+        assert!(all(&[point(-1.0), point(1.0)], false));
+        assert!(all(&[sun(-1.0)], true)); // travelling up: lights the back
+        assert!(all(&[sun(1.0)], false));
+        assert!(all(&[], true));
+        // A black light above: nothing reaches.
+        let black = LightDesc::Point {
+            position_m: [0.5, 0.5, 1.0],
+            color: [0.0; 3],
+            intensity_w_sr: 5.0,
+        };
+        assert!(all(&[black, point(-1.0)], true));
+        // A light in the plane (grazing, n·(L − p) = 0 everywhere): not provably unlit.
+        assert!(all(&[point(0.0)], false));
+        // Below the plane but beside it: the far triangles see it under the plane only.
+        let beside = LightDesc::Point {
+            position_m: [3.0, 0.5, -0.01],
+            color: [1.0; 3],
+            intensity_w_sr: 1.0,
+        };
+        assert!(all(&[beside], true));
     }
 }

@@ -124,9 +124,10 @@ pub struct Args {
     /// `storage`.
     #[arg(long, value_enum, default_value_t = Reads::Auto)]
     texel_reads: Reads,
-    /// Per-pixel display of subsurface surfaces: draw the triangles whose pixels all keep
-    /// the lightmap's diffused light without the light loop (`on`, the renderer's default;
-    /// the same image) or every triangle with the full shader (`off`).
+    /// Per-pixel display: draw the triangles whose pixels all keep the lightmap's diffused
+    /// light (subsurface surfaces) or that no light reaches without the light loop (`on`,
+    /// the renderer's default; the same image) or every triangle with the full shader
+    /// (`off`).
     #[arg(long, value_enum, default_value_t = Split::On)]
     split: Split,
 }
