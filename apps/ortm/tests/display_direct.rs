@@ -25,7 +25,7 @@ use ortm::bake::{BakeEvent, bake_maps};
 use ortm::render;
 use ortm::scene::{Light, Scene};
 use passes::cpu::display::{PixelMaps, PixelSurface, pixel_radiance};
-use passes::display::{Camera, DirectLight, DisplayOptions, LightmapSampling};
+use passes::display::{Camera, DirectLight, DisplayOptions, LightmapSampling, SplitMode};
 use passes::first_order::FirstOrderOptions;
 use passes::frame::{FrameOptions, FrameParams, RenderScene, Renderer, RendererOptions, Shown};
 use passes::gpu::ExclusiveGpu;
@@ -663,7 +663,7 @@ fn split_against_full_shader(
     let gpu = gpu();
     let grid = TexelGrid::build_with_size(scene, size, size).unwrap();
     let inputs = transfer(scene, &grid, offsets);
-    let renderers = [true, false].map(|split| {
+    let renderers = [SplitMode::On, SplitMode::Off].map(|split| {
         let options = DisplayOptions {
             split,
             ..display(img, DirectLight::PerPixel, LightmapSampling::Bilinear)

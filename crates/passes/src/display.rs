@@ -141,6 +141,20 @@ pub enum LightmapSampling {
     Bicubic,
 }
 
+/// When the per-pixel display splits the mesh by [`crate::display_split::Class`].
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum SplitMode {
+    /// On CPU adapters (lavapipe), where a masked-off branch costs what running it does and
+    /// the split cuts the display's cost (`docs/render.md`); off on hardware GPUs, which
+    /// skip a branch no lane of a warp takes (the split would only add CPU work per frame).
+    #[default]
+    Auto,
+    /// Always.
+    On,
+    /// Never: one draw with the full shader.
+    Off,
+}
+
 /// Settings fixed at creation.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct DisplayOptions {
@@ -156,11 +170,10 @@ pub struct DisplayOptions {
     pub direct: DirectLight,
     /// Lightmap filter.
     pub sampling: LightmapSampling,
-    /// Per-pixel direct light: draw the triangles whose every pixel takes `w = 0`
-    /// (subsurface surfaces) or that no light reaches with pipelines without the light loop
-    /// ([`crate::display_split`]; the same image, cheaper on SIMD software rasterisers).
-    /// `false` draws every triangle with the full shader (for comparison).
-    pub split: bool,
+    /// Per-pixel direct light: whether to draw the triangles whose every pixel takes
+    /// `w = 0` (subsurface surfaces) or that no light reaches with pipelines without the
+    /// light loop ([`crate::display_split`]; the same image).
+    pub split: SplitMode,
 }
 
 impl Default for DisplayOptions {
@@ -171,7 +184,7 @@ impl Default for DisplayOptions {
             side_by_side: false,
             direct: DirectLight::default(),
             sampling: LightmapSampling::default(),
-            split: true,
+            split: SplitMode::Auto,
         }
     }
 }
@@ -321,10 +334,19 @@ struct Split {
     /// Allocated by the first frame whose split has triangles without the light loop (the
     /// mesh's index count).
     buffer: Option<wgpu::Buffer>,
-    /// Per triangle, its class; empty before the first split.
-    classes: Vec<crate::display_split::Class>,
+    /// What the buffer was split for (`None` before the first split).
+    key: Option<SplitKey>,
     /// Indices of the first two classes, at the start of the buffer in that order.
     counts: [u32; 2],
+}
+
+/// The inputs of a split: the same ones give the same classes.
+#[derive(Debug, PartialEq)]
+struct SplitKey {
+    camera: Camera,
+    height_px: u32,
+    lights: Vec<LightDesc>,
+    lengths: Option<Vec<f32>>,
 }
 
 impl DisplayScene {
@@ -991,21 +1013,31 @@ impl DisplayPass {
         let Some(di) = inputs.direct.as_ref() else {
             return Ok(None);
         };
-        if !(inputs.specular.is_none() && self.options.split) {
+        let on = match self.options.split {
+            SplitMode::Auto => gpu.adapter_info.device_type == wgpu::DeviceType::Cpu,
+            SplitMode::On => true,
+            SplitMode::Off => false,
+        };
+        if !(inputs.specular.is_none() && on) {
             return Ok(None);
         }
         let scene = inputs.scene;
         let triangles = scene.mesh.split();
-        let diffused = match di.triangle_lengths.filter(|_| di.subsurface) {
-            Some(lengths) => {
-                check_triangle_lengths(triangles.triangles(), lengths)?;
-                Some(triangles.diffused_only(&inputs.camera, height_px, lengths))
-            }
-            None => None,
-        };
-        let classes = triangles.classes(diffused.as_deref(), &triangles.unlit(inputs.lights));
+        let lengths = di.triangle_lengths.filter(|_| di.subsurface);
+        if let Some(lengths) = lengths {
+            check_triangle_lengths(triangles.triangles(), lengths)?;
+        }
         let mut split = scene.split.lock().unwrap_or_else(|e| e.into_inner());
-        if split.classes != classes {
+        // The classes depend on the view, the lights and the lengths only.
+        let key = SplitKey {
+            camera: inputs.camera,
+            height_px,
+            lights: inputs.lights.to_vec(),
+            lengths: lengths.map(<[f32]>::to_vec),
+        };
+        if split.key.as_ref() != Some(&key) {
+            let diffused = lengths.map(|l| triangles.diffused_only(&inputs.camera, height_px, l));
+            let classes = triangles.classes(diffused.as_deref(), &triangles.unlit(inputs.lights));
             let (indices, counts) = triangles.indices(&classes);
             split.counts = [counts[0], counts[1]];
             if counts[0] + counts[1] > 0 {
@@ -1020,7 +1052,7 @@ impl DisplayPass {
                 gpu.queue
                     .write_buffer(buffer, 0, bytemuck::cast_slice(&indices));
             }
-            split.classes = classes;
+            split.key = Some(key);
         }
         if split.counts == [0, 0] {
             return Ok(None);

@@ -180,7 +180,11 @@ impl DisplaySplit {
     /// `n_i·(L − v_j)`: all of those below `−10⁻⁴·|n_i|·|L − v_j|` (a margin for the shader's
     /// rounding) mean no light there.
     pub fn unlit(&self, lights: &[LightDesc]) -> Vec<bool> {
-        let margin = 1e-4;
+        // d < −m·|n|·|to|, squared (no square roots per pair).
+        let below = |n: Vec3, to: Vec3| {
+            let d = n.dot(to);
+            d < 0.0 && d * d > 1e-8 * n.length_squared() * to.length_squared()
+        };
         self.indices
             .chunks_exact(3)
             .map(|t| {
@@ -193,9 +197,7 @@ impl DisplaySplit {
                         irradiance_w_m2,
                     } => {
                         let to = -Vec3::from(direction);
-                        black(color, irradiance_w_m2)
-                            || n.iter()
-                                .all(|n| n.dot(to) < -margin * n.length() * to.length())
+                        black(color, irradiance_w_m2) || n.iter().all(|n| below(*n, to))
                     }
                     LightDesc::Point {
                         position_m,
@@ -210,12 +212,7 @@ impl DisplaySplit {
                     } => {
                         let l = Vec3::from(position_m);
                         black(color, intensity_w_sr)
-                            || n.iter().all(|n| {
-                                v.iter().all(|v| {
-                                    let to = l - *v;
-                                    n.dot(to) < -margin * n.length() * to.length()
-                                })
-                            })
+                            || n.iter().all(|n| v.iter().all(|v| below(*n, l - *v)))
                     }
                 })
             })

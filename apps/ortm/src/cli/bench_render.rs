@@ -37,7 +37,7 @@ use ortm::bake::texels::TexelGrid;
 use ortm::render;
 use ortm::scene::Scene;
 use passes::Gpu;
-use passes::display::DisplayOptions;
+use passes::display::{DisplayOptions, SplitMode};
 use passes::first_order::FirstOrderOptions;
 use passes::frame::{FrameParams, Renderer, RendererOptions};
 use passes::transfer::{TransferOptions, TransferPath};
@@ -128,13 +128,15 @@ pub struct Args {
     /// light (subsurface surfaces) or that no light reaches without the light loop (`on`,
     /// the renderer's default; the same image) or every triangle with the full shader
     /// (`off`).
-    #[arg(long, value_enum, default_value_t = Split::On)]
+    #[arg(long, value_enum, default_value_t = Split::Auto)]
     split: Split,
 }
 
 /// `--split` values.
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Split {
+    /// On CPU adapters (lavapipe), off on hardware GPUs (the renderer's default).
+    Auto,
     /// Triangles that need no light loop are drawn without it.
     On,
     /// Every triangle with the full per-pixel shader.
@@ -316,7 +318,11 @@ fn renderer_options(
             side_by_side: false,
             direct: a.display.direct.direct(),
             sampling: a.display.filter.sampling(),
-            split: a.split == Split::On,
+            split: match a.split {
+                Split::Auto => SplitMode::Auto,
+                Split::On => SplitMode::On,
+                Split::Off => SplitMode::Off,
+            },
         },
         ..Default::default()
     }
