@@ -633,7 +633,7 @@ fn per_pixel_energy_equals_lightmap_image_subsurface_head() {
         100.0 * rel,
         100.0 * rel_no_split
     );
-    // Measured: 6,439 pixels; 0.283 % with the split, 1.807 % with per-pixel direct light on
+    // Measured: 6,439 pixels; 0.263 % with the split, 1.742 % with per-pixel direct light on
     // the skin too (which also puts back hard shadow edges). Bound: the 1 %.
     assert!(n > 5000, "only {n} mesh pixels");
     assert!(
