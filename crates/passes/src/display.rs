@@ -695,6 +695,11 @@ fn direct_pipelines(
         LightmapFilter::Hardware => ("fs_direct_filtered", "fs_filtered"),
         LightmapFilter::Manual => ("fs_direct_manual", "fs_manual"),
     };
+    // `[both sides, back faces culled]` of one entry-point pair and constants.
+    let culls = |entry: (&str, &str), constants: &[(&str, f64)]| {
+        [None, Some(wgpu::Face::Back)]
+            .map(|cull| display_pipeline(device, &pl, module, entry, cull, constants))
+    };
     let pipelines = [0.0, 1.0].map(|subsurface| {
         [0.0, 1.0].map(|specular| {
             let constants = [
@@ -702,40 +707,14 @@ fn direct_pipelines(
                 ("SPECULAR", specular),
                 ("SUBSURFACE", subsurface),
             ];
-            [None, Some(wgpu::Face::Back)].map(|cull| {
-                display_pipeline(
-                    device,
-                    &pl,
-                    module,
-                    ("vs_direct", fs_name),
-                    cull,
-                    &constants,
-                )
-            })
+            culls(("vs_direct", fs_name), &constants)
         })
     });
-    let diffused = [None, Some(wgpu::Face::Back)].map(|cull| {
-        let constants = [("BICUBIC", bicubic)];
-        display_pipeline(
-            device,
-            &pl,
-            module,
-            ("vs_uv", fs_diffused),
-            cull,
-            &constants,
-        )
-    });
-    let unlit = [None, Some(wgpu::Face::Back)].map(|cull| {
-        let constants = [("BICUBIC", bicubic), ("SUBSURFACE", 1.0), ("LIGHTS", 0.0)];
-        display_pipeline(
-            device,
-            &pl,
-            module,
-            ("vs_direct", fs_name),
-            cull,
-            &constants,
-        )
-    });
+    let diffused = culls(("vs_uv", fs_diffused), &[("BICUBIC", bicubic)]);
+    let unlit = culls(
+        ("vs_direct", fs_name),
+        &[("BICUBIC", bicubic), ("SUBSURFACE", 1.0), ("LIGHTS", 0.0)],
+    );
     DirectPipelines {
         layout,
         shadow_sampler: crate::first_order::shadow_sampler(device),
