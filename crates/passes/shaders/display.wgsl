@@ -374,4 +374,3 @@ fn fs_direct_manual(in: DirectOut) -> @location(0) vec4<f32> {
     }
     return display(l);
 }
-

@@ -341,7 +341,7 @@ struct Split {
 }
 
 /// The inputs of a split: the same ones give the same classes.
-#[derive(Debug, PartialEq)]
+#[derive(Debug)]
 struct SplitKey {
     camera: Camera,
     height_px: u32,
@@ -1007,14 +1007,21 @@ impl DisplayPass {
             check_triangle_lengths(triangles.triangles(), lengths)?;
         }
         let mut split = scene.split.lock().unwrap_or_else(|e| e.into_inner());
-        // The classes depend on the view, the lights and the lengths only.
-        let key = SplitKey {
-            camera: inputs.camera,
-            height_px,
-            lights: inputs.lights.to_vec(),
-            lengths: lengths.map(<[f32]>::to_vec),
-        };
-        if split.key.as_ref() != Some(&key) {
+        // The classes depend on the view, the lights and the lengths only: compared in
+        // place each frame, copied only when they change.
+        let same = split.key.as_ref().is_some_and(|k| {
+            k.camera == inputs.camera
+                && k.height_px == height_px
+                && k.lights == inputs.lights
+                && k.lengths.as_deref() == lengths
+        });
+        if !same {
+            let key = SplitKey {
+                camera: inputs.camera,
+                height_px,
+                lights: inputs.lights.to_vec(),
+                lengths: lengths.map(<[f32]>::to_vec),
+            };
             let diffused = lengths.map(|l| triangles.diffused_only(&inputs.camera, height_px, l));
             let classes = triangles.classes(diffused.as_deref(), &triangles.unlit(inputs.lights));
             let (indices, counts) = triangles.indices(&classes);

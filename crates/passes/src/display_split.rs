@@ -45,6 +45,7 @@
 
 use glam::Vec3;
 
+use crate::cpu::display::texel_coords;
 use crate::display::Camera;
 use crate::types::{LightDesc, MeshData};
 
@@ -120,12 +121,14 @@ impl DisplaySplit {
         self.triangle_uv
             .iter()
             .map(|uv| {
-                // Texel-space coordinates: centres at integers (display.wgsl's
-                // `texel_coords`); a bilinear lookup reads floor(st) and floor(st) + 1.
-                let x0 = (texel(uv[0] * w as f32 - 0.5) - 1).clamp(0, w - 1);
-                let x1 = (texel(uv[2] * w as f32 - 0.5) + 2).clamp(0, w - 1);
-                let y0 = (texel((1.0 - uv[3]) * h as f32 - 0.5) - 1).clamp(0, h - 1);
-                let y1 = (texel((1.0 - uv[1]) * h as f32 - 0.5) + 2).clamp(0, h - 1);
+                // The box's corners in texel space (v grows upwards, rows downwards); a
+                // bilinear lookup reads floor(st) and floor(st) + 1.
+                let [s0, t0] = texel_coords([uv[0], uv[3]], size[0], size[1]);
+                let [s1, t1] = texel_coords([uv[2], uv[1]], size[0], size[1]);
+                let x0 = (texel(s0) - 1).clamp(0, w - 1);
+                let x1 = (texel(s1) + 2).clamp(0, w - 1);
+                let y0 = (texel(t0) - 1).clamp(0, h - 1);
+                let y1 = (texel(t1) + 2).clamp(0, h - 1);
                 let mut min = f32::INFINITY;
                 for y in y0..=y1 {
                     let row = &surface[(y * w) as usize..][..w as usize];

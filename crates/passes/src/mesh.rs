@@ -7,8 +7,8 @@
 //! - `positions`: positions only (`[f32; 3]`, m), for the shadow pass's depth-only draws;
 //! - `indices`: `u32`, three per triangle, CCW from the side the normals point to.
 //!
-//! Beside them, on the CPU, the triangles' planes and UV boxes for the display's split
-//! ([`DisplaySplit`]).
+//! Beside them, on the CPU, the positions, normals and triangles (with their planes and UV
+//! boxes) that the display's split reads ([`DisplaySplit`]).
 
 use std::sync::Arc;
 

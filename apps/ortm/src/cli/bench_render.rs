@@ -125,9 +125,9 @@ pub struct Args {
     #[arg(long, value_enum, default_value_t = Reads::Auto)]
     texel_reads: Reads,
     /// Per-pixel display: draw the triangles whose pixels all keep the lightmap's diffused
-    /// light (subsurface surfaces) or that no light reaches without the light loop (`on`,
-    /// the renderer's default; the same image) or every triangle with the full shader
-    /// (`off`).
+    /// light (subsurface surfaces) or that no light reaches without the light loop (`on`;
+    /// the same image), every triangle with the full shader (`off`), or the renderer's
+    /// default (`auto`: on for CPU adapters such as lavapipe).
     #[arg(long, value_enum, default_value_t = Split::Auto)]
     split: Split,
 }

@@ -26,12 +26,21 @@ pub fn bspline_weights(f: f32) -> [f32; 4] {
     ]
 }
 
+/// Texel-space coordinates `[s, t]` of a UV on a `width × height` map, texel centres at
+/// integers (`texel_coords` in display.wgsl): texel `(x, y)` has its centre at
+/// `u = (x+0.5)/W`, `v = 1 − (y+0.5)/H`. A bilinear lookup reads `floor` and `floor + 1`.
+pub fn texel_coords(uv: [f32; 2], width: u32, height: u32) -> [f32; 2] {
+    [
+        uv[0] * width as f32 - 0.5,
+        (1.0 - uv[1]) * height as f32 - 0.5,
+    ]
+}
+
 /// Cubic B-spline lookup of RGBA between texel centres, indices clamped at the border
 /// (`bicubic_of` in display.wgsl; the hardware path `bicubic_filtered_of` takes four
 /// bilinear samples, the same function up to the sampler's weight precision).
 pub fn bicubic_rgba(map: &TexelImage, uv: [f32; 2]) -> [f32; 4] {
-    let s = uv[0] * map.width as f32 - 0.5;
-    let t = (1.0 - uv[1]) * map.height as f32 - 0.5;
+    let [s, t] = texel_coords(uv, map.width, map.height);
     let (i0, j0) = (s.floor(), t.floor());
     let (wx, wy) = (bspline_weights(s - i0), bspline_weights(t - j0));
     let cx = |i: i32| i.clamp(0, map.width as i32 - 1) as u32;
@@ -50,9 +59,7 @@ pub fn bicubic_rgba(map: &TexelImage, uv: [f32; 2]) -> [f32; 4] {
 
 /// Bilinear lookup of RGBA (see [`bilinear`]).
 pub fn bilinear_rgba(map: &TexelImage, uv: [f32; 2]) -> [f32; 4] {
-    let (w, h) = (map.width as f32, map.height as f32);
-    let s = uv[0] * w - 0.5;
-    let t = (1.0 - uv[1]) * h - 0.5;
+    let [s, t] = texel_coords(uv, map.width, map.height);
     let (i0, j0) = (s.floor(), t.floor());
     let (fx, fy) = (s - i0, t - j0);
     let cx = |i: f32| (i as i32).clamp(0, map.width as i32 - 1) as u32;
