@@ -13,7 +13,10 @@
 //!   the limit today's maps converge to, no offsets), then for each offset budget a bake with
 //!   importance-sampled offsets and each cell rule — today's integrated cells and the paper's
 //!   Eq. 10 (`sampled`) — applied on the CPU (Eq. 9, [`ortm::maps::apply`], the mirror of the
-//!   GPU's transfer pass).
+//!   GPU's transfer pass);
+//! - with `--tolerances`, the same rows on the hierarchical transport at each tolerance `ε`
+//!   ([`Transport::build_hierarchical`], `ortm bake --tolerance ε`): its evaluator (every pair,
+//!   [`ortm::bake::multires::hierarchical_row`]), its multi-resolution maps and its bakes.
 //!
 //! Columns: relative RMSE of the total `B` and of the indirect term `B − B_o` over interior
 //! covered texels ([`ortm::accuracy::compare`]), energy ratio (power of the row over the
@@ -90,6 +93,11 @@ pub struct Args {
         value_parser = clap::value_parser!(u32).range(0..=i64::from(ortm::io::limits::MAX_COARSE_BLOCK))
     )]
     coarse_block: u32,
+    /// Tolerances `ε` of the hierarchical transport (`ortm bake --tolerance`): per tolerance, the
+    /// evaluator on its operator (where the evaluator row fits), the multi-resolution maps of
+    /// `--levels` painted from it and one bake per offset budget and cell rule on it.
+    #[arg(long, value_delimiter = ',')]
+    tolerances: Vec<f32>,
 }
 
 /// One way of producing the final lightmap, measured against the reference.
@@ -113,6 +121,9 @@ struct Case {
 pub fn run(a: Args) -> Result<()> {
     if a.offsets.contains(&0) {
         bail!("--offsets: every budget must be at least 1 map");
+    }
+    if let Some(t) = a.tolerances.iter().find(|t| !(t.is_finite() && **t > 0.0)) {
+        bail!("--tolerances: {t} is not a tolerance; give numbers > 0, e.g. 1e-3,1e-4");
     }
     if a.spp == 0 || a.max_spp < a.spp {
         bail!("--spp must be at least 1 and --max-spp at least --spp");
@@ -181,24 +192,114 @@ fn measure_rows(case: &Case, a: &Args) -> Result<Vec<Row>> {
             bake_s: build_s,
             frame_cost: n as u64 * senders,
         });
-        rows.extend(level_rows(case, &tr, build_s, a)?);
+        rows.extend(level_rows(
+            case,
+            &ortm::bake::multires::transport_row(&tr),
+            build_s,
+            a,
+        )?);
     }
+    offset_rows(case, None, a, &mut rows)?;
+    for &tolerance in &a.tolerances {
+        rows.extend(hierarchical_rows(case, tolerance, a)?);
+        offset_rows(case, Some(tolerance), a, &mut rows)?;
+    }
+    Ok(rows)
+}
+
+/// One bake per offset budget and cell rule, on the coarse clusters (`tolerance` `None`) or on
+/// the hierarchical transport at `tolerance`.
+fn offset_rows(case: &Case, tolerance: Option<f32>, a: &Args, rows: &mut Vec<Row>) -> Result<()> {
     for &k in &a.offsets {
         for (rule, name) in [
             (CellRule::Integrated, "integrated cells"),
             (CellRule::Sampled, "Eq. 10 (sampled)"),
         ] {
+            let name = match tolerance {
+                Some(t) => format!("{name}, hierarchical ε = {t:.0e}"),
+                None => name.to_string(),
+            };
             eprintln!("{}: bake, {k} offsets, {name}", case.label);
-            rows.push(bake_row(case, k, rule, name, a)?);
+            rows.push(bake_row(case, k, rule, tolerance, &name, a)?);
         }
+    }
+    Ok(())
+}
+
+/// The evaluator on the hierarchical transport at `tolerance` (every pair, where it fits) and
+/// the multi-resolution maps of `--levels` painted from its rows.
+fn hierarchical_rows(case: &Case, tolerance: f32, a: &Args) -> Result<Vec<Row>> {
+    use ortm::bake::multires;
+    use ortm::bake::transport::hier;
+    let n = case.grid.texels.len();
+    if n > a.max_evaluator_texels {
+        return Ok(Vec::new());
+    }
+    eprintln!(
+        "{}: hierarchical transport at ε = {tolerance:e}, evaluator over {n}² pairs",
+        case.label
+    );
+    let t = Instant::now();
+    let settings = hier::Settings {
+        tolerance,
+        ..hier::Settings::default()
+    };
+    let tr = Transport::build_hierarchical(
+        &case.scene,
+        &case.grid,
+        Effects::default(),
+        0,
+        &settings,
+        &ortm::bake::transport::SetupProgress::none(),
+    )
+    .map_err(|e| anyhow::anyhow!("hierarchical transport at ε = {tolerance:e}: {e}"))?;
+    let row_of = multires::hierarchical_row(&tr).expect("built with the hierarchical operator");
+    let build_s = t.elapsed().as_secs_f64();
+    let t = Instant::now();
+    let final_b = evaluator_from_rows(&row_of, &case.b_o);
+    let mut rows = vec![Row {
+        method: format!("evaluator, every pair, hierarchical ε = {tolerance:.0e}"),
+        offsets: None,
+        final_b,
+        bake_s: build_s + t.elapsed().as_secs_f64(),
+        frame_cost: n as u64 * ortm::bake::eval::senders(&case.b_o).len() as u64,
+    }];
+    for mut row in level_rows(case, &row_of, build_s, a)? {
+        row.method = format!("{}, hierarchical ε = {tolerance:.0e}", row.method);
+        rows.push(row);
     }
     Ok(rows)
 }
 
-/// Multi-resolution maps from the evaluator's rows, one set per tolerance of `--levels`, applied
-/// on the CPU ([`ortm::maps::levels::apply_levels`]). Bake time: the evaluator's set-up
-/// (`build_s`) plus the rows and their partition, shared by the tolerances.
-fn level_rows(case: &Case, tr: &Transport, build_s: f64, a: &Args) -> Result<Vec<Row>> {
+/// `B = B_o + Σ_j R(i, j) B_o(j)` for every receiver `i` from its transfer row.
+fn evaluator_from_rows(row_of: &(impl Fn(u32, &mut [[f32; 3]]) + Sync), b_o: &[Vec3]) -> Vec<Vec3> {
+    use rayon::prelude::*;
+    (0..b_o.len() as u32)
+        .into_par_iter()
+        .map_init(
+            || vec![[0.0f32; 3]; b_o.len()],
+            |row, i| {
+                row_of(i, row);
+                let mut b = b_o[i as usize];
+                for (r, o) in row.iter().zip(b_o) {
+                    b += Vec3::from_array(*r) * *o;
+                }
+                b
+            },
+        )
+        .collect()
+}
+
+/// Multi-resolution maps from the transfer rows `row_of` (the pair evaluator's or the
+/// hierarchical transport's), one set per tolerance of `--levels`, applied on the CPU
+/// ([`ortm::maps::levels::apply_levels`]). Bake time: the transport's set-up (`build_s`) plus
+/// the rows and their partition, shared by the tolerances.
+fn level_rows(
+    case: &Case,
+    row_of: &(impl Fn(u32, &mut [[f32; 3]]) + Sync),
+    build_s: f64,
+    a: &Args,
+) -> Result<Vec<Row>> {
     use ortm::bake::multires::{self, MultiresSettings};
     if a.levels.is_empty() {
         return Ok(Vec::new());
@@ -221,7 +322,7 @@ fn level_rows(case: &Case, tr: &Transport, build_s: f64, a: &Args) -> Result<Vec
         .collect();
     let entries = multires::partition_rows(
         &case.grid,
-        multires::transport_row(tr),
+        row_of,
         &settings,
         &ortm::bake::transport::SetupProgress::none(),
     )
@@ -266,14 +367,27 @@ fn level_rows(case: &Case, tr: &Transport, build_s: f64, a: &Args) -> Result<Vec
 
 /// Bakes `case` with `k` offsets and `rule` into a temporary folder and applies the maps to the
 /// first order on the CPU.
-fn bake_row(case: &Case, k: usize, rule: CellRule, name: &str, a: &Args) -> Result<Row> {
+fn bake_row(
+    case: &Case,
+    k: usize,
+    rule: CellRule,
+    tolerance: Option<f32>,
+    name: &str,
+    a: &Args,
+) -> Result<Row> {
     let dir = scratch_dir(&case.label, k)?;
     let settings = BakeSettings {
         size: case.scene.lightmap_size,
         offsets: k,
         cell_rule: rule,
         seed: a.seed,
-        coarse_block: a.coarse_block,
+        // As `ortm bake --tolerance`: the coarse clusters of the remainder sized automatically.
+        coarse_block: if tolerance.is_some() {
+            0
+        } else {
+            a.coarse_block
+        },
+        tolerance,
         ..BakeSettings::default()
     };
     let cancel = AtomicBool::new(false);

@@ -52,7 +52,7 @@ pub struct Args {
     method: Method,
     /// Error tolerance ε of the hierarchical solve (a form factor per link; smaller is more
     /// accurate and larger).
-    #[arg(long, default_value_t = 1e-4)]
+    #[arg(long, default_value_t = ortm::bake::transport::hier::DEFAULT_TOLERANCE)]
     tolerance: f32,
 }
 

@@ -243,9 +243,9 @@ pub fn check_bake_memory(
             found: format!("{need} bytes ({:.2} GiB) needed", gib(need)),
             limit_name: "memory (physical memory or ORTM_MEMORY_LIMIT_BYTES)",
             limit: format!("{limit} bytes ({:.2} GiB)", gib(limit)),
-            fix: "; use the hierarchical first bounce (--tolerance 1e-3, which keeps at most \
-                  1,024 clusters), a smaller lightmap (--size), larger clusters (--coarse-block) \
-                  or fewer offsets (--offsets)"
+            fix: "; use the hierarchical first bounce (--tolerance, at its default 1e-4, or \
+                  --tolerance 1e-3 for a faster bake; it keeps at most 1,024 clusters), a smaller \
+                  lightmap (--size), larger clusters (--coarse-block) or fewer offsets (--offsets)"
                 .into(),
         }),
         _ => Ok(()),

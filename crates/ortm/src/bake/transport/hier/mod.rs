@@ -56,6 +56,14 @@ use tree::Tree;
 /// 0.1 for a third more links).
 pub const PARTIAL_VISIBILITY_FACTOR: f32 = 0.1;
 
+/// The tolerance `ε` of `ortm bake --tolerance` given without a value and of `ortm solve`: the
+/// largest of 10⁻³, 3·10⁻⁴, 10⁻⁴ at which the bake's evaluator on this operator is within 2 %
+/// (indirect relative RMSE, interior texels) of the exact dense solve on the Cornell box, the
+/// maze and the head at 64² (`ortm bench accuracy --cases cornell-64,maze-64,head-64
+/// --tolerances 1e-3,3e-4,1e-4`: Cornell 4.4 / 2.3 / 0.9 %, maze 1.2 / 0.5 / 0.2 %, head 2.4 /
+/// 1.5 / 1.0 %).
+pub const DEFAULT_TOLERANCE: f32 = 1e-4;
+
 /// Smallest `|Σ A n| / A` of a cluster that may be linked as a whole (~25° of spread).
 pub const MIN_FLATNESS: f32 = 0.9;
 
