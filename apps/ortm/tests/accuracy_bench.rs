@@ -87,23 +87,60 @@ fn compare_with_exact(
     ))
 }
 
+/// `ortm bench accuracy --cases cornell-64 --levels 3e-3` with `extra` arguments, run in `dir`.
+fn cornell_64_table(dir: &std::path::Path, extra: &[&str]) -> String {
+    let mut args = vec![
+        "bench",
+        "accuracy",
+        "--cases",
+        "cornell-64",
+        "--levels",
+        "3e-3",
+    ];
+    args.extend_from_slice(extra);
+    ok(ortm(&args, dir))
+}
+
+/// Asserts that `row`'s total and indirect figures are those `ortm compare` printed (`cmp`) to
+/// the table's 0.1 % rounding; `how` names the commands that made the compared lightmap.
+fn assert_row_matches(row: &Row, cmp: &str, how: &str) {
+    for (label, table_value) in [("total", row.total), ("indirect", row.indirect)] {
+        let by_hand = compare_figure(cmp, label);
+        assert!(
+            (by_hand - table_value).abs() <= 0.00051,
+            "{label}: table {table_value}, {how} {by_hand}"
+        );
+    }
+}
+
+/// `ortm bake cornell --size 64 ARGS -o bake`, `ortm solve cornell --size 64 -o exact` (once per
+/// `dir`), the maps applied on the CPU to the solve's first order and `ortm compare`d with the
+/// exact solve: the bake's index and the comparison's output.
+fn bake_and_compare(dir: &std::path::Path, args: &[&str]) -> (BakeIndex, String) {
+    let mut bake = vec!["bake", "cornell", "--size", "64"];
+    bake.extend_from_slice(args);
+    bake.extend_from_slice(&["-o", "bake"]);
+    ok(ortm(&bake, dir));
+    if !dir.join("exact/final.exr").exists() {
+        ok(ortm(
+            &["solve", "cornell", "--size", "64", "-o", "exact"],
+            dir,
+        ));
+    }
+    let grid = TexelGrid::build(&cornell_box(64)).unwrap();
+    let first = read_lightmap_exr(&dir.join("exact/first_order.exr")).unwrap();
+    let index = BakeIndex::read(&dir.join("bake")).unwrap();
+    let maps = index.load_maps(&dir.join("bake")).unwrap();
+    let applied = ortm::maps::apply(&maps, &first).unwrap();
+    let cmp = compare_with_exact(dir, &grid, &applied, "bake_final.exr");
+    (index, cmp)
+}
+
 #[test]
 fn the_cornell_rows_match_bake_solve_and_compare_and_stay_within_their_bounds() {
     let tmp = tempfile::tempdir().unwrap();
     let dir = tmp.path();
-    let table = ok(ortm(
-        &[
-            "bench",
-            "accuracy",
-            "--cases",
-            "cornell-64",
-            "--offsets",
-            "50",
-            "--levels",
-            "3e-3",
-        ],
-        dir,
-    ));
+    let table = cornell_64_table(dir, &["--offsets", "50"]);
     let rows = table_rows(&table);
     assert_eq!(
         rows.len(),
@@ -113,47 +150,15 @@ fn the_cornell_rows_match_bake_solve_and_compare_and_stay_within_their_bounds() 
     assert!(table.contains("reference: exact dense solve"), "{table}");
 
     // The integrated row, rebuilt from the user's commands.
-    ok(ortm(
-        &[
-            "bake",
-            "cornell",
-            "--size",
-            "64",
-            "--offsets",
-            "50",
-            "-o",
-            "bake",
-        ],
-        dir,
-    ));
-    ok(ortm(
-        &["solve", "cornell", "--size", "64", "-o", "exact"],
-        dir,
-    ));
+    let (_, cmp) = bake_and_compare(dir, &["--offsets", "50"]);
     let grid = TexelGrid::build(&cornell_box(64)).unwrap();
     let first = read_lightmap_exr(&dir.join("exact/first_order.exr")).unwrap();
-    let maps = BakeIndex::read(&dir.join("bake"))
-        .unwrap()
-        .load_maps(&dir.join("bake"))
-        .unwrap();
-    let applied = ortm::maps::apply(&maps, &first).unwrap();
-    let cmp = compare_with_exact(dir, &grid, &applied, "bake_final.exr");
     let integrated = rows
         .iter()
         .find(|r| r.method.contains("integrated"))
         .unwrap();
     assert_eq!(integrated.offsets, "50");
-    // The table prints 0.1 % steps: agree to its rounding.
-    for (label, table_value) in [
-        ("total", integrated.total),
-        ("indirect", integrated.indirect),
-    ] {
-        let by_hand = compare_figure(&cmp, label);
-        assert!(
-            (by_hand - table_value).abs() <= 0.00051,
-            "{label}: table {table_value}, bake + solve + compare {by_hand}"
-        );
-    }
+    assert_row_matches(integrated, &cmp, "bake + solve + compare");
 
     // The multi-resolution row, rebuilt from `ortm bake --levels` (the bench's default clusters)
     // and the CPU reference of the level maps.
@@ -198,13 +203,7 @@ fn the_cornell_rows_match_bake_solve_and_compare_and_stay_within_their_bounds() 
         "{blocks:?} vs {levels:?}"
     );
     assert_eq!(levels.offsets, lmaps.len().to_string(), "maps of the bake");
-    for (label, table_value) in [("total", levels.total), ("indirect", levels.indirect)] {
-        let by_hand = compare_figure(&cmp, label);
-        assert!(
-            (by_hand - table_value).abs() <= 0.00051,
-            "{label}: table {table_value}, bake --levels + solve + compare {by_hand}"
-        );
-    }
+    assert_row_matches(levels, &cmp, "bake --levels + solve + compare");
 
     // Guards: the values measured when the table was introduced (Cornell 64², scene light,
     // seed 1) — evaluator 1.6 % / 13.4 %, integrated cells 25.9 % / 210.9 %, Eq. 10 18.2 % /
@@ -237,21 +236,7 @@ fn the_cornell_rows_match_bake_solve_and_compare_and_stay_within_their_bounds() 
 fn the_hierarchical_rows_fall_with_the_tolerance_and_match_bake_tolerance() {
     let tmp = tempfile::tempdir().unwrap();
     let dir = tmp.path();
-    let table = ok(ortm(
-        &[
-            "bench",
-            "accuracy",
-            "--cases",
-            "cornell-64",
-            "--offsets",
-            "20",
-            "--levels",
-            "3e-3",
-            "--tolerances",
-            "1e-3,1e-4",
-        ],
-        dir,
-    ));
+    let table = cornell_64_table(dir, &["--offsets", "20", "--tolerances", "1e-3,1e-4"]);
     let rows = table_rows(&table);
     assert_eq!(
         rows.len(),
@@ -274,42 +259,13 @@ fn the_hierarchical_rows_fall_with_the_tolerance_and_match_bake_tolerance() {
     );
     assert!((fine.energy - 1.0).abs() <= 0.002, "{fine:?}");
 
-    ok(ortm(
-        &[
-            "bake",
-            "cornell",
-            "--size",
-            "64",
-            "--offsets",
-            "20",
-            "--tolerance",
-            "-o",
-            "bake",
-        ],
-        dir,
-    ));
-    let index = BakeIndex::read(&dir.join("bake")).unwrap();
+    let (index, cmp) = bake_and_compare(dir, &["--offsets", "20", "--tolerance"]);
     assert_eq!(
         index.settings["tolerance"].as_f64().map(|t| t as f32),
         Some(ortm::bake::transport::hier::DEFAULT_TOLERANCE),
         "--tolerance alone bakes at the default tolerance: {}",
         index.settings
     );
-    ok(ortm(
-        &["solve", "cornell", "--size", "64", "-o", "exact"],
-        dir,
-    ));
-    let grid = TexelGrid::build(&cornell_box(64)).unwrap();
-    let first = read_lightmap_exr(&dir.join("exact/first_order.exr")).unwrap();
-    let maps = index.load_maps(&dir.join("bake")).unwrap();
-    let applied = ortm::maps::apply(&maps, &first).unwrap();
-    let cmp = compare_with_exact(dir, &grid, &applied, "bake_final.exr");
     let baked = row("importance offsets, integrated cells, hierarchical ε = 1e-4");
-    for (label, table_value) in [("total", baked.total), ("indirect", baked.indirect)] {
-        let by_hand = compare_figure(&cmp, label);
-        assert!(
-            (by_hand - table_value).abs() <= 0.00051,
-            "{label}: table {table_value}, bake --tolerance + solve + compare {by_hand}"
-        );
-    }
+    assert_row_matches(baked, &cmp, "bake --tolerance + solve + compare");
 }
