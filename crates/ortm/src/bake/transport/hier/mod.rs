@@ -158,9 +158,25 @@ enum Refined {
     None,
     /// A link into the receiver node.
     Link(u32, Link),
-    /// Pairs to refine further.
-    Split(Vec<(u32, u32)>),
+    /// Pairs to refine further: the first `.1` of `.0` (2 or 4; no allocation per pair).
+    Split([(u32, u32); 4], u8),
 }
+
+impl Refined {
+    /// Pairs to refine further: (receiver, each child of `s`).
+    fn split_sender(r: u32, s: [u32; 2]) -> Self {
+        Self::Split([(r, s[0]), (r, s[1]), (0, 0), (0, 0)], 2)
+    }
+
+    /// Pairs to refine further: (each child of `r`, sender).
+    fn split_receiver(r: [u32; 2], s: u32) -> Self {
+        Self::Split([(r[0], s), (r[1], s), (0, 0), (0, 0)], 2)
+    }
+}
+
+/// Frontier pairs refined per parallel batch: bounds the per-round results held at once
+/// (~24 MB) however large the frontier grows.
+const REFINE_BATCH: usize = 1 << 20;
 
 /// The sparse subsurface operator: per translucent receiver, `(sender, S_ij per channel)`.
 #[derive(serde::Serialize, serde::Deserialize)]
@@ -500,16 +516,19 @@ fn refine_links(
     while !frontier.is_empty() {
         progress.check()?;
         round += 1;
-        let results: Vec<Refined> = frontier
-            .par_iter()
-            .map(|&(r, s)| refine(patches, tree, kernels, settings, r, s))
-            .collect();
         let mut next = Vec::new();
-        for res in results {
-            match res {
-                Refined::None => {}
-                Refined::Link(r, l) => found.push((r, l)),
-                Refined::Split(pairs) => next.extend(pairs),
+        // In batches: the results held at once stay bounded however large the frontier grows.
+        for batch in frontier.chunks(REFINE_BATCH) {
+            let results: Vec<Refined> = batch
+                .par_iter()
+                .map(|&(r, s)| refine(patches, tree, kernels, settings, r, s))
+                .collect();
+            for res in results {
+                match res {
+                    Refined::None => {}
+                    Refined::Link(r, l) => found.push((r, l)),
+                    Refined::Split(pairs, n) => next.extend_from_slice(&pairs[..n as usize]),
+                }
             }
         }
         frontier = next;
@@ -553,7 +572,7 @@ fn refine(
             return Refined::None;
         }
         let [a, b] = nr.children;
-        return Refined::Split(vec![(a, a), (a, b), (b, a), (b, b)]);
+        return Refined::Split([(a, a), (a, b), (b, a), (b, b)], 4);
     }
     if nr.is_leaf() && ns.is_leaf() {
         let (i, j) = (tree.members(r)[0] as usize, tree.members(s)[0] as usize);
@@ -574,9 +593,9 @@ fn refine(
     let split = |r: u32, s: u32| -> Refined {
         let (nr, ns) = (&tree.nodes[r as usize], &tree.nodes[s as usize]);
         if !ns.is_leaf() && (nr.is_leaf() || ns.radius_m >= nr.radius_m) {
-            Refined::Split(ns.children.iter().map(|&c| (r, c)).collect())
+            Refined::split_sender(r, ns.children)
         } else {
-            Refined::Split(nr.children.iter().map(|&c| (c, s)).collect())
+            Refined::split_receiver(nr.children, s)
         }
     };
     let d = ns.centroid - nr.centroid;
