@@ -13,11 +13,11 @@ use ortm::bake::shard::{self, ShardId};
 use ortm::bake::transport::Effects;
 use ortm::bake::transport::coarse::{AUTO_EXACT_TEXELS, AUTO_MAX_CLUSTERS};
 use ortm::bake::{BakeEvent, BakeSettings, CellRule, Selector, bake};
+use ortm::io::limits::{MAX_COARSE_BLOCK, MAX_REFINEMENT_ITERATIONS};
 
 /// `--tolerance` without a value: [`ortm::bake::transport::hier::DEFAULT_TOLERANCE`], as clap
 /// takes it (a test checks they agree).
 const DEFAULT_TOLERANCE_ARG: &str = "1e-4";
-use ortm::io::limits::{MAX_COARSE_BLOCK, MAX_REFINEMENT_ITERATIONS};
 
 /// Arguments of `ortm bake`.
 #[derive(clap::Args, Debug)]

@@ -175,7 +175,7 @@ impl Refined {
 }
 
 /// Frontier pairs refined per parallel batch: bounds the per-round results held at once
-/// (~24 MB) however large the frontier grows.
+/// (2²⁰ [`Refined`] values, ~40 MB) however large the frontier grows.
 const REFINE_BATCH: usize = 1 << 20;
 
 /// The sparse subsurface operator: per translucent receiver, `(sender, S_ij per channel)`.
@@ -517,7 +517,6 @@ fn refine_links(
         progress.check()?;
         round += 1;
         let mut next = Vec::new();
-        // In batches: the results held at once stay bounded however large the frontier grows.
         for batch in frontier.chunks(REFINE_BATCH) {
             let results: Vec<Refined> = batch
                 .par_iter()
