@@ -206,9 +206,14 @@ fn the_cornell_rows_match_bake_solve_and_compare_and_stay_within_their_bounds() 
     assert_row_matches(levels, &cmp, "bake --levels + solve + compare");
 
     // Guards: the values measured when the table was introduced (Cornell 64², scene light,
-    // seed 1) — evaluator 1.6 % / 13.4 %, integrated cells 25.9 % / 210.9 %, Eq. 10 18.2 % /
-    // 148.4 % (total / indirect), energy ratios 0.963 / 0.932 / 0.831 — may grow by 25 % (the
-    // errors, and the energy ratios' distance from 1) before this fails.
+    // seed 1) — evaluator 1.6 % / 13.4 % (total / indirect), energy 0.963 — and, for the
+    // importance offsets, when the texels' form factors were collocated at their centres:
+    // integrated cells 44.9 % / 362.9 %, Eq. 10 23.3 % / 187.9 %, energy 0.997 / 0.853 (25.9 % /
+    // 210.9 % and 18.2 % / 148.4 % before; 50 offsets are a lottery of where the sites fall: over
+    // seeds 1–4 the integrated row reads 44.9 / 31.4 / 22.8 / 32.8 % total, `ortm bench accuracy
+    // --cases cornell-64 --offsets 50 --seed S`). Each may grow by 25 % (the errors, and the
+    // energy ratios' distance from 1) before this fails; the integrated row's energy keeps its
+    // first measurement, 0.932, as the bound (0.997 ± 25 % of its distance from 1 is rounding).
     let bound = |method: &str, total: f64, indirect: f64, energy: f64| {
         let r = rows.iter().find(|r| r.method.contains(method)).unwrap();
         assert!(
@@ -225,8 +230,8 @@ fn the_cornell_rows_match_bake_solve_and_compare_and_stay_within_their_bounds() 
     // Multi-resolution maps at ε = 3e-3, measured when they were added: 1.8 % / 14.9 %, 0.957
     // (they converge to the evaluator above, whose 8×8 clusters set the floor).
     bound("multi-resolution", 0.018, 0.149, 0.957);
-    bound("integrated", 0.259, 2.109, 0.932);
-    bound("Eq. 10", 0.182, 1.484, 0.831);
+    bound("integrated", 0.449, 3.629, 0.932);
+    bound("Eq. 10", 0.233, 1.879, 0.853);
 }
 
 /// `--tolerances`: the rows on the hierarchical transport. Its evaluator's error falls with the

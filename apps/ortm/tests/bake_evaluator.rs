@@ -77,14 +77,15 @@ fn evaluator_with_the_automatic_cluster_size_is_exact_where_the_clusters_can_be_
 #[test]
 fn evaluator_error_at_the_default_cluster_size_cornell_64() {
     // The cluster approximation at the bake's default 8×8: at 64² a wall is ~18 texels wide, so
-    // an 8×8 cluster spans up to half a wall's side. Measured: 0.1459 (per set-up 0.137 / 0.155 / 0.163 /
-    // 0.129); 2×2: 0.070, 4×4: 0.119, 16×16: 0.219, 32×32: 0.241. The bound is the measured mean
-    // + 25 %: coarser clusters (16×16: +50 %) fail it.
+    // an 8×8 cluster spans up to half a wall's side. Measured: 0.1531 (per set-up 0.142 / 0.163 /
+    // 0.175 / 0.133; 0.1459 before the texels' form factors were collocated); earlier, 2×2:
+    // 0.070, 4×4: 0.119, 16×16: 0.219, 32×32: 0.241. The bound is the measured mean + 25 %
+    // (0.191): coarser clusters (16×16: +50 %) fail it.
     let (block, mean) = cornell_64_evaluator_error(BakeSettings::default().coarse_block);
     assert_eq!(block, 8);
     assert!(
-        mean < 0.182,
-        "8×8 clusters: mean error {mean} (measured 0.146)"
+        mean < 0.191,
+        "8×8 clusters: mean error {mean} (measured 0.153)"
     );
 }
 
@@ -92,7 +93,13 @@ fn evaluator_error_at_the_default_cluster_size_cornell_64() {
 fn evaluator_error_of_the_bench_row_head_64() {
     // README's "Figures" row, computed as `ortm bench transport` computes it: the built-in head
     // at 64² (3,782 texels), 4×4 clusters, the first random light set-up of seed 11, all pairs.
-    // Measured: radiosity 0.0773, both 0.1480: bounds + 25 % (0.0623 / 0.1036 while each texel's
+    // Measured: radiosity 0.1151, both 0.2723: bounds + 25 %. They were 0.0773 / 0.1480 before
+    // the texels' form factors were collocated at their centres (`form_factor` module docs):
+    // the exact solve moved towards the path-traced reference more than the clusters follow
+    // it — against the reference (1,024 spp, indirect term, all texels; `cargo test --release
+    // --test accuracy_reference head_64_cluster_evaluator -- --ignored --nocapture`) the exact
+    // solve went 33.8 → 32.0 % (radiosity) and 64.5 → 62.5 % (both), this evaluator 37.3 →
+    // 34.5 % and 69.9 → 69.2 %. (0.0623 / 0.1036 while each texel's
     // area was its covering triangle's Jacobian; with the areas averaged over the texels'
     // squares the exact solve's indirect power rose by ~65 %, `ortm solve head --size 64`:
     // final − first order 3.2 → 5.3 mW in red, closer to the path-traced reference, see
@@ -117,9 +124,9 @@ fn evaluator_error_of_the_bench_row_head_64() {
         subsurface: true,
     };
     let cases = [
-        ("radiosity", radiosity, 0.0966),
+        ("radiosity", radiosity, 0.144),
         ("subsurface", subsurface, 1e-5),
-        ("both", Effects::default(), 0.185),
+        ("both", Effects::default(), 0.34),
     ];
     let errors: Vec<f64> = cases
         .iter()

