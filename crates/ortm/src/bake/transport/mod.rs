@@ -302,7 +302,13 @@ impl Kernels {
         }
         let (fa, fb) = (a.ff(), b.ff());
         let c_ab = unoccluded_form_factor(&fa, &fb).max(0.0);
-        let c_ba = unoccluded_form_factor(&fb, &fa).max(0.0);
+        // Only collocated texel pairs differ by direction; the area-mean kernel of clusters is
+        // symmetric bit for bit, so it is not evaluated twice.
+        let c_ba = if fa.texel && fb.texel {
+            unoccluded_form_factor(&fb, &fa).max(0.0)
+        } else {
+            c_ab
+        };
         if (c_ab > 0.0 || c_ba > 0.0) && self.visible(a, b) {
             (c_ab, c_ba)
         } else {

@@ -17,7 +17,8 @@
 //! [`PARTIAL_VISIBILITY_FACTOR`]`·ε` is refined (shadow boundaries resolve down to texels where
 //! they carry light). Texel pairs use the exact
 //! kernel of the dense solve ([`super::Kernels::form_factor_c`]: collocated at the receiver's
-//! centre, the sender's footprint integrated exactly within 8 texel sizes, one visibility ray). `ε` is [`Settings::tolerance`].
+//! centre, the sender's square integrated exactly within 8 texel sizes, one visibility ray).
+//! `ε` is [`Settings::tolerance`].
 //!
 //! # Receivers
 //! A link into a cluster stores the direction `ω` to the sender and
