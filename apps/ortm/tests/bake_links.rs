@@ -200,8 +200,8 @@ fn bake_tolerance_option_bakes_refuses_and_names_itself_when_memory_runs_out() {
 /// Issue 16's memory bound: the maze at 1024² (844,546 covered texels) bakes with
 /// `--tolerance 1e-3` under `ORTM_MEMORY_LIMIT_BYTES` = 4 GiB, and its peak resident memory
 /// (`VmHWM`, reported by the test hook `ORTM_TEST_REPORT_PEAK`) stays under it. 16 maps keep
-/// the cell values (12 bytes per texel and map) and the run short (~2–4 min on 2 cores); with
-/// 100 maps it peaks at 2.8 GB (README, "Transport model").
+/// the cell values (12 bytes per texel and map) and the run short (~1–2 min on 2 cores;
+/// measured peak 1.13 GB). The ignored test below bakes the default tolerance with 100 maps.
 #[test]
 fn maze_1024_bakes_under_four_gib() {
     let dir = tempfile::tempdir().unwrap();
@@ -233,4 +233,41 @@ fn maze_1024_bakes_under_four_gib() {
         serde_json::from_slice(&std::fs::read(dir.path().join("b/index.json")).unwrap()).unwrap();
     assert_eq!(index["maps"].as_array().map(Vec::len), Some(16), "{index}");
     assert_eq!(index["lightmap"]["width"], 1024, "{}", index["lightmap"]);
+}
+
+/// Issue 16's scale goal at the default tolerance: the maze at 1024², 100 maps, `--tolerance`
+/// (ε = 10⁻⁴) under `ORTM_MEMORY_LIMIT_BYTES` = 4 GiB, peak under it (~5.5 min on 2 cores, so
+/// not in CI; measured peak 4.12 GB = 3.84 GiB). Run with `cargo test --release --test
+/// bake_links maze_1024_default -- --ignored --nocapture`.
+#[test]
+#[ignore = "5.5 minutes on 2 cores"]
+fn maze_1024_default_tolerance_100_maps_under_four_gib() {
+    let dir = tempfile::tempdir().unwrap();
+    let limit: u64 = 4 << 30;
+    let t0 = std::time::Instant::now();
+    let out = common::ortm_command()
+        .args([
+            "bake",
+            "maze",
+            "--size",
+            "1024",
+            "--offsets",
+            "100",
+            "--tolerance",
+            "-o",
+            "b",
+        ])
+        .current_dir(dir.path())
+        .env("ORTM_MEMORY_LIMIT_BYTES", limit.to_string())
+        .env("ORTM_TEST_REPORT_PEAK", "1")
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert!(out.status.success(), "{err}");
+    let peak = common::reported_peak(&err);
+    println!(
+        "maze 1024², 100 maps, default ε: peak {peak} bytes, {:.1} s",
+        t0.elapsed().as_secs_f64()
+    );
+    assert!(peak < limit, "peak {peak} bytes over the 4 GiB limit");
 }

@@ -1,7 +1,8 @@
 //! Progress of long commands (bake, reference, accuracy bench): an indicatif bar when stderr is
 //! a terminal, else plain lines on stderr, so that logs, pipes and CI show progress too.
 //!
-//! A plain line reads `NAME: POS/LEN (P %), T s elapsed`; one is printed when the work starts,
+//! A plain line reads `NAME: POS/LEN (P %), T s elapsed, M GiB resident (peak P GiB)` (the
+//! memory where the system tells it: Linux); one is printed when the work starts,
 //! then whenever [`PLAIN_STEP`] of it (and at least [`PLAIN_MIN_GAP`] of time) or
 //! [`PLAIN_INTERVAL`] of time has passed since the last line, and once at the end.
 
@@ -17,6 +18,9 @@ pub const PLAIN_STEP: f64 = 0.10;
 pub const PLAIN_INTERVAL: Duration = Duration::from_secs(5);
 /// Shortest time between two plain progress lines (a fast phase prints its first and last).
 pub const PLAIN_MIN_GAP: Duration = Duration::from_secs(1);
+
+/// Bytes per GiB.
+const GIB: f64 = (1u64 << 30) as f64;
 
 /// The bar template every subcommand uses: `NAME [====>   ] POS/LEN elapsed eta`.
 pub fn bar_style() -> ProgressStyle {
@@ -52,8 +56,16 @@ impl Plain {
         };
         if force || due {
             let pct = 100.0 * self.pos as f64 / self.total.max(1) as f64;
+            let memory = match ortm::io::limits::resident_memory() {
+                Some((now, peak)) => format!(
+                    ", {:.2} GiB resident (peak {:.2} GiB)",
+                    now as f64 / GIB,
+                    peak as f64 / GIB
+                ),
+                None => String::new(),
+            };
             eprintln!(
-                "{}: {}/{} ({pct:.0} %), {:.1} s elapsed",
+                "{}: {}/{} ({pct:.0} %), {:.1} s elapsed{memory}",
                 self.name,
                 self.pos,
                 self.total,

@@ -297,7 +297,7 @@ pub fn hierarchical_row(tr: &Transport) -> Option<impl Fn(u32, &mut [[f32; 3]]) 
         let mut node = tree.leaf_of[i as usize];
         while node != NO_PARENT {
             for l in op.links_of(node) {
-                let k = l.irradiance_per_radiosity(p.normal);
+                let k = l.irradiance_per_radiosity(op.link_direction(node, l.send), p.normal);
                 if k <= 0.0 {
                     continue;
                 }

@@ -280,6 +280,19 @@ pub fn check_lightmap_memory(width: u32, height: u32) -> Result<(), LimitError> 
     }
 }
 
+/// The process's resident memory now and its peak so far (`VmRSS`, `VmHWM` of
+/// `/proc/self/status`), bytes; `None` where the file is missing (not Linux) or unreadable.
+pub fn resident_memory() -> Option<(u64, u64)> {
+    let text = fs::read_to_string("/proc/self/status").ok()?;
+    let field = |name: &str| {
+        text.lines()
+            .find_map(|l| l.strip_prefix(name))
+            .and_then(|v| v.trim().trim_end_matches("kB").trim().parse::<u64>().ok())
+            .map(|kb| kb * 1024)
+    };
+    Some((field("VmRSS:")?, field("VmHWM:")?))
+}
+
 /// Test hook (`ORTM_TEST_REPORT_PEAK=1`): prints the process's peak resident memory
 /// (`VmHWM` of `/proc/self/status`, in bytes) to stderr as `ORTM_TEST_PEAK_BYTES: N`, so a test
 /// can check a command's peak memory; does nothing when the variable is unset.
@@ -287,13 +300,8 @@ pub fn report_peak_memory_if_asked() {
     if std::env::var_os("ORTM_TEST_REPORT_PEAK").is_none() {
         return;
     }
-    let kb = fs::read_to_string("/proc/self/status").ok().and_then(|t| {
-        t.lines()
-            .find_map(|l| l.strip_prefix("VmHWM:"))
-            .and_then(|v| v.trim().trim_end_matches("kB").trim().parse::<u64>().ok())
-    });
-    if let Some(kb) = kb {
-        eprintln!("ORTM_TEST_PEAK_BYTES: {}", kb * 1024);
+    if let Some((_, peak)) = resident_memory() {
+        eprintln!("ORTM_TEST_PEAK_BYTES: {peak}");
     }
 }
 

@@ -183,11 +183,12 @@ impl Integration<'_> {
                 let b = index.bbox[l.send as usize];
                 let shared = index.uniform(&self.table, b[0] - x1, b[1] - y1, b[2] - x0, b[3] - y0);
                 let s_at = self.node_position(l.send);
+                let dir = op.link_direction(node, l.send);
                 for &(_, r) in group {
                     let r = r as usize;
                     let i = self.clusters.texels[ci][r];
                     let p = &self.transport.patches[i as usize];
-                    let k = l.irradiance_per_radiosity(p.normal) as f64;
+                    let k = l.irradiance_per_radiosity(dir, p.normal) as f64;
                     if k <= 0.0 {
                         continue;
                     }

@@ -79,6 +79,15 @@ pub struct Tree {
 pub const NO_PARENT: u32 = u32::MAX;
 
 impl Tree {
+    /// Unit direction from node `r`'s centroid to node `s`'s: the direction of a link from
+    /// sender `s` into block receiver `r` ([`super::Link`]), computed as the refinement
+    /// computed it (bit for bit).
+    #[inline]
+    pub fn direction(&self, r: u32, s: u32) -> Vec3 {
+        let d = self.nodes[s as usize].centroid - self.nodes[r as usize].centroid;
+        d / d.length()
+    }
+
     /// The parent of every node ([`NO_PARENT`] for the root), in node order.
     pub fn parents(&self) -> Vec<u32> {
         let mut parent = vec![NO_PARENT; self.nodes.len()];
