@@ -53,12 +53,12 @@ fn huge_lightmap_is_refused_before_rasterizing_under_the_memory_limit() {
     }
 }
 
-/// The integrated cell rule holds one RGB value per lightmap slot and map while the transport
-/// is alive (`limits::CELL_VALUE_BYTES`): the Cornell box at 512² with 400 maps needs 1.79 GiB
-/// (the coarse solve's 0.56 GB + 512² × 400 × 12 bytes) and is refused under a 1 GB limit
-/// before the transport is built (peak measured: 25 MB). Without the cell values in the check
-/// it would be accepted (0.56 GB) and grow past the limit. With 20 maps (0.62 GB estimated) the
-/// same bake runs and peaks at 823 MB (`ORTM_MEMORY_LIMIT_BYTES=1000000000
+/// The integrated cell rule holds one RGB value per covered texel and map while the transport
+/// is alive (`limits::CELL_VALUE_BYTES`): the Cornell box at 512² with 400 maps needs 1.40 GiB
+/// (the coarse solve's 0.57 GB + 512 bytes per covered texel + 176,120 covered texels × 400 ×
+/// 12 bytes) and is refused under a 1 GB limit before the transport is built (peak measured:
+/// 25 MB). Without the cell values in the check it would be accepted (0.66 GB) and grow past
+/// the limit. With 20 maps (0.70 GB estimated) the same bake runs and peaks at 823 MB (`ORTM_MEMORY_LIMIT_BYTES=1000000000
 /// ORTM_TEST_REPORT_PEAK=1 ortm bake cornell --size 512 --offsets 20`, 2 min; not run here).
 #[test]
 fn cell_values_count_in_the_bake_memory_check() {
@@ -82,7 +82,11 @@ fn cell_values_count_in_the_bake_memory_check() {
         .unwrap();
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(1), "{err}");
-    let cell_values = 512u64 * 512 * 400;
+    let covered = ortm::bake::texels::TexelGrid::build(&ortm::scene::cornell::cornell_box(512))
+        .unwrap()
+        .texels
+        .len() as u64;
+    let cell_values = covered * 400;
     assert!(
         err.contains(&format!("{cell_values} cell values")) && err.contains("--offsets"),
         "{err}"

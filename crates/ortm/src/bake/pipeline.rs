@@ -642,7 +642,7 @@ impl Setup {
         };
         let clusters = crate::bake::transport::coarse::cluster_count(&grid, block);
         let cell_values = match settings.cell_rule {
-            CellRule::Integrated => u64::from(w) * u64::from(h) * settings.offsets as u64,
+            CellRule::Integrated => grid.texels.len() as u64 * settings.offsets as u64,
             CellRule::Sampled => 0,
         };
         crate::io::limits::check_bake_memory(
@@ -779,7 +779,7 @@ pub fn bake(
     let t_select = t0.elapsed().as_secs_f64() - t_transport;
 
     let plan = MapPlan::new(&grid, &offset_list, settings.cell_rule)?;
-    let written = write_maps(dir, &key, Some(&transport), &grid, plan, events, cancel)?;
+    let written = write_maps(dir, &key, Some(transport), &grid, plan, events, cancel)?;
     let (reused, stored_texels) = (written.reused, written.stored_texels);
     finish_offset_bake(
         dir,
@@ -892,11 +892,13 @@ pub(crate) struct WrittenMaps {
 /// Writes every map of `plan` that `dir` does not already hold for the bake `key`
 /// (stale temporary files are removed first). Maps are independent: they are computed,
 /// cropped, encoded and written in parallel, each atomically, so an interruption (`cancel`)
-/// leaves only whole maps behind, whatever the order.
+/// leaves only whole maps behind, whatever the order. `transport` (none for a sharded bake's
+/// merge, whose plan holds the values) is dropped once the integrated cell rule's values are
+/// computed, before any map is written.
 pub(crate) fn write_maps(
     dir: &Path,
     key: &BakeKey,
-    transport: Option<&Transport>,
+    mut transport: Option<Transport>,
     grid: &TexelGrid,
     mut plan: MapPlan,
     events: &(dyn Fn(BakeEvent) + Sync),
@@ -921,9 +923,14 @@ pub(crate) fn write_maps(
         if cancel.load(Ordering::Relaxed) {
             return Err(BakeError::Interrupted { done: 0, total });
         }
-        if let Some(transport) = transport {
+        if let Some(transport) = &transport {
             plan.prepare(transport, grid, events);
         }
+    }
+    if plan.rule == CellRule::Integrated {
+        // The maps come from the integrated values: the transport (links, patches, tree —
+        // most of a large bake's memory) goes before the writers' buffers arrive.
+        transport = None;
     }
     write_each(
         total,
@@ -933,7 +940,7 @@ pub(crate) fn write_maps(
                 .filter(|e| e.offset == offset_list[k].to_array())
         },
         |k| {
-            let map = match transport {
+            let map = match &transport {
                 Some(transport) => plan.map_prepared(transport, grid, k)?,
                 None => plan.integrated_map(k)?,
             };

@@ -176,7 +176,7 @@ pub fn check_bake_request(width: u32, height: u32, offsets: usize) -> Result<(),
 }
 
 /// Bytes of one cell value of the integrated cell rule (`bake/cells/mod.rs`, `CellValues`: RGB f32
-/// per lightmap slot and map, all held while the transport is alive).
+/// per covered texel and map, all held while the transport is alive).
 pub const CELL_VALUE_BYTES: u64 = 12;
 
 /// Bytes the bake's transport needs for `clusters` clusters of the coarse higher-order solve
@@ -184,7 +184,7 @@ pub const CELL_VALUE_BYTES: u64 = 12;
 /// and its LU factors, three f64 transfer channels and three f32 remainders (`8+8+8+24+12 = 60`
 /// bytes), plus `per_texel` bytes for each covered texel (patches, BVH, grid), plus
 /// [`CELL_VALUE_BYTES`] per cell value the integrated cell rule holds at once (`cell_values` =
-/// lightmap slots × maps; 0 for the sampled rule, which makes one map at a time).
+/// covered texels × maps; 0 for the sampled rule, which makes one map at a time).
 pub fn bake_memory_bytes(clusters: u64, covered_texels: u64, cell_values: u64) -> u64 {
     const PER_CLUSTER_PAIR: u64 = 60;
     const PER_TEXEL: u64 = 512;

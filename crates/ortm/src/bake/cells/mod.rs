@@ -83,8 +83,9 @@ pub const NEAR_FACTOR: f32 = 1.0;
 
 const NO_CELL: u32 = u32::MAX;
 
-/// Cell values of every map, receiver-major: `values[slot · K + k]` is map `k`'s value at lightmap
-/// slot `slot` (0 where the receiver is uncovered or its site `t + Δt_k` is).
+/// Cell values of every map, receiver-major over the covered texels only: `values[i · K + k]`
+/// is map `k`'s value at covered texel `i` of the [`TexelGrid`] (0 where its site `t + Δt_k` is
+/// uncovered); uncovered texels hold 0 in every map.
 pub struct CellValues {
     /// Lightmap width, texels.
     pub width: u32,
@@ -92,6 +93,8 @@ pub struct CellValues {
     pub height: u32,
     /// Number of maps `K`.
     pub maps: usize,
+    /// Lightmap slot `y · width + x` of every covered texel, in grid order.
+    slots: Vec<u32>,
     values: Vec<[f32; 3]>,
     /// Per map, the largest channel of `|value|` over the map.
     pub peak: Vec<f64>,
@@ -128,8 +131,8 @@ impl CellValues {
     /// Map `k` as a full lightmap.
     pub fn map(&self, k: usize) -> Lightmap {
         let mut m = Lightmap::new(self.width, self.height);
-        for (slot, v) in m.data.iter_mut().enumerate() {
-            *v = self.values[slot * self.maps + k];
+        for (i, &slot) in self.slots.iter().enumerate() {
+            m.data[slot as usize] = self.values[i * self.maps + k];
         }
         m
     }
@@ -544,7 +547,7 @@ const IN_FLIGHT: usize = 64;
 struct Assembly<'a> {
     grid: &'a TexelGrid,
     kmaps: usize,
-    /// Slot-major, `kmaps` per lightmap slot.
+    /// Covered-texel-major, `kmaps` per covered texel.
     values: Vec<[f32; 3]>,
     stats: CellStats,
 }
@@ -554,18 +557,17 @@ impl<'a> Assembly<'a> {
         Self {
             grid,
             kmaps,
-            values: vec![[0.0f32; 3]; (grid.width * grid.height) as usize * kmaps],
+            values: vec![[0.0f32; 3]; grid.texels.len() * kmaps],
             stats: CellStats::default(),
         }
     }
 
     /// Writes the values of the cluster whose receivers are `recv`.
     fn add(&mut self, recv: &[u32], out: ClusterValues) {
-        let (w, kmaps) = (self.grid.width, self.kmaps);
+        let kmaps = self.kmaps;
         for (r, &i) in recv.iter().enumerate() {
-            let t = &self.grid.texels[i as usize];
-            let slot = (t.y * w + t.x) as usize;
-            self.values[slot * kmaps..(slot + 1) * kmaps]
+            let i = i as usize;
+            self.values[i * kmaps..(i + 1) * kmaps]
                 .copy_from_slice(&out.values[r * kmaps..(r + 1) * kmaps]);
         }
         self.stats = self.stats.plus(&out.stats);
@@ -579,10 +581,12 @@ impl<'a> Assembly<'a> {
                 *p = p.max(v[0].abs().max(v[1].abs()).max(v[2].abs()) as f64);
             }
         }
+        let w = self.grid.width;
         CellValues {
-            width: self.grid.width,
+            width: w,
             height: self.grid.height,
             maps: self.kmaps,
+            slots: (self.grid.texels.iter()).map(|t| t.y * w + t.x).collect(),
             values: self.values,
             peak,
             stats: self.stats,
