@@ -197,29 +197,18 @@ fn bake_tolerance_option_bakes_refuses_and_names_itself_when_memory_runs_out() {
     assert!(!dir.path().join("m/index.json").exists());
 }
 
-/// Issue 16's memory bound: the maze at 1024² (844,546 covered texels) bakes with
-/// `--tolerance 1e-3` under `ORTM_MEMORY_LIMIT_BYTES` = 4 GiB, and its peak resident memory
-/// (`VmHWM`, reported by the test hook `ORTM_TEST_REPORT_PEAK`) stays under it. 16 maps keep
-/// the cell values (12 bytes per texel and map) and the run short (~1–2 min on 2 cores;
-/// measured peak 1.13 GB). The ignored test below bakes the default tolerance with 100 maps.
-#[test]
-fn maze_1024_bakes_under_four_gib() {
-    let dir = tempfile::tempdir().unwrap();
+/// Bakes the maze at 1024² with `args` after `--size 1024` into `DIR/b` under
+/// `ORTM_MEMORY_LIMIT_BYTES` = 4 GiB; asserts success and a peak resident memory (`VmHWM`,
+/// reported by the test hook `ORTM_TEST_REPORT_PEAK`) under the limit; returns the bake's
+/// index, its peak (bytes) and wall time (s).
+fn maze_1024_under_four_gib(dir: &std::path::Path, args: &[&str]) -> (serde_json::Value, u64, f64) {
     let limit: u64 = 4 << 30;
+    let t0 = std::time::Instant::now();
     let out = common::ortm_command()
-        .args([
-            "bake",
-            "maze",
-            "--size",
-            "1024",
-            "--offsets",
-            "16",
-            "--tolerance",
-            "1e-3",
-            "-o",
-            "b",
-        ])
-        .current_dir(dir.path())
+        .args(["bake", "maze", "--size", "1024"])
+        .args(args)
+        .args(["-o", "b"])
+        .current_dir(dir)
         .env("ORTM_MEMORY_LIMIT_BYTES", limit.to_string())
         .env("ORTM_TEST_REPORT_PEAK", "1")
         .output()
@@ -227,10 +216,22 @@ fn maze_1024_bakes_under_four_gib() {
     let err = String::from_utf8_lossy(&out.stderr).into_owned();
     assert!(out.status.success(), "{err}");
     let peak = common::reported_peak(&err);
-    println!("maze 1024², 16 maps, ε = 1e-3: peak {peak} bytes");
     assert!(peak < limit, "peak {peak} bytes over the 4 GiB limit");
-    let index: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(dir.path().join("b/index.json")).unwrap()).unwrap();
+    let index = serde_json::from_slice(&std::fs::read(dir.join("b/index.json")).unwrap()).unwrap();
+    (index, peak, t0.elapsed().as_secs_f64())
+}
+
+/// Issue 16's memory bound: the maze at 1024² (844,546 covered texels) bakes with
+/// `--tolerance 1e-3` under `ORTM_MEMORY_LIMIT_BYTES` = 4 GiB, and its peak resident memory
+/// stays under it. 16 maps keep the cell values (12 bytes per covered texel and map) and the
+/// run short (~1–2 min on 2 cores; measured peak 1.13 GB). The ignored test below bakes the
+/// default tolerance with 100 maps.
+#[test]
+fn maze_1024_bakes_under_four_gib() {
+    let dir = tempfile::tempdir().unwrap();
+    let (index, peak, _) =
+        maze_1024_under_four_gib(dir.path(), &["--offsets", "16", "--tolerance", "1e-3"]);
+    println!("maze 1024², 16 maps, ε = 1e-3: peak {peak} bytes");
     assert_eq!(index["maps"].as_array().map(Vec::len), Some(16), "{index}");
     assert_eq!(index["lightmap"]["width"], 1024, "{}", index["lightmap"]);
 }
@@ -243,31 +244,8 @@ fn maze_1024_bakes_under_four_gib() {
 #[ignore = "5.5 minutes on 2 cores"]
 fn maze_1024_default_tolerance_100_maps_under_four_gib() {
     let dir = tempfile::tempdir().unwrap();
-    let limit: u64 = 4 << 30;
-    let t0 = std::time::Instant::now();
-    let out = common::ortm_command()
-        .args([
-            "bake",
-            "maze",
-            "--size",
-            "1024",
-            "--offsets",
-            "100",
-            "--tolerance",
-            "-o",
-            "b",
-        ])
-        .current_dir(dir.path())
-        .env("ORTM_MEMORY_LIMIT_BYTES", limit.to_string())
-        .env("ORTM_TEST_REPORT_PEAK", "1")
-        .output()
-        .unwrap();
-    let err = String::from_utf8_lossy(&out.stderr).into_owned();
-    assert!(out.status.success(), "{err}");
-    let peak = common::reported_peak(&err);
-    println!(
-        "maze 1024², 100 maps, default ε: peak {peak} bytes, {:.1} s",
-        t0.elapsed().as_secs_f64()
-    );
-    assert!(peak < limit, "peak {peak} bytes over the 4 GiB limit");
+    let (index, peak, seconds) =
+        maze_1024_under_four_gib(dir.path(), &["--offsets", "100", "--tolerance"]);
+    println!("maze 1024², 100 maps, default ε: peak {peak} bytes, {seconds:.1} s");
+    assert_eq!(index["maps"].as_array().map(Vec::len), Some(100), "{index}");
 }
