@@ -29,7 +29,8 @@
 //! into a single texel stores the scalar `cos⁺θ_i g` (or the exact kernel). The direction is
 //! not stored but recomputed from the two nodes' centroids ([`Tree::direction`]), so a link is
 //! 8 bytes (sender, coefficient): the links are most of a large bake's memory (the maze at
-//! 1024², ε = 10⁻⁴: ~190 M links, 1.5 GB; 3.7 GB with the direction stored).
+//! 1024², ε = 10⁻⁴: about 190 M links — from the resident memory its progress lines show —,
+//! 1.5 GB; 3.8 GB with the direction stored).
 //!
 //! # Solve
 //! Jacobi iteration `B ← X (E_d + F B)` from `B = B_o`, with `E_d = B_o / ρ̄` on translucent
