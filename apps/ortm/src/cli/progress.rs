@@ -19,9 +19,6 @@ pub const PLAIN_INTERVAL: Duration = Duration::from_secs(5);
 /// Shortest time between two plain progress lines (a fast phase prints its first and last).
 pub const PLAIN_MIN_GAP: Duration = Duration::from_secs(1);
 
-/// Bytes per GiB.
-const GIB: f64 = (1u64 << 30) as f64;
-
 /// The bar template every subcommand uses: `NAME [====>   ] POS/LEN elapsed eta`.
 pub fn bar_style() -> ProgressStyle {
     ProgressStyle::with_template("{msg:24} [{bar:40}] {pos}/{len} {elapsed_precise} eta {eta}")
@@ -56,12 +53,11 @@ impl Plain {
         };
         if force || due {
             let pct = 100.0 * self.pos as f64 / self.total.max(1) as f64;
-            let memory = match ortm::io::limits::resident_memory() {
-                Some((now, peak)) => format!(
-                    ", {:.2} GiB resident (peak {:.2} GiB)",
-                    now as f64 / GIB,
-                    peak as f64 / GIB
-                ),
+            use ortm::io::limits::{gib, resident_memory};
+            let memory = match resident_memory() {
+                Some((now, peak)) => {
+                    format!(", {:.2} GiB resident (peak {:.2} GiB)", gib(now), gib(peak))
+                }
                 None => String::new(),
             };
             eprintln!(

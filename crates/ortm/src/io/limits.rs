@@ -346,7 +346,8 @@ pub fn check_atlas_request(aw: u32, ah: u32, stored_texels: u64) -> Result<(), L
     }
 }
 
-fn gib(bytes: u64) -> f64 {
+/// `bytes` in GiB (2³⁰ bytes), for messages.
+pub fn gib(bytes: u64) -> f64 {
     bytes as f64 / (1024.0 * 1024.0 * 1024.0)
 }
 

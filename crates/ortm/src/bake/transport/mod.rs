@@ -316,9 +316,10 @@ impl Kernels {
         }
     }
 
-    /// One visibility ray between the patches' centres, lifted off their surfaces.
+    /// One visibility ray between the patches' centres, lifted off their surfaces (the ray of
+    /// every texel pair, and of each member pair a block link samples, [`hier`]).
     #[inline]
-    fn visible(&self, a: &Patch, b: &Patch) -> bool {
+    pub(crate) fn visible(&self, a: &Patch, b: &Patch) -> bool {
         let eps = 1e-3 * a.area_m2.max(b.area_m2).sqrt();
         let pa = a.position_m + a.lift_normal * eps;
         let pb = b.position_m + b.lift_normal * eps;

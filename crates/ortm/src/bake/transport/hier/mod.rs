@@ -692,10 +692,7 @@ fn block_visibility(
     for n in 0..rays {
         let a = &patches[mr[(next() % mr.len() as u64) as usize] as usize];
         let b = &patches[ms[(next() % ms.len() as u64) as usize] as usize];
-        let eps = 1e-3 * a.area_m2.max(b.area_m2).sqrt();
-        let pa = a.position_m + a.lift_normal * eps;
-        let pb = b.position_m + b.lift_normal * eps;
-        seen += u32::from(kernels.visibility.visible(pa, pb, eps));
+        seen += u32::from(kernels.visible(a, b));
         if stop_if_partial && seen != 0 && seen != n + 1 {
             return 0.5;
         }
