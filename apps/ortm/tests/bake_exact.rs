@@ -85,13 +85,7 @@ fn cornell_exact_solve_conserves_energy() {
         // The power texel j receives from texel i is A_j F_ji B_i, so what i's radiosity sends
         // out of the box is B_i (A_i − Σ_j A_j F_ji): the column sums, not the rows (the
         // collocated form factors are not reciprocal between near texels).
-        let received: Vec<f64> = (0..dense.n)
-            .map(|i| {
-                (0..dense.n)
-                    .map(|j| patches[j].area_m2 as f64 * dense.form_factors[(j, i)])
-                    .sum()
-            })
-            .collect();
+        let reached = dense.form_factor_column_sums(&patches);
         let open = open_side_form_factors(&grid, &vis, 32);
         for ch in 0..3 {
             let (mut emitted, mut absorbed, mut escaped) = (0.0f64, 0.0f64, 0.0f64);
@@ -103,7 +97,7 @@ fn cornell_exact_solve_conserves_energy() {
                 let e_tot = e_d[i][ch] as f64 + e_ind;
                 emitted += e_d[i][ch] as f64 * a;
                 absorbed += (1.0 - patches[i].rho[ch] as f64) * e_tot * a;
-                escaped += b[i][ch] as f64 * (a - received[i]);
+                escaped += b[i][ch] as f64 * a * (1.0 - reached[i]);
             }
             let balance = (absorbed + escaped - emitted).abs() / emitted;
             assert!(

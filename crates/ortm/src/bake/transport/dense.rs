@@ -246,6 +246,21 @@ impl DenseTransport {
             .map(|i| (0..self.n).map(|j| self.form_factors[(i, j)]).sum())
             .collect()
     }
+
+    /// Column sums `Σ_j A_j F_ji / A_i` over `patches` (those this transport was built from):
+    /// the fraction of patch `i`'s radiosity power that the other patches receive — 1 inside a
+    /// closed environment, less where light escapes. Equal to the row sums only for a
+    /// reciprocal kernel, which collocated texels are not ([`super::form_factor`]).
+    pub fn form_factor_column_sums(&self, patches: &[Patch]) -> Vec<f64> {
+        (0..self.n)
+            .map(|i| {
+                (0..self.n)
+                    .map(|j| patches[j].area_m2 as f64 * self.form_factors[(j, i)])
+                    .sum::<f64>()
+                    / patches[i].area_m2 as f64
+            })
+            .collect()
+    }
 }
 
 /// The transport system of a [`DenseTransport`] factorised once ([`DenseTransport::factor`]):
