@@ -825,6 +825,73 @@ mod tests {
     use crate::bake::texels::TexelGrid;
     use crate::bake::transport::{Effects, texel_patches};
 
+    /// Refining both directions of a pair together still gives every direction its own links:
+    /// on the Cornell box at 24² no texel pair is covered twice by the links (a receiver
+    /// texel's leaf and ancestors, each link's sender members), and of the texel pairs that
+    /// face each other and see each other (one ray), at least 97 % are covered in both
+    /// directions and at most 1 % in one only (measured: 98.5 % and 0.1 % of 40,678; the rest
+    /// lie in block pairs beside the blocks whose rays all missed). A pair refined in one
+    /// direction only would leave its mirror uncovered.
+    #[test]
+    fn links_cover_each_facing_pair_once_in_both_directions() {
+        let scene = crate::scene::cornell::cornell_box(24);
+        let grid = TexelGrid::build(&scene).unwrap();
+        let vis = Arc::new(Visibility::new(&scene.mesh));
+        let kernels = Kernels::new(&scene, Effects::default(), vis);
+        let patches = texel_patches(&grid);
+        let tree = Tree::build(&patches);
+        let settings = Settings {
+            tolerance: 1e-3,
+            ..Settings::default()
+        };
+        let (start, links) =
+            refine_links(&patches, &tree, &kernels, &settings, &SetupProgress::none()).unwrap();
+        let n = patches.len();
+        let mut cover = vec![0u8; n * n];
+        for r in 0..tree.nodes.len() {
+            for l in &links[start[r] as usize..start[r + 1] as usize] {
+                for &i in tree.members(r as u32) {
+                    for &j in tree.members(l.send) {
+                        let c = &mut cover[i as usize * n + j as usize];
+                        *c += 1;
+                        assert!(*c == 1, "pair ({i}, {j}) covered twice");
+                    }
+                }
+            }
+        }
+        let (mut facing, mut both, mut one) = (0usize, 0usize, 0usize);
+        for i in 0..n {
+            for j in i + 1..n {
+                let (a, b) = (&patches[i], &patches[j]);
+                let (fa, fb) = (a.ff(), b.ff());
+                if unoccluded_form_factor(&fa, &fb) <= 0.0
+                    || unoccluded_form_factor(&fb, &fa) <= 0.0
+                    || !kernels.visible(a, b)
+                {
+                    continue;
+                }
+                facing += 1;
+                match (cover[i * n + j], cover[j * n + i]) {
+                    (1, 1) => both += 1,
+                    (0, 0) => {}
+                    _ => one += 1,
+                }
+            }
+        }
+        println!(
+            "{n} texels: {facing} facing visible pairs, {both} covered both ways, {one} one way"
+        );
+        assert!(facing > 10_000, "{facing}");
+        assert!(
+            both as f64 >= 0.97 * facing as f64,
+            "{both} of {facing} ({one} one way)"
+        );
+        assert!(
+            one as f64 <= 0.01 * facing as f64,
+            "{one} of {facing} one way"
+        );
+    }
+
     /// Stopping the rays at the first disagreement answers the refinement's question — is
     /// the pair partly visible? — exactly as all the rays do: on every node pair of the maze
     /// at 32² up to depth 6 (where the partitions make many pairs partly visible), 0.5 where
