@@ -237,11 +237,11 @@ fn maze_1024_bakes_under_four_gib() {
 }
 
 /// Issue 16's scale goal at the default tolerance: the maze at 1024², 100 maps, `--tolerance`
-/// (ε = 10⁻⁴) under `ORTM_MEMORY_LIMIT_BYTES` = 4 GiB, peak under it (~5.5 min on 2 cores, so
-/// not in CI; measured peak 3.80 GB = 3.54 GiB). Run with `cargo test --release --test
+/// (ε = 10⁻⁴) under `ORTM_MEMORY_LIMIT_BYTES` = 4 GiB, peak under it (~4.5 min on 2 cores, so
+/// not in CI; measured peak 3.79 GB = 3.53 GiB, 258–262 s). Run with `cargo test --release --test
 /// bake_links maze_1024_default -- --ignored --nocapture`.
 #[test]
-#[ignore = "5.5 minutes on 2 cores"]
+#[ignore = "4.5 minutes on 2 cores"]
 fn maze_1024_default_tolerance_100_maps_under_four_gib() {
     let dir = tempfile::tempdir().unwrap();
     let (index, peak, seconds) =
