@@ -685,7 +685,7 @@ fn refine(
         }
         return out;
     }
-    // Per direction: (receiver, its cosine, sender, sender's cosine and area, bit).
+    // Per direction (into x, into y): the receiver's cosine, the sender's cosine and area.
     let mut admissible = 0u8;
     let mut coefs = [(0.0f32, 0.0f32); 2]; // (g, f) into x, into y
     for (k, (cos_r, cos_s, area_s, bit)) in [
