@@ -825,6 +825,16 @@ mod tests {
     use crate::bake::texels::TexelGrid;
     use crate::bake::transport::{Effects, texel_patches};
 
+    /// The texel patches of `scene`'s lightmap, their tree and the default kernels.
+    fn texel_tree(scene: &crate::scene::Scene) -> (Vec<Patch>, Tree, Kernels) {
+        let grid = TexelGrid::build(scene).unwrap();
+        let vis = Arc::new(Visibility::new(&scene.mesh));
+        let kernels = Kernels::new(scene, Effects::default(), vis);
+        let patches = texel_patches(&grid);
+        let tree = Tree::build(&patches);
+        (patches, tree, kernels)
+    }
+
     /// Refining both directions of a pair together still gives every direction its own links:
     /// on the Cornell box at 24² no texel pair is covered twice by the links (a receiver
     /// texel's leaf and ancestors, each link's sender members), and of the texel pairs that
@@ -835,11 +845,7 @@ mod tests {
     #[test]
     fn links_cover_each_facing_pair_once_in_both_directions() {
         let scene = crate::scene::cornell::cornell_box(24);
-        let grid = TexelGrid::build(&scene).unwrap();
-        let vis = Arc::new(Visibility::new(&scene.mesh));
-        let kernels = Kernels::new(&scene, Effects::default(), vis);
-        let patches = texel_patches(&grid);
-        let tree = Tree::build(&patches);
+        let (patches, tree, kernels) = texel_tree(&scene);
         let settings = Settings {
             tolerance: 1e-3,
             ..Settings::default()
@@ -899,11 +905,7 @@ mod tests {
     #[test]
     fn early_stop_keeps_the_partial_visibility_verdict() {
         let scene = crate::scene::maze::maze(32);
-        let grid = TexelGrid::build(&scene).unwrap();
-        let vis = Arc::new(Visibility::new(&scene.mesh));
-        let kernels = Kernels::new(&scene, Effects::default(), vis);
-        let patches = texel_patches(&grid);
-        let tree = Tree::build(&patches);
+        let (patches, tree, kernels) = texel_tree(&scene);
         // Nodes of the first six levels (parents precede children).
         let mut level = vec![0u32];
         let mut nodes = vec![0u32];
