@@ -56,7 +56,6 @@ pub mod tree;
 use glam::Vec3;
 use rayon::prelude::*;
 
-use super::form_factor::unoccluded_form_factor;
 use super::{Cancelled, Kernels, Patch, SetupProgress, SupportGrid};
 use subsurface::SubsurfaceWalk;
 use tree::Tree;
@@ -633,25 +632,14 @@ fn refine(
     if nx.is_leaf() && ny.is_leaf() {
         let (i, j) = (tree.members(x)[0] as usize, tree.members(y)[0] as usize);
         let (pi, pj) = (&patches[i], &patches[j]);
-        let (fi, fj) = (pi.ff(), pj.ff());
-        // Texel pairs use the dense solve's kernel (`Kernels::form_factor_c`), each way.
-        let c_x = if wanted & RECV_X != 0 {
-            unoccluded_form_factor(&fi, &fj) * pj.area_m2
-        } else {
-            0.0
-        };
-        let c_y = if wanted & RECV_Y != 0 {
-            unoccluded_form_factor(&fj, &fi) * pi.area_m2
-        } else {
-            0.0
-        };
-        if (c_x > 0.0 || c_y > 0.0) && kernels.visible(pi, pj) {
-            if c_x > 0.0 {
-                out.link(x, Link { send: y, coef: c_x });
-            }
-            if c_y > 0.0 {
-                out.link(y, Link { send: x, coef: c_y });
-            }
+        // Texel pairs use the dense solve's kernel, both ways with one ray.
+        let (c_ij, c_ji) = kernels.form_factor_pair(pi, pj);
+        let (f_x, f_y) = (c_ij * pj.area_m2, c_ji * pi.area_m2);
+        if wanted & RECV_X != 0 && f_x > 0.0 {
+            out.link(x, Link { send: y, coef: f_x });
+        }
+        if wanted & RECV_Y != 0 && f_y > 0.0 {
+            out.link(y, Link { send: x, coef: f_y });
         }
         return out;
     }
@@ -823,6 +811,7 @@ mod tests {
     use super::*;
     use crate::bake::raycast::Visibility;
     use crate::bake::texels::TexelGrid;
+    use crate::bake::transport::form_factor::unoccluded_form_factor;
     use crate::bake::transport::{Effects, texel_patches};
 
     /// The texel patches of `scene`'s lightmap, their tree and the default kernels.
