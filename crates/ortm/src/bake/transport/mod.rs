@@ -467,7 +467,7 @@ impl Kernels {
         progress: &SetupProgress,
     ) -> Result<usize, Cancelled> {
         let q = self.subsurface_reemission_with(patches, progress)?;
-        Ok(self.scale_subsurface(patches, &q))
+        self.scale_subsurface_with(patches, &q, progress)
     }
 
     /// [`Kernels::normalise_subsurface_with`] that also returns the raw weights of the texel
@@ -479,7 +479,7 @@ impl Kernels {
         progress: &SetupProgress,
     ) -> Result<NearWeights, Cancelled> {
         let (q, near) = self.reemission(patches, progress, true)?;
-        self.scale_subsurface(patches, &q);
+        self.scale_subsurface_with(patches, &q, progress)?;
         Ok(near)
     }
 
@@ -489,10 +489,42 @@ impl Kernels {
     /// from a scene, else ρ̄ (clusters, tree nodes, kernels from parts: the plane's value).
     /// Returns the number of patches scaled in some channel.
     pub fn scale_subsurface(&self, patches: &mut [Patch], q: &[[f64; 3]]) -> usize {
-        patches
+        self.scale_subsurface_with(patches, q, &SetupProgress::none())
+            .unwrap_or_else(|_| unreachable!("never cancelled"))
+    }
+
+    /// [`Kernels::scale_subsurface`] reporting "transport: subsurface cap" to `progress` where
+    /// it integrates the continuous surface at the texels (~40 s at 1024² on the head), and
+    /// stopping when it is cancelled (the patches' scales are then partly set).
+    pub fn scale_subsurface_with(
+        &self,
+        patches: &mut [Patch],
+        q: &[[f64; 3]],
+        progress: &SetupProgress,
+    ) -> Result<usize, Cancelled> {
+        let n = patches.len();
+        // Only texels of a scene's translucent surface ask for the continuous surface's
+        // integral; every other patch is scaled at once, unreported.
+        let none = SetupProgress::none();
+        let progress = if self.surface.is_some()
+            && (patches.iter()).any(|p| p.footprint_m.is_some() && self.is_translucent(p.material))
+        {
+            progress.phase("transport: subsurface cap", n as u64);
+            progress
+        } else {
+            &none
+        };
+        let scaled = patches
             .par_iter_mut()
             .zip(q)
-            .map(|(p, q)| {
+            .enumerate()
+            .map(|(j, (p, q))| {
+                if j % 4096 == 0 {
+                    progress.advance(4096.min(n - j) as u64);
+                }
+                if progress.check().is_err() {
+                    return 0;
+                }
                 p.subsurface_scale = Vec3::ONE;
                 let m = p.material as usize;
                 let Some(profile) = self.profiles[m].as_ref() else {
@@ -511,7 +543,9 @@ impl Kernels {
                 }
                 usize::from(p.subsurface_scale != Vec3::ONE)
             })
-            .sum()
+            .sum();
+        progress.check()?;
+        Ok(scaled)
     }
 
     /// True when material `m` scatters under the surface.

@@ -14,10 +14,10 @@
 //! # Method
 //! A Barnes–Hut walk over a cluster tree of the triangles ([`super::hier::tree::Tree`], built
 //! over one patch per triangle): a node of one material, radius `r` around its centroid at
-//! distance `d > r` from `x`, is taken whole, `R_d(d)·A`, when the profile's variation across
-//! it times its area is within [`TOLERANCE`] in every channel,
-//! `(|R_d(d − r) − R_d(d)| + |R_d(d) − R_d(d + r)|)·A ≤ TOLERANCE` (the profile falls
-//! monotonically, so this bounds the node's error); nodes beyond the support are skipped;
+//! distance `d > r` from `x`, is taken whole at the profile's second-order mean over its
+//! triangles times its area ([`RdTable::cluster_mean`], from the node's second-moment tensor)
+//! when the remainder's bound is within [`TOLERANCE`] in every channel; nodes beyond the
+//! support are skipped;
 //! other nodes are refined down to single triangles, integrated as a texel's footprint is
 //! ([`super::footprint::triangle_weight`]: polar form near, Gauss–Legendre far).
 
@@ -26,7 +26,7 @@ use glam::Vec3;
 use super::Patch;
 use super::dipole::RdTable;
 use super::footprint::triangle_weight;
-use super::hier::subsurface::{MIXED, ProfileWalk};
+use super::hier::subsurface::{MIXED, Moment, ProfileWalk, outer, second_moments_with};
 use super::hier::tree::Tree;
 use crate::scene::Mesh;
 
@@ -45,6 +45,8 @@ pub struct SurfaceReemission {
     radius_m: Vec<f32>,
     /// Per node: the material of all its triangles, or [`MIXED`].
     material: Vec<u32>,
+    /// Per node: the second-moment tensor of its triangles about its centroid.
+    moment: Vec<Moment>,
 }
 
 impl SurfaceReemission {
@@ -86,11 +88,22 @@ impl SurfaceReemission {
                 }
             }
         }
+        // A triangle's tensor about its centroid g: (A/12)·Σ (v − g)(v − g)ᵀ over its corners.
+        let moment = tree.as_ref().map_or_else(Vec::new, |tree| {
+            second_moments_with(tree, |t| {
+                let c = triangles[t as usize].0.map(|p| p.as_dvec3());
+                let g = (c[0] + c[1] + c[2]) / 3.0;
+                let a = 0.5 * (c[1] - c[0]).cross(c[2] - c[0]).length();
+                let parts = c.map(|v| outer(v - g, a / 12.0));
+                std::array::from_fn(|k| parts[0][k] + parts[1][k] + parts[2][k])
+            })
+        });
         Self {
             triangles,
             tree,
             radius_m,
             material,
+            moment,
         }
     }
 
@@ -106,6 +119,7 @@ impl SurfaceReemission {
             material: &self.material,
             table,
             tolerance: TOLERANCE,
+            moment: Some(&self.moment),
         };
         let radius = |s: u32| self.radius_m[s as usize] as f64;
         walk.walk(material, x, support_m, radius, |s, whole| {

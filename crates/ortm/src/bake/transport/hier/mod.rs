@@ -256,8 +256,8 @@ pub struct Solution {
 impl Operator {
     /// Builds the operator over `patches` (subsurface weights normalised here, as
     /// [`super::dense::DenseTransport::new`] does). Reports "transport: links" (one step per
-    /// refinement round) and "transport: subsurface weights" to `progress`; stops when it is
-    /// cancelled or the links outgrow [`Settings::max_bytes`].
+    /// refinement round), "transport: subsurface weights" and "transport: subsurface cap" to
+    /// `progress`; stops when it is cancelled or the links outgrow [`Settings::max_bytes`].
     pub fn build(
         patches: &[Patch],
         kernels: &Kernels,
