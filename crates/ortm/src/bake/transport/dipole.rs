@@ -168,9 +168,9 @@ impl RdTable {
     /// The mean of `R_d(|x − y|)` (m⁻², per channel) over a cluster of `area_m2` seen from a
     /// point `x` at `d` metres from its area-weighted centroid `c`, its members within
     /// `radius_m` of `c` (`d > radius_m`), to second order, when its error is within
-    /// `tolerance` in every channel. `moment` is the cluster's second moment about `c` along
-    /// the direction `u = (x − c)/d` and its trace, `(m_uu, m_tr)` (m⁴: `∫ ((y − c)·u)² dA`
-    /// and `∫ |y − c|² dA` over its members' footprints).
+    /// `tolerance` in every channel. `m_tr` is the trace of the cluster's second-moment tensor
+    /// about `c`, `∫ |y − c|² dA` over its members' footprints, and `m_uu()` its component
+    /// along the direction `u = (x − c)/d`, `∫ ((y − c)·u)² dA` (m⁴).
     ///
     /// Taylor about `c`: the linear term integrates to 0, and the Hessian of `R_d(|x − y|)` is
     /// `R_d''(d) uuᵀ + R_d'(d)/d (I − uuᵀ)`, so the cluster's integral is
