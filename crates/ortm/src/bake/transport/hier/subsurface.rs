@@ -27,8 +27,9 @@
 //! unit area at the receiver, like a form factor. Against the centroid's value `R_d(d)` with
 //! the first-order test `(|R_d(d − r_s) − R_d(d)| + |R_d(d) − R_d(d + r_s)|)·A_s ≤ ε` (what a
 //! walk saved without moments still uses, [`RdTable::cluster_value`]), the head at 512² visits
-//! 464 nodes per receiver instead of 757 at ε = 10⁻⁴, and its subsurface term under its lamps
-//! is closer to the exact sum (0.22 % of the term's RMS instead of 0.34 %).
+//! 487 nodes per receiver instead of 757 at ε = 10⁻⁴, and its subsurface term under its lamps
+//! is closer to the walk's exact sum (0.18 % of the term's RMS instead of 0.34 %; the ignored
+//! test `apps/ortm/tests/subsurface_walk.rs`).
 //!
 //! # Uses
 //! - Normalisation ([`SubsurfaceWalk::normalise`]): `Q_j = Σ_i S_ij^raw A_i / A_j`; the midpoint
