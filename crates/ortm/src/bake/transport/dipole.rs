@@ -130,11 +130,8 @@ impl RdTable {
                 .disk_integral(r)
                 .map(|v| v / std::f64::consts::TAU);
         }
-        let x = r.max(0.0) * self.inv_step;
-        let n = (x as usize).min(Self::SAMPLES - 2);
-        let f = x - n as f64;
-        let (a, b) = (self.primitive[n], self.primitive[n + 1]);
-        [0, 1, 2].map(|c| a[c] + (b[c] - a[c]) * f)
+        let (n, f) = self.sample(r);
+        lerp(self.primitive[n], self.primitive[n + 1], f)
     }
 
     /// `R_d(d)` (m⁻², per channel) for a cluster of `area_m2` whose members lie within
@@ -201,9 +198,7 @@ impl RdTable {
         if rho >= self.r_max_m {
             return Some([0.0; 3]);
         }
-        let x = rho * self.inv_step;
-        let n = (x as usize).min(Self::SAMPLES - 2);
-        let f = x - n as f64;
+        let (n, f) = self.sample(rho);
         let bound = self.third[n] + (self.third[n + 1] - self.third[n]) * f;
         let error = bound * radius_m * m_tr;
         // Also refined where the bound is not a number (∞ at ρ = 0 times a zero moment).
@@ -232,14 +227,11 @@ impl RdTable {
         if r >= self.r_max_m {
             return ([0.0; 3], [[0.0; 3]; 2]);
         }
-        let x = r.max(0.0) * self.inv_step;
-        let n = (x as usize).min(Self::SAMPLES - 2);
-        let f = x - n as f64;
-        let lerp = |a: [f64; 3], b: [f64; 3]| [0, 1, 2].map(|c| a[c] + (b[c] - a[c]) * f);
+        let (n, f) = self.sample(r);
         let (s0, s1) = (self.slopes[n], self.slopes[n + 1]);
         (
-            lerp(self.values[n], self.values[n + 1]),
-            [lerp(s0[0], s1[0]), lerp(s0[1], s1[1])],
+            lerp(self.values[n], self.values[n + 1], f),
+            [lerp(s0[0], s1[0], f), lerp(s0[1], s1[1], f)],
         )
     }
 
@@ -260,12 +252,24 @@ impl RdTable {
         if r >= self.r_max_m {
             return self.profile.rd(r);
         }
+        let (n, f) = self.sample(r);
+        lerp(self.values[n], self.values[n + 1], f)
+    }
+
+    /// The sample below `r` (metres, within the table's range) and `r`'s fraction of the way
+    /// to the next one: the tables are read at `(n, f)` by [`lerp`].
+    #[inline]
+    fn sample(&self, r: f64) -> (usize, f64) {
         let x = r.max(0.0) * self.inv_step;
         let n = (x as usize).min(Self::SAMPLES - 2);
-        let f = x - n as f64;
-        let (a, b) = (self.values[n], self.values[n + 1]);
-        [0, 1, 2].map(|c| a[c] + (b[c] - a[c]) * f)
+        (n, x - n as f64)
     }
+}
+
+/// `a + (b − a)·f` per channel.
+#[inline]
+fn lerp(a: [f64; 3], b: [f64; 3], f: f64) -> [f64; 3] {
+    [0, 1, 2].map(|c| a[c] + (b[c] - a[c]) * f)
 }
 
 /// `D₃(ρ)/R_d(ρ)` for a channel of effective transport coefficient `sigma` (m⁻¹): the bound
