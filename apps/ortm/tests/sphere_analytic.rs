@@ -222,6 +222,7 @@ fn closed_sphere_reference_matches_the_analytic_radiosity() {
     let grid = TexelGrid::build(&scene).unwrap();
     let settings = Settings {
         samples_per_texel: 64,
+        replicates: ortm::accuracy::reference::DEFAULT_REPLICATES,
         seed: 3,
         effects: Effects {
             radiosity: true,

@@ -463,6 +463,7 @@ fn traced_reference(case: &Case, spp: u32, seed: u64) -> Result<ReferenceMaps> {
     let progress = |done: usize, _total: usize| bar.set_position(done as u64);
     let settings = reference::Settings {
         samples_per_texel: spp,
+        replicates: reference::DEFAULT_REPLICATES,
         seed,
         effects: Effects::default(),
     };

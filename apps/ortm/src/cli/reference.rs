@@ -1,4 +1,4 @@
-//! `ortm reference SCENE --size N --spp S --seed K [--effects radiosity,sss] -o DIR`: the
+//! `ortm reference SCENE --size N --spp S --seed K [--replicates R] [--effects radiosity,sss] -o DIR`: the
 //! path-traced texture-space reference ([`ortm::accuracy::reference`]) with the scene's lights.
 //! Writes `final.exr`, `first_order.exr`, `indirect.exr` and `std_error.exr` (W/m², linear RGB,
 //! uncovered texels 0) plus `first_order.png`, `final.png` and `indirect.png` as `ortm solve`
@@ -39,6 +39,13 @@ pub struct Args {
     /// Seed of the random streams (same seed → same output, whatever the thread count).
     #[arg(long, default_value_t = 1)]
     seed: u64,
+    /// Independent replicates the paths of a texel are split into: each replicate's paths are
+    /// an Owen-scrambled Sobol point set (stratified), the spread of the replicates' means is
+    /// the standard error; `--replicates` equal to `--spp` traces independent paths (plain
+    /// Monte Carlo). Paths per texel are rounded up to a multiple of it.
+    #[arg(long, default_value_t = reference::DEFAULT_REPLICATES,
+        value_parser = clap::value_parser!(u32).range(1..))]
+    replicates: u32,
     /// Effects: comma-separated `radiosity`, `sss` (as `ortm bake`).
     #[arg(long, default_value = "radiosity,sss")]
     effects: String,
@@ -51,6 +58,11 @@ pub struct Args {
 pub fn run(a: Args) -> Result<()> {
     if a.spp == 0 {
         bail!("--spp 0: trace at least 1 path per texel (2 or more for a standard error)");
+    }
+    if a.replicates == 1 && a.spp > 1 {
+        eprintln!(
+            "note: --replicates 1 gives no standard error (std_error.exr is 0); 2 or more give one"
+        );
     }
     let effects = super::bake::parse_effects(&a.effects)?;
     let scene = super::load_scene(&a.scene, a.size)?;
@@ -71,6 +83,7 @@ pub fn run(a: Args) -> Result<()> {
     let bar = super::progress::Progress::new(grid.texels.len() as u64, "reference (texels)");
     let settings = Settings {
         samples_per_texel: a.spp,
+        replicates: a.replicates,
         seed: a.seed,
         effects,
     };
@@ -102,11 +115,12 @@ pub fn run(a: Args) -> Result<()> {
     let ind = lighting::to_lightmap(&grid, &indirect);
     save_solution_pngs(&a.output, &first, &fin, &ind)?;
     println!(
-        "{} texels at {}x{}, {} paths per texel: {:.2} s, {:.2} Mrays/s ({} rays)",
+        "{} texels at {}x{}, {} paths per texel ({} replicates): {:.2} s, {:.2} Mrays/s ({} rays)",
         grid.texels.len(),
         grid.width,
         grid.height,
         maps.samples_per_texel,
+        maps.replicates,
         stats.seconds,
         stats.rays_per_second() / 1e6,
         stats.rays

@@ -554,6 +554,7 @@ impl Worker {
         req.progress.set_stage(Stage::Tracing);
         let settings = Settings {
             samples_per_texel: req.spp.max(1),
+            replicates: ortm::accuracy::reference::DEFAULT_REPLICATES,
             seed: REFERENCE_SEED,
             effects: self.effects,
         };

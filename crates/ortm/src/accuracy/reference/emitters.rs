@@ -19,11 +19,10 @@
 //! [`FirstOrderLight::pdf_area`].
 
 use glam::Vec3;
-use rand::RngExt;
-use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 
 use super::path::{SceneView, Scratch};
+use super::sampler::PathSampler;
 use crate::bake::raycast::RayHit;
 
 /// About this many cells over the whole surface (more on large triangles, at least one per
@@ -109,10 +108,10 @@ impl FirstOrderLight {
         })
     }
 
-    /// A point drawn by the density.
-    pub fn sample(&self, rng: &mut ChaCha8Rng) -> LightSample {
+    /// A point drawn by the density, from three numbers of `u` (the cell, the point in it).
+    pub fn sample(&self, rng: &mut PathSampler) -> LightSample {
         let total = *self.cdf.last().expect("at least one cell");
-        let u: f64 = rng.random::<f64>() * total;
+        let u: f64 = rng.uniform() * total;
         let slot = self
             .cdf
             .partition_point(|&c| c <= u)
@@ -125,7 +124,7 @@ impl FirstOrderLight {
         let t = self.owners[self.owners.partition_point(|o| o.0 <= slot) - 1].1 as usize;
         let c = self.triangles[t];
         let local = slot - c.first;
-        let (r1, r2): (f32, f32) = (rng.random(), rng.random());
+        let (r1, r2): (f32, f32) = (rng.uniform_f32(), rng.uniform_f32());
         let (r1, r2) = if r1 + r2 > 1.0 {
             (1.0 - r1, 1.0 - r2)
         } else {

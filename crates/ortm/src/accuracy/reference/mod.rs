@@ -7,7 +7,7 @@
 //! normal to lift rays):
 //! - the first order `B_o = ρ̄·E_direct`, exactly as [`crate::bake::lighting::first_order`]
 //!   computes it (same lights, same lifted shadow rays; no noise);
-//! - `samples_per_texel` independent paths ([`path`]), each one sample of the final radiosity
+//! - `samples_per_texel` paths ([`path`]), each an unbiased sample of the final radiosity
 //!   `B`: for an opaque texel `B_o + ρ·∫ L_in cosθ dω` (cosine-sampled bounces through the BVH,
 //!   next-event estimation to every light at every vertex, Russian roulette); for a translucent
 //!   one (subsurface on) `∫ R_d(|x − y|) E(y) dA(y)` with `y` sampled by the profile and
@@ -18,25 +18,31 @@
 //!   evaluated exactly at the drawn point by the same lights and shadow rays), combined with the
 //!   cosine-sampled bounce by the balance heuristic: unbiased, and far less noisy where a lamp
 //!   nearly touches a surface (Cornell: ~6× lower standard error at equal paths per texel);
-//! - the mean and its standard error (sample standard deviation / √n) per channel.
+//! - the paths' numbers: randomised quasi-Monte Carlo ([`sampler`]) — the paths are split into
+//!   independent replicates, each an Owen-scrambled Sobol point set over the first vertices'
+//!   numbers, so the paths of a replicate stratify the profile's disc, the bounce's hemisphere
+//!   and the first order's light;
+//! - the mean and its standard error (the spread of the replicates' means) per channel.
 //!
 //! With subsurface off translucent materials are opaque with the profile's total diffuse
 //! reflectance ρ̄ (the texels' albedo), as in the transport. Units: W/m², linear RGB, metres.
 //!
 //! # Determinism
-//! Texel `i`'s samples come from its own ChaCha8 stream (seed `settings.seed`, stream `i`), and
+//! Texel `i`'s numbers come from its own ChaCha8 stream (seed `settings.seed`, stream `i`: the
+//! replicates' scramble seeds, the numbers beyond the Sobol dimensions), and
 //! each texel is summed by one thread in sample order, so the result depends on the seed only,
 //! not on the thread count. Texels are traced in parallel (rayon); `progress` is called as they
 //! finish and `cancel` is checked between batches of samples.
 
 mod emitters;
 mod path;
+pub mod sampler;
 pub mod subsurface;
 
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::time::Instant;
 
-use glam::{DVec3, Vec3};
+use glam::Vec3;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
@@ -48,6 +54,7 @@ use crate::bake::texels::TexelGrid;
 use crate::bake::transport::Effects;
 use crate::scene::{Light, Scene};
 pub use path::{ROULETTE_AFTER, SceneView, Scratch, SurfacePoint};
+use sampler::PathSampler;
 
 /// Samples traced between two checks of the cancel flag.
 const CANCEL_CHECK_SAMPLES: u32 = 64;
@@ -69,11 +76,22 @@ pub enum Estimator {
     FirstOrderLight,
 }
 
+/// Independent replicates per texel by default ([`sampler`]): enough for a standard error whose
+/// own spread is small (a texel's error exceeds 3 of its standard errors with probability
+/// 0.53 % — a Student t with 31 degrees of freedom — against 0.27 % for a known σ), few enough
+/// that each replicate's stratified points cancel much of the variance (head 64², 256 paths:
+/// noise 3.96 % of the final with 32, 3.82 % with 16, 5.05 % with independent paths).
+pub const DEFAULT_REPLICATES: u32 = 32;
+
 /// Settings of a reference run.
 #[derive(Clone, Copy, Debug)]
 pub struct Settings {
-    /// Paths per covered texel.
+    /// Paths per covered texel (rounded up to a multiple of the replicates).
     pub samples_per_texel: u32,
+    /// Independent replicates the paths are split into ([`sampler`]; their means' spread is
+    /// the standard error); `samples_per_texel` replicates make every path independent
+    /// (plain Monte Carlo).
+    pub replicates: u32,
     /// Seed of the random streams (the result is deterministic for a seed, whatever the thread
     /// count).
     pub seed: u64,
@@ -92,6 +110,8 @@ pub struct ReferenceMaps {
     pub std_error: Vec<Vec3>,
     /// Paths traced per texel.
     pub samples_per_texel: u32,
+    /// Independent replicates per texel (the standard error has one degree of freedom fewer).
+    pub replicates: u32,
 }
 
 /// Figures of a reference run.
@@ -222,7 +242,8 @@ pub fn trace_with_estimator(
         SceneView::new(scene, &vis, lights, settings.effects).with_first_order_light(vertices);
     let n = grid.texels.len();
     let done = AtomicUsize::new(0);
-    let spp = settings.samples_per_texel.max(1);
+    let (replicates, per_replicate) = split_paths(settings.samples_per_texel, settings.replicates);
+    let spp = replicates * per_replicate;
     let per_texel: Vec<Option<TexelEstimate>> = (0..n)
         .into_par_iter()
         .map_init(Scratch::default, |scratch, i| {
@@ -237,7 +258,7 @@ pub fn trace_with_estimator(
                     first_order[i],
                     settings.seed,
                     i,
-                    spp,
+                    (replicates, per_replicate),
                     cancel,
                     scratch,
                 )?
@@ -266,6 +287,7 @@ pub fn trace_with_estimator(
             final_b: per_texel.iter().map(|e| e.mean).collect(),
             std_error: per_texel.iter().map(|e| e.std_error).collect(),
             samples_per_texel: spp,
+            replicates,
         },
         stats,
     ))
@@ -278,8 +300,18 @@ struct TexelEstimate {
     rays: u64,
 }
 
-/// `spp` samples of texel `index`'s final radiosity from its own random stream; `None` when
-/// cancelled.
+/// `(R, n)`: `R` replicates of `n` paths, `R·n ≥ spp` paths in all, `R ≤ replicates` (at least
+/// 1) and `n ≤` [`sampler::MAX_REPLICATE_PATHS`].
+pub fn split_paths(spp: u32, replicates: u32) -> (u32, u32) {
+    let spp = spp.max(1);
+    let r = replicates
+        .clamp(1, spp)
+        .max(spp.div_ceil(sampler::MAX_REPLICATE_PATHS));
+    (r, spp.div_ceil(r))
+}
+
+/// `R × n` samples of texel `index`'s final radiosity from its own stream (`split.0 = R`
+/// replicates of `split.1 = n` paths, [`sampler::replicated_mean`]); `None` when cancelled.
 #[allow(
     clippy::too_many_arguments,
     reason = "the texel, its stream and the run's shared state"
@@ -290,32 +322,49 @@ fn estimate_texel(
     b_o: Vec3,
     seed: u64,
     index: usize,
-    spp: u32,
+    split: (u32, u32),
     cancel: &AtomicBool,
     scratch: &mut Scratch,
 ) -> Option<TexelEstimate> {
+    let (replicates, per_replicate) = split;
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     rng.set_stream(index as u64);
+    let mut sampler = PathSampler::new(rng);
     let rays_before = scratch.rays;
-    let (mut sum, mut sum2) = (DVec3::ZERO, DVec3::ZERO);
-    for k in 0..spp {
-        if k % CANCEL_CHECK_SAMPLES == CANCEL_CHECK_SAMPLES - 1 && cancel.load(Ordering::Relaxed) {
-            return None;
-        }
-        let s = view.sample(x, b_o, &mut rng, scratch).as_dvec3();
-        sum += s;
-        sum2 += s * s;
-    }
-    let n = spp as f64;
-    let mean = sum / n;
-    let var = if spp > 1 {
-        ((sum2 - sum * mean) / (n - 1.0)).max(DVec3::ZERO)
-    } else {
-        DVec3::ZERO
-    };
+    let mut traced = 0u32;
+    let (mean, std_error) =
+        sampler::replicated_mean(&mut sampler, replicates, per_replicate, |u| {
+            traced += 1;
+            if traced.is_multiple_of(CANCEL_CHECK_SAMPLES) && cancel.load(Ordering::Relaxed) {
+                return None;
+            }
+            Some(view.sample(x, b_o, u, scratch).as_dvec3())
+        })?;
     Some(TexelEstimate {
         mean: mean.as_vec3(),
-        std_error: (var / n).sqrt().as_vec3(),
+        std_error: std_error.as_vec3(),
         rays: scratch.rays - rays_before,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Paths are split into at most the asked replicates, every replicate the same length, at
+    /// least the asked paths in all, and no replicate longer than the Sobol sequence.
+    #[test]
+    fn paths_split_into_equal_replicates() {
+        assert_eq!(split_paths(256, 32), (32, 8));
+        assert_eq!(split_paths(100, 32), (32, 4));
+        assert_eq!(split_paths(10, 32), (10, 1));
+        assert_eq!(split_paths(0, 32), (1, 1));
+        assert_eq!(split_paths(64, 1), (1, 64));
+        let big = 3 * sampler::MAX_REPLICATE_PATHS;
+        let (r, n) = split_paths(big, 1);
+        assert!(
+            n <= sampler::MAX_REPLICATE_PATHS && r * n >= big && r == 3,
+            "{r} × {n}"
+        );
+    }
 }

@@ -26,10 +26,9 @@
 //! `E` in W/m², linear RGB.
 
 use glam::{Vec2, Vec3};
-use rand::RngExt;
-use rand_chacha::ChaCha8Rng;
 
 use super::emitters::FirstOrderLight;
+use super::sampler::{PathSampler, Slot};
 use super::subsurface::ProfileSampler;
 use crate::bake::lighting::{irradiance_unshadowed_at, light_visible_from};
 use crate::bake::raycast::{RayHit, Visibility};
@@ -187,7 +186,7 @@ impl<'a> SceneView<'a> {
         &self,
         x: &SurfacePoint,
         b_o: Vec3,
-        rng: &mut ChaCha8Rng,
+        rng: &mut PathSampler,
         s: &mut Scratch,
     ) -> Vec3 {
         if self.translucent(x.material) {
@@ -205,7 +204,7 @@ impl<'a> SceneView<'a> {
         mut p: SurfacePoint,
         mut t: Vec3,
         mut at_irradiance: bool,
-        rng: &mut ChaCha8Rng,
+        rng: &mut PathSampler,
         s: &mut Scratch,
     ) -> Vec3 {
         let mut sum = Vec3::ZERO;
@@ -224,6 +223,7 @@ impl<'a> SceneView<'a> {
                             // of `B_o(p)` the light sample carries, `1 − w`, comes off here.
                             sum -= t * (1.0 - emitted_weight) * p.albedo * self.direct(&p, s);
                         }
+                        rng.at(bounce, Slot::Exit);
                         let Some(y) = self.exit_point(sampler, &p, rng, s) else {
                             break;
                         };
@@ -249,15 +249,18 @@ impl<'a> SceneView<'a> {
             }
             let light = self.light.as_ref().filter(|_| bounce < self.light_vertices);
             if let Some(light) = light {
+                rng.at(bounce, Slot::Light);
                 sum += t * self.first_order_light(light, &q, rng, s);
             }
             if bounce >= ROULETTE_AFTER && t.max_element() < ROULETTE_WEIGHT {
                 let survive = (t.max_element() / ROULETTE_WEIGHT).max(1e-3);
-                if rng.random::<f32>() >= survive {
+                rng.at(bounce, Slot::Roulette);
+                if rng.uniform_f32() >= survive {
                     break;
                 }
                 t /= survive;
             }
+            rng.at(bounce, Slot::Bounce);
             let Some((z, weight)) = self.bounce(&q, light, rng, s) else {
                 break;
             };
@@ -279,7 +282,7 @@ impl<'a> SceneView<'a> {
         &self,
         light: &FirstOrderLight,
         q: &SurfacePoint,
-        rng: &mut ChaCha8Rng,
+        rng: &mut PathSampler,
         s: &mut Scratch,
     ) -> Vec3 {
         let y = light.sample(rng);
@@ -356,10 +359,10 @@ impl<'a> SceneView<'a> {
         &self,
         q: &SurfacePoint,
         light: Option<&FirstOrderLight>,
-        rng: &mut ChaCha8Rng,
+        rng: &mut PathSampler,
         s: &mut Scratch,
     ) -> Option<(SurfacePoint, f32)> {
-        let (u1, u2): (f32, f32) = (rng.random(), rng.random());
+        let (u1, u2): (f32, f32) = (rng.uniform_f32(), rng.uniform_f32());
         let (r, phi) = (u1.sqrt(), std::f32::consts::TAU * u2);
         let (t1, t2) = tangent_frame(q.normal);
         let z = (1.0 - u1).max(0.0).sqrt();
@@ -393,7 +396,7 @@ impl<'a> SceneView<'a> {
         &self,
         sampler: &ProfileSampler,
         p: &SurfacePoint,
-        rng: &mut ChaCha8Rng,
+        rng: &mut PathSampler,
         s: &mut Scratch,
     ) -> Option<(SurfacePoint, Vec3)> {
         let mesh = &self.scene.mesh;
