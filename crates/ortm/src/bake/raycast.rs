@@ -192,11 +192,17 @@ impl Visibility {
     }
 }
 
+/// The square `[−half, half]²` at height `z`, facing +z, as two triangles (tests).
+#[cfg(test)]
+pub(crate) fn test_square(z: f32, half: f32) -> [Triangle; 2] {
+    tests::quad(z, half)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    fn quad(z: f32, half: f32) -> [Triangle; 2] {
+    pub(super) fn quad(z: f32, half: f32) -> [Triangle; 2] {
         let a = Vec3A::new(-half, -half, z);
         let b = Vec3A::new(half, -half, z);
         let c = Vec3A::new(half, half, z);

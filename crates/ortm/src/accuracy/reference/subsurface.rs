@@ -235,12 +235,49 @@ fn axis_and_channel(probs: &[f64; 3], u: f64) -> (usize, usize) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::bake::raycast::test_square;
     use crate::scene::SubsurfaceModel;
     use crate::scene::subsurface::skin1;
-    use glam::Vec3A;
-    use obvhs::triangle::Triangle;
     use rand::SeedableRng;
     use rand_chacha::ChaCha8Rng;
+
+    /// Mean and standard error per channel of `n` independent exit weights at `(0.1, 0.2, 0)`
+    /// (normal +z) on `vis`, and how many chose a hit on triangle 2 or later.
+    fn exit_weights(
+        s: &ProfileSampler,
+        vis: &Visibility,
+        n: usize,
+        seed: u64,
+    ) -> ([f64; 3], [f64; 3], usize) {
+        let mut u = PathSampler::new(ChaCha8Rng::seed_from_u64(seed));
+        let (mut sum, mut sum2, mut later) = ([0.0f64; 3], [0.0f64; 3], 0usize);
+        let (mut hits, mut rays) = (Vec::new(), 0u64);
+        for _ in 0..n {
+            // One path per replicate: independent samples, so the sample variance holds.
+            u.start_replicate();
+            u.start_path(0);
+            let e = s.sample_exit(
+                vis,
+                Vec3::new(0.1, 0.2, 0.0),
+                Vec3::Z,
+                |_| true,
+                |_| Vec3::Z,
+                &mut u,
+                &mut hits,
+                &mut rays,
+            );
+            later += usize::from(e.is_some_and(|e| e.hit.triangle >= 2));
+            let w = e.map_or(Vec3::ZERO, |e| e.weight);
+            for ch in 0..3 {
+                sum[ch] += w[ch] as f64;
+                sum2[ch] += (w[ch] as f64).powi(2);
+            }
+        }
+        let nf = n as f64;
+        let mean = sum.map(|x| x / nf);
+        let se = [0, 1, 2].map(|c| ((sum2[c] / nf - mean[c] * mean[c]) / nf).max(0.0).sqrt());
+        (mean, se, later)
+    }
 
     /// On a large flat plane, the estimator of `∫ R_d(|x−y|) dA(y)` (irradiance 1) must give
     /// the disk integral over the support, `D_c`, per channel, within its standard error.
@@ -248,53 +285,10 @@ mod tests {
     fn flat_plane_integrates_the_profile() {
         for model in [SubsurfaceModel::Dipole, SubsurfaceModel::Exponential] {
             let s = ProfileSampler::new(skin1(model));
-            let half = 1.0f32;
-            let (a, b, c, d) = (
-                Vec3A::new(-half, -half, 0.0),
-                Vec3A::new(half, -half, 0.0),
-                Vec3A::new(half, half, 0.0),
-                Vec3A::new(-half, half, 0.0),
-            );
-            let vis = Visibility::from_triangles(vec![
-                Triangle {
-                    v0: a,
-                    v1: b,
-                    v2: c,
-                },
-                Triangle {
-                    v0: a,
-                    v1: c,
-                    v2: d,
-                },
-            ]);
-            let mut u = PathSampler::new(ChaCha8Rng::seed_from_u64(7));
-            let (mut sum, mut sum2) = ([0.0f64; 3], [0.0f64; 3]);
-            let n = 20_000;
-            let (mut hits, mut rays) = (Vec::new(), 0u64);
-            for _ in 0..n {
-                // One path per replicate: independent samples, so the sample variance holds.
-                u.start_replicate();
-                u.start_path(0);
-                let w = s
-                    .sample_exit(
-                        &vis,
-                        Vec3::new(0.1, 0.2, 0.0),
-                        Vec3::Z,
-                        |_| true,
-                        |_| Vec3::Z,
-                        &mut u,
-                        &mut hits,
-                        &mut rays,
-                    )
-                    .map_or(Vec3::ZERO, |e| e.weight);
-                for ch in 0..3 {
-                    sum[ch] += w[ch] as f64;
-                    sum2[ch] += (w[ch] as f64).powi(2);
-                }
-            }
+            let vis = Visibility::from_triangles(test_square(0.0, 1.0).to_vec());
+            let (mean, se, _) = exit_weights(&s, &vis, 20_000, 7);
             for ch in 0..3 {
-                let mean = sum[ch] / n as f64;
-                let se = ((sum2[ch] / n as f64 - mean * mean) / n as f64).sqrt();
+                let (mean, se) = (mean[ch], se[ch]);
                 println!(
                     "{model:?} ch {ch}: {mean:.5} ± {se:.5} vs {:.5}",
                     s.norm[ch]
@@ -317,59 +311,15 @@ mod tests {
     fn two_planes_within_the_support_integrate_the_profile() {
         let s = ProfileSampler::new(skin1(SubsurfaceModel::Dipole));
         let h = 0.004f32;
-        let plane = |z: f32| {
-            let half = 1.0f32;
-            let (a, b, c, d) = (
-                Vec3A::new(-half, -half, z),
-                Vec3A::new(half, -half, z),
-                Vec3A::new(half, half, z),
-                Vec3A::new(-half, half, z),
-            );
-            [
-                Triangle {
-                    v0: a,
-                    v1: b,
-                    v2: c,
-                },
-                Triangle {
-                    v0: a,
-                    v1: c,
-                    v2: d,
-                },
-            ]
-        };
-        let mut tris = plane(0.0).to_vec();
-        tris.extend(plane(h));
+        let mut tris = test_square(0.0, 1.0).to_vec();
+        tris.extend(test_square(h, 1.0));
         let vis = Visibility::from_triangles(tris);
-        let mut u = PathSampler::new(ChaCha8Rng::seed_from_u64(11));
-        let (mut sum, mut sum2) = ([0.0f64; 3], [0.0f64; 3]);
-        let (n, mut far) = (40_000, 0usize);
-        let (mut hits, mut rays) = (Vec::new(), 0u64);
-        for _ in 0..n {
-            u.start_replicate();
-            u.start_path(0);
-            let e = s.sample_exit(
-                &vis,
-                Vec3::new(0.1, 0.2, 0.0),
-                Vec3::Z,
-                |_| true,
-                |_| Vec3::Z,
-                &mut u,
-                &mut hits,
-                &mut rays,
-            );
-            let w = e.map_or(Vec3::ZERO, |e| e.weight);
-            far += usize::from(e.is_some_and(|e| e.hit.triangle >= 2));
-            for ch in 0..3 {
-                sum[ch] += w[ch] as f64;
-                sum2[ch] += (w[ch] as f64).powi(2);
-            }
-        }
+        let n = 40_000;
+        let (mean, se, far) = exit_weights(&s, &vis, n, 11);
         let d_r = s.profile.disk_integral(s.support_m);
         let d_h = s.profile.disk_integral(f64::from(h));
         for ch in 0..3 {
-            let mean = sum[ch] / n as f64;
-            let se = ((sum2[ch] / n as f64 - mean * mean) / n as f64).sqrt();
+            let (mean, se) = (mean[ch], se[ch]);
             let expected = 2.0 * d_r[ch] - d_h[ch];
             println!("channel {ch}: {mean:.5} ± {se:.5} against {expected:.5}");
             assert!((mean - expected).abs() < 4.0 * se + 1e-9, "channel {ch}");
