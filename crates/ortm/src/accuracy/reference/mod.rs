@@ -300,8 +300,9 @@ struct TexelEstimate {
     rays: u64,
 }
 
-/// `(R, n)`: `R` replicates of `n` paths, `R·n ≥ spp` paths in all, `R ≤ replicates` (at least
-/// 1) and `n ≤` [`sampler::MAX_REPLICATE_PATHS`].
+/// `(R, n)`: `R` replicates of `n` paths, `R·n ≥ spp` paths in all; `R` is `replicates` (at
+/// least 1, at most `spp`), or more where a replicate would outgrow the Sobol sequence
+/// (`n ≤` [`sampler::MAX_REPLICATE_PATHS`]).
 pub fn split_paths(spp: u32, replicates: u32) -> (u32, u32) {
     let spp = spp.max(1);
     let r = replicates
