@@ -28,12 +28,13 @@ pub struct Args {
     /// Lightmap size (square), overriding the scene's.
     #[arg(long)]
     size: Option<u32>,
-    /// Paths per covered texel (the standard error falls as 1/√spp).
+    /// Paths per covered texel (the standard error falls as 1/√spp, faster where the
+    /// stratified paths pay).
     #[arg(
         long,
         default_value_t = 256,
         value_parser = clap::value_parser!(u32).range(1..=i64::from(ortm::io::limits::MAX_SAMPLES_PER_TEXEL)),
-        help = format!("Paths per covered texel, 1..={} (the standard error falls as 1/√spp)", ortm::io::limits::MAX_SAMPLES_PER_TEXEL)
+        help = format!("Paths per covered texel, 1..={} (the standard error falls as 1/√spp or faster)", ortm::io::limits::MAX_SAMPLES_PER_TEXEL)
     )]
     spp: u32,
     /// Seed of the random streams (same seed → same output, whatever the thread count).
