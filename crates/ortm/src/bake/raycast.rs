@@ -195,35 +195,31 @@ impl Visibility {
 /// The square `[−half, half]²` at height `z`, facing +z, as two triangles (tests).
 #[cfg(test)]
 pub(crate) fn test_square(z: f32, half: f32) -> [Triangle; 2] {
-    tests::quad(z, half)
+    let a = Vec3A::new(-half, -half, z);
+    let b = Vec3A::new(half, -half, z);
+    let c = Vec3A::new(half, half, z);
+    let d = Vec3A::new(-half, half, z);
+    [
+        Triangle {
+            v0: a,
+            v1: b,
+            v2: c,
+        },
+        Triangle {
+            v0: a,
+            v1: c,
+            v2: d,
+        },
+    ]
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    pub(super) fn quad(z: f32, half: f32) -> [Triangle; 2] {
-        let a = Vec3A::new(-half, -half, z);
-        let b = Vec3A::new(half, -half, z);
-        let c = Vec3A::new(half, half, z);
-        let d = Vec3A::new(-half, half, z);
-        [
-            Triangle {
-                v0: a,
-                v1: b,
-                v2: c,
-            },
-            Triangle {
-                v0: a,
-                v1: c,
-                v2: d,
-            },
-        ]
-    }
-
     #[test]
     fn occluder_between_points_blocks() {
-        let vis = Visibility::from_triangles(quad(0.0, 1.0).to_vec());
+        let vis = Visibility::from_triangles(test_square(0.0, 1.0).to_vec());
         let p = Vec3::new(0.1, 0.2, -1.0);
         assert!(!vis.visible(p, Vec3::new(0.0, 0.0, 1.0), 1e-4));
         // Passing beside the quad.

@@ -29,7 +29,7 @@ use glam::{Vec2, Vec3};
 
 use super::emitters::FirstOrderLight;
 use super::sampler::{PathSampler, Slot};
-use super::subsurface::ProfileSampler;
+use super::subsurface::{ProfileSampler, WeighedHit};
 use crate::bake::lighting::{irradiance_unshadowed_at, light_visible_from};
 use crate::bake::raycast::{RayHit, Visibility};
 use crate::bake::texels::Texel;
@@ -115,8 +115,8 @@ pub struct SceneView<'a> {
 pub struct Scratch {
     /// Rays cast.
     pub rays: u64,
-    /// Probe hits.
-    hits: Vec<RayHit>,
+    /// Probe hits and their weights.
+    hits: Vec<WeighedHit>,
 }
 
 impl<'a> SceneView<'a> {

@@ -199,8 +199,8 @@ mod tests {
         }
     }
 
-    /// `split`-free edge cases: one replicate gives a zero standard error, and a stop is
-    /// passed on.
+    /// Edge cases of [`replicated_mean`]: one replicate gives a zero standard error, and a
+    /// stop is passed on.
     #[test]
     fn one_replicate_has_no_standard_error_and_a_stop_stops() {
         let mut s = PathSampler::new(ChaCha8Rng::seed_from_u64(1));

@@ -44,6 +44,17 @@ use crate::scene::subsurface::Profile;
 /// lit skin across folds, and fewer tangent probes find it more rarely, with larger weights.
 pub const NORMAL_AXIS_PROBABILITY: f64 = 0.9;
 
+/// Probability of each probe axis: the normal, then its two tangents.
+const AXIS_PROBABILITIES: [f64; 3] = [
+    NORMAL_AXIS_PROBABILITY,
+    0.5 * (1.0 - NORMAL_AXIS_PROBABILITY),
+    0.5 * (1.0 - NORMAL_AXIS_PROBABILITY),
+];
+
+/// A probe's hit and, once computed, its weight `R_d / q` per channel if it were chosen alone
+/// (`None`: beyond the support or of zero density).
+pub type WeighedHit = (RayHit, Option<[f64; 3]>);
+
 /// One translucent material's profile, ready for sampling.
 #[derive(Clone, Copy, Debug)]
 pub struct ProfileSampler {
@@ -114,7 +125,8 @@ impl ProfileSampler {
     /// Samples a point `y` of triangles for which `same_material` holds, around the surface
     /// point `x` with shading normal `normal` (module docs). `None` when the probe ray finds
     /// no such surface (the sample contributes nothing). Reads four numbers from `u` (axis and
-    /// channel, radius, angle, hit). `hits` is scratch space; `rays` counts the rays cast;
+    /// channel, radius, angle, hit). `hits` is scratch space (the probe's hits and their
+    /// weights); `rays` counts the rays cast;
     /// `face_normal(triangle)` is a hit triangle's unit geometric normal.
     #[allow(
         clippy::too_many_arguments,
@@ -128,17 +140,12 @@ impl ProfileSampler {
         same_material: impl Fn(u32) -> bool,
         face_normal: impl Fn(u32) -> Vec3,
         u: &mut PathSampler,
-        hits: &mut Vec<RayHit>,
+        hits: &mut Vec<WeighedHit>,
         rays: &mut u64,
     ) -> Option<ExitSample> {
         let (t1, t2) = tangent_frame(normal);
         let axes = [normal, t1, t2];
-        let probs = [
-            NORMAL_AXIS_PROBABILITY,
-            0.5 * (1.0 - NORMAL_AXIS_PROBABILITY),
-            0.5 * (1.0 - NORMAL_AXIS_PROBABILITY),
-        ];
-        let (a, c) = axis_and_channel(&probs, u.uniform());
+        let (a, c) = axis_and_channel(&AXIS_PROBABILITIES, u.uniform());
         let r = self.sample_radius(c, u.uniform());
         let phi = std::f64::consts::TAU * u.uniform();
         let (axis, t_u, t_v) = (axes[a], axes[(a + 1) % 3], axes[(a + 2) % 3]);
@@ -149,14 +156,14 @@ impl ProfileSampler {
         *rays += 1;
         vis.for_each_hit(origin, -axis, (0.0, 2.0 * h as f32), |hit| {
             if same_material(hit.triangle) {
-                hits.push(hit);
+                hits.push((hit, None));
             }
         });
         if hits.is_empty() {
             return None;
         }
         // Traversal order depends on the BVH; sort so the choice depends on the geometry only.
-        hits.sort_by(|p, q| p.t.total_cmp(&q.t).then(p.triangle.cmp(&q.triangle)));
+        hits.sort_by(|(p, _), (q, _)| p.t.total_cmp(&q.t).then(p.triangle.cmp(&q.triangle)));
         // Each hit's weight `R_d / pdf` if it were chosen alone; the hit is chosen with
         // probability ∝ its weight's channel sum, so the far hits of a chord (the other side
         // of a nose, a fold), whose `R_d` is tiny, are rarely taken and never double the near
@@ -173,7 +180,7 @@ impl ProfileSampler {
             for (b, axis_b) in axes.iter().enumerate() {
                 let ab = axis_b.as_dvec3();
                 let r_b = (d - ab * ab.dot(d)).length();
-                pdf += probs[b] * self.disc_density(r_b) * n_y.dot(ab).abs();
+                pdf += AXIS_PROBABILITIES[b] * self.disc_density(r_b) * n_y.dot(ab).abs();
             }
             if pdf <= 0.0 || !pdf.is_finite() {
                 return None;
@@ -183,18 +190,18 @@ impl ProfileSampler {
             let sum = w[0] + w[1] + w[2];
             (sum > 0.0 && sum.is_finite()).then_some(w)
         };
-        let total: f64 = hits
-            .iter()
-            .filter_map(weight_of)
-            .map(|w| w[0] + w[1] + w[2])
-            .sum();
+        let mut total = 0.0f64;
+        for (hit, w) in hits.iter_mut() {
+            *w = weight_of(hit);
+            total += w.map_or(0.0, |w| w[0] + w[1] + w[2]);
+        }
         if total <= 0.0 {
             return None;
         }
         let target = u.uniform() * total;
         let (mut run, mut chosen) = (0.0, None);
-        for (k, hit) in hits.iter().enumerate() {
-            if let Some(w) = weight_of(hit) {
+        for (k, (_, w)) in hits.iter().enumerate() {
+            if let Some(w) = *w {
                 chosen = Some((k, w));
                 run += w[0] + w[1] + w[2];
                 if target < run {
@@ -203,7 +210,7 @@ impl ProfileSampler {
             }
         }
         let (k, w) = chosen?;
-        let hit = hits[k];
+        let hit = hits[k].0;
         // Probability of the choice: the hit's share of the total.
         let share = (w[0] + w[1] + w[2]) / total;
         Some(ExitSample {
