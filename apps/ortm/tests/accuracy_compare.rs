@@ -383,6 +383,55 @@ fn solve_writes_exrs_that_compare_and_add_up() {
 }
 
 #[test]
+fn solve_effects_select_the_transport_terms() {
+    // `ortm solve --effects`: the maze has no translucent material, so subsurface scattering
+    // alone adds nothing to its first order, and radiosity alone is its whole solve; an unknown
+    // effect is refused by name.
+    let dir = tempfile::tempdir().unwrap();
+    for (out, effects) in [
+        ("all", "radiosity,sss"),
+        ("rad", "radiosity"),
+        ("sss", "sss"),
+    ] {
+        ok(ortm(
+            &[
+                "solve",
+                "maze",
+                "--size",
+                "32",
+                "-o",
+                out,
+                "--effects",
+                effects,
+            ],
+            dir.path(),
+        ));
+    }
+    let read = |out: &str, n: &str| read_lightmap_exr(&dir.path().join(out).join(n)).unwrap();
+    assert_eq!(read("all", "final.exr").data, read("rad", "final.exr").data);
+    let indirect = read("sss", "indirect.exr");
+    assert!(indirect.data.iter().all(|v| *v == [0.0; 3]));
+    assert!(
+        read("all", "indirect.exr").data.iter().any(|v| v[0] > 0.0),
+        "radiosity adds light in the maze"
+    );
+    let text = fails(ortm(
+        &[
+            "solve",
+            "maze",
+            "--size",
+            "32",
+            "-o",
+            "x",
+            "--effects",
+            "glow",
+        ],
+        dir.path(),
+    ));
+    assert!(text.contains("--effects: unknown effect 'glow'"), "{text}");
+}
+
+#[test]
 fn bad_inputs_are_refused_naming_the_file() {
     let dir = tempfile::tempdir().unwrap();
     let grid = cornell_grid(32);

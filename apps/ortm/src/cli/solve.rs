@@ -1,4 +1,4 @@
-//! `ortm solve SCENE -o DIR`: the global-illumination solve `B = B_o + R·B_o` of a lightmap with
+//! `ortm solve SCENE [--effects radiosity,sss] -o DIR`: the global-illumination solve `B = B_o + R·B_o` of a lightmap with
 //! the scene's lights (or `--light` ones, as `ortm render` takes them); writes the first-order,
 //! final and indirect lightmaps as linear OpenEXR (W/m², the inputs of `ortm compare`) and as
 //! tone-mapped PNGs, and prints energy figures.
@@ -23,7 +23,7 @@ use ortm::bake::report::save_solution_pngs;
 use ortm::bake::texels::TexelGrid;
 use ortm::bake::transport::dense::DenseTransport;
 use ortm::bake::transport::hier::{BuildError, Operator, Settings};
-use ortm::bake::transport::{Effects, Kernels, SetupProgress, texel_patches};
+use ortm::bake::transport::{Kernels, SetupProgress, texel_patches};
 use ortm::render::lightmap_exr::write_lightmap_exr;
 use ortm::scene::light::{LIGHT_SYNTAX, parse_light};
 
@@ -54,6 +54,9 @@ pub struct Args {
     /// accurate and larger).
     #[arg(long, default_value_t = ortm::bake::transport::hier::DEFAULT_TOLERANCE)]
     tolerance: f32,
+    /// Effects: comma-separated `radiosity`, `sss` (as `ortm bake`).
+    #[arg(long, default_value = "radiosity,sss")]
+    effects: String,
 }
 
 /// `--method`.
@@ -66,6 +69,7 @@ enum Method {
 
 /// Runs `ortm solve`.
 pub fn run(a: Args) -> Result<()> {
+    let effects = super::bake::parse_effects(&a.effects)?;
     let mut scene = super::load_scene(&a.scene, a.size)?;
     if !a.lights.is_empty() {
         scene.lights = a
@@ -108,7 +112,7 @@ pub fn run(a: Args) -> Result<()> {
     }
     let t0 = Instant::now();
     let vis = Arc::new(Visibility::new(&scene.mesh));
-    let kernels = Kernels::new(&scene, Effects::default(), vis.clone());
+    let kernels = Kernels::new(&scene, effects, vis.clone());
     let patches = texel_patches(&grid);
     let b_o = lighting::first_order(&grid, &scene.lights, &vis);
     let bar = Mutex::new(Progress::hidden());
