@@ -50,9 +50,7 @@
 //! irradiance the continuous model leaves `Q̂_i E` at `x_i`, the weights `G_i E` with
 //! `G_i = Σ_j S_ij`. On the head's scan (footprints on the covering triangles' planes, texel
 //! areas averaged over stretched triangles) `G_i` strays from `Q̂_i` by 2.3–3.1 % RMS at 256²
-//! and 4.3–5.0 % at 128² (`apps/ortm/tests/faces_head.rs`, ignored
-//! `texels_gather_what_the_continuous_surface_does_on_the_head`), in bands that follow the UV
-//! layout, which the indirect term (the
+//! and 4.3–5.0 % at 128², in bands that follow the UV layout, which the indirect term (the
 //! small difference `G_i E_i − ρ̄ E_i` on lit skin) shows as stripes. So, for texels of a
 //! scene's translucent mesh, each receiver's row is then scaled by `r_i = Q̂_i / G_i` per
 //! channel ([`Patch::subsurface_row`], within [`ROW_SCALE_RANGE`]), and the senders are capped
