@@ -119,7 +119,6 @@ pub fn cluster_texels(grid: &TexelGrid, patches: &[Patch], block: u32) -> (Vec<u
                     rho: rho / a,
                     material,
                     subsurface_scale: Vec3::ONE,
-                    subsurface_row: Vec3::ONE,
                     footprint_m: if members == 1 { footprint } else { None },
                 }
             },

@@ -309,7 +309,6 @@ mod tests {
             rho,
             material: 0,
             subsurface_scale: Vec3::ONE,
-            subsurface_row: Vec3::ONE,
             footprint_m: None,
         };
         let patches = [

@@ -44,28 +44,11 @@
 //! [`Kernels::normalise_subsurface`]): no texel re-emits more than the continuous surface
 //! does, and where the footprints do not overlap the profile is kept exactly. Clusters, tree
 //! nodes and kernels built without a mesh ([`Kernels::from_parts`]) are capped at ρ̄, the
-//! plane's value.
-//!
-//! The sender caps keep the energy right but not what each texel *gathers*: under uniform
-//! irradiance the continuous model leaves `Q̂_i E` at `x_i`, the weights `G_i E` with
-//! `G_i = Σ_j S_ij`. On the head's scan (footprints on the covering triangles' planes, texel
-//! areas averaged over stretched triangles) `G_i` strays from `Q̂_i` by 2.3–3.1 % RMS at 256²
-//! and 4.3–5.0 % at 128², in bands that follow the UV layout, which the indirect term (the
-//! small difference `G_i E_i − ρ̄ E_i` on lit skin) shows as stripes. So, for texels of a
-//! scene's translucent mesh, each receiver's row is then scaled by `r_i = Q̂_i / G_i` per
-//! channel ([`Patch::subsurface_row`], within [`ROW_SCALE_RANGE`]), and the senders are capped
-//! once more, `min(1, Q̂_j / Q_j')` with `Q_j'` the column sums after the row scales, so no
-//! sender re-emits more than the continuous surface still (one and a half steps of a
-//! Sinkhorn balancing; the rows then gather `Q̂_i` to within what the second cap takes). On the
-//! head at 256² against the path-traced reference this took the hierarchical solve from 2.73 %
-//! to 2.52 % (total) and 22.5 % to 20.7 % (indirect), 1.47 % to 1.10 % away from the first
-//! order's edges (README, "Transport model"). `S_ij = r_i · S_ij^raw · k_j`: both scales
-//! belong to the patches, so [`Kernels::subsurface`] — the only source of `S` for the dense
-//! solve, the coarse level, the hierarchical operator and the pair evaluator — applies them,
-//! and each of them normalises the patches it is given (the hierarchical walk the same way,
-//! [`hier::subsurface::SubsurfaceWalk::normalise`]). Clusters and tree nodes, which have no
-//! footprint, use the midpoint rule (a disk of their area for the self pair) and keep
-//! `r = 1`.
+//! plane's value. The scale belongs to the sender, so [`Kernels::subsurface`] — the only
+//! source of `S` for the dense solve, the coarse level, the hierarchical operator and the pair
+//! evaluator — applies it, and each of them normalises the patches it is given. Clusters and
+//! tree nodes, which have no footprint, use the midpoint rule (a disk of their area for the
+//! self pair).
 //!
 //! # Evaluating R for any pair
 //! The offset stage needs `R(t, t')` for arbitrary pairs of texels of lightmaps far too large to
@@ -175,11 +158,6 @@ impl Default for Effects {
     }
 }
 
-/// The range a texel's receiver scale ([`Patch::subsurface_row`]) is held to: on the head the
-/// ratio `Q̂_i / G_i` lies within 0.95–1.08 for 98 % of the texels at 256² (0.71–1.43 in all);
-/// the bound keeps a texel whose footprints are degenerate from gathering without limit.
-pub const ROW_SCALE_RANGE: (f64, f64) = (0.5, 2.0);
-
 /// A surface patch: one texel, or a cluster of texels at the coarse level.
 #[derive(Clone, Copy, Debug, serde::Serialize, serde::Deserialize)]
 pub struct Patch {
@@ -199,12 +177,6 @@ pub struct Patch {
     /// [`Kernels::normalise_subsurface`] (see the module docs, "Subsurface weights"); 1 until
     /// then, and for opaque patches.
     pub subsurface_scale: Vec3,
-    /// Per channel, the factor on this patch's subsurface weights as a receiver, set after the
-    /// sender scales by [`Kernels::normalise_subsurface`] (and the hierarchical walk's
-    /// normalisation) so that a texel gathers what the continuous surface gathers at its centre
-    /// under uniform light (module docs, "Subsurface weights"); 1 until then, for opaque
-    /// patches and for patches without a footprint.
-    pub subsurface_row: Vec3,
     /// A texel's footprint ([`crate::bake::texels::Texel::footprint_m`]): the profile is
     /// integrated over it as a sender (module docs, "Subsurface weights"), and its form factors
     /// are collocated at its centre ([`form_factor`]). `None` for clusters and tree nodes,
@@ -238,7 +210,6 @@ pub fn texel_patches(grid: &TexelGrid) -> Vec<Patch> {
             rho: t.albedo,
             material: t.material,
             subsurface_scale: Vec3::ONE,
-            subsurface_row: Vec3::ONE,
             footprint_m: Some(t.footprint_m),
         })
         .collect()
@@ -362,7 +333,7 @@ impl Kernels {
     #[inline]
     pub fn subsurface(&self, a: &Patch, b: &Patch, self_pair: bool) -> Option<[f64; 3]> {
         let s = self.subsurface_raw(a, b, self_pair)?;
-        let k = b.subsurface_scale * a.subsurface_row;
+        let k = b.subsurface_scale;
         Some([s[0] * k.x as f64, s[1] * k.y as f64, s[2] * k.z as f64])
     }
 
@@ -423,31 +394,22 @@ impl Kernels {
         patches: &[Patch],
         progress: &SetupProgress,
     ) -> Result<Vec<[f64; 3]>, Cancelled> {
-        Ok(self.reemission(patches, progress, false, None)?.0)
+        Ok(self.reemission(patches, progress, false)?.0)
     }
 
     /// `Q_j` of every patch ([`Kernels::subsurface_reemission`]) and, with `keep_near`, the
     /// raw weights of the texel pairs integrated in polar form ([`NearWeights`]; empty without).
-    ///
-    /// With `known` (the near pairs' raw weights from an earlier pass), each receiver's weight
-    /// is taken times its receiver scale ([`Patch::subsurface_row`]) and the near pairs are read
-    /// from `known` instead of integrated again: the column sums after the receiver scales.
     fn reemission(
         &self,
         patches: &[Patch],
         progress: &SetupProgress,
         keep_near: bool,
-        known: Option<&NearWeights>,
     ) -> Result<(Vec<[f64; 3]>, NearWeights), Cancelled> {
         let cell = self.support_m.iter().copied().fold(0.0f64, f64::max);
         if cell <= 0.0 || !patches.iter().any(|p| self.is_translucent(p.material)) {
             return Ok((vec![[0.0; 3]; patches.len()], NearWeights::default()));
         }
-        let phase = match known {
-            Some(_) => "transport: subsurface columns",
-            None => "transport: subsurface weights",
-        };
-        progress.phase(phase, patches.len() as u64);
+        progress.phase("transport: subsurface weights", patches.len() as u64);
         let grid = SupportGrid::new(patches, self);
         type Near = Vec<(u32, [f32; 3])>;
         let per_sender: Vec<([f64; 3], Near)> = patches
@@ -465,13 +427,7 @@ impl Kernels {
                 let inv_area = 1.0 / b.area_m2 as f64;
                 grid.for_each_near(b.position_m, |i| {
                     let a = &patches[i as usize];
-                    let raw = match known {
-                        Some(k) => k
-                            .get(i, j as u32)
-                            .or_else(|| self.subsurface_raw(a, b, i as usize == j)),
-                        None => self.subsurface_raw(a, b, i as usize == j),
-                    };
-                    if let Some(s) = raw {
+                    if let Some(s) = self.subsurface_raw(a, b, i as usize == j) {
                         if keep_near
                             && b.footprint_m
                                 .is_some_and(|f| footprint::is_near(a.position_m, b.position_m, f))
@@ -479,13 +435,8 @@ impl Kernels {
                             near.push((i, s.map(|x| x as f32)));
                         }
                         let w = a.area_m2 as f64 * inv_area;
-                        let row = if known.is_some() {
-                            a.subsurface_row
-                        } else {
-                            Vec3::ONE
-                        };
                         for c in 0..3 {
-                            q[c] += s[c] * w * row[c] as f64;
+                            q[c] += s[c] * w;
                         }
                     }
                 });
@@ -515,8 +466,8 @@ impl Kernels {
         patches: &mut [Patch],
         progress: &SetupProgress,
     ) -> Result<usize, Cancelled> {
-        self.normalise_pairwise(patches, progress)
-            .map(|(scaled, _)| scaled)
+        let q = self.subsurface_reemission_with(patches, progress)?;
+        self.scale_subsurface_with(patches, &q, progress)
     }
 
     /// [`Kernels::normalise_subsurface_with`] that also returns the raw weights of the texel
@@ -527,105 +478,9 @@ impl Kernels {
         patches: &mut [Patch],
         progress: &SetupProgress,
     ) -> Result<NearWeights, Cancelled> {
-        self.normalise_pairwise(patches, progress)
-            .map(|(_, near)| near)
-    }
-
-    /// The sender scales from every pair's re-emission, then the receiver scales from every
-    /// pair's gathered weight (module docs, "Subsurface weights"); the number of patches
-    /// scaled as senders, and the near pairs' raw weights.
-    fn normalise_pairwise(
-        &self,
-        patches: &mut [Patch],
-        progress: &SetupProgress,
-    ) -> Result<(usize, NearWeights), Cancelled> {
-        for p in patches.iter_mut() {
-            p.subsurface_row = Vec3::ONE;
-        }
-        let (q, near) = self.reemission(patches, progress, true, None)?;
-        let (mut scaled, caps) = self.scale_columns(patches, &q, progress)?;
-        if self.rows_apply(patches) {
-            let gathered = self.gathered_pairwise(patches, &near, progress)?;
-            self.scale_rows(patches, &caps, &gathered);
-            let (q, _) = self.reemission(patches, progress, false, Some(&near))?;
-            scaled = self.cap_columns(patches, &caps, &q);
-        }
-        Ok((scaled, near))
-    }
-
-    /// True when the receiver scales apply: the continuous surface is known
-    /// ([`Kernels::new`]) and some texel of `patches` is translucent.
-    pub(crate) fn rows_apply(&self, patches: &[Patch]) -> bool {
-        self.surface.is_some()
-            && (patches.iter()).any(|p| p.footprint_m.is_some() && self.is_translucent(p.material))
-    }
-
-    /// Per texel, `G_i = Σ_j S_ij^raw k_j` per channel: what it gathers under uniform
-    /// irradiance with the sender scales `k_j` set (0 for opaque patches and patches without a
-    /// footprint). Reports "transport: subsurface rows".
-    fn gathered_pairwise(
-        &self,
-        patches: &[Patch],
-        near: &NearWeights,
-        progress: &SetupProgress,
-    ) -> Result<Vec<[f64; 3]>, Cancelled> {
-        let n = patches.len();
-        progress.phase("transport: subsurface rows", n as u64);
-        let grid = SupportGrid::new(patches, self);
-        let g = (0..n)
-            .into_par_iter()
-            .map(|i| {
-                if i % 1024 == 0 {
-                    progress.advance(1024.min(n - i) as u64);
-                }
-                let mut g = [0.0f64; 3];
-                let a = &patches[i];
-                if a.footprint_m.is_none()
-                    || !self.is_translucent(a.material)
-                    || progress.check().is_err()
-                {
-                    return g;
-                }
-                grid.for_each_near(a.position_m, |j| {
-                    let b = &patches[j as usize];
-                    let raw = near
-                        .get(i as u32, j)
-                        .or_else(|| self.subsurface_raw(a, b, i == j as usize));
-                    if let Some(w) = raw {
-                        for c in 0..3 {
-                            g[c] += w[c] * b.subsurface_scale[c] as f64;
-                        }
-                    }
-                });
-                g
-            })
-            .collect();
-        progress.check()?;
-        Ok(g)
-    }
-
-    /// Sets every translucent texel's [`Patch::subsurface_row`] to `Q̂_i / G_i` per channel,
-    /// within [`ROW_SCALE_RANGE`]: `caps` the continuous surface's `Q̂` (from
-    /// [`Kernels::scale_subsurface_with`]'s pass), `gathered` the `G_i` of the weights with
-    /// the sender scales set. Patches without a footprint keep 1.
-    pub(crate) fn scale_rows(
-        &self,
-        patches: &mut [Patch],
-        caps: &[[f64; 3]],
-        gathered: &[[f64; 3]],
-    ) {
-        let (lo, hi) = ROW_SCALE_RANGE;
-        for ((p, cap), g) in patches.iter_mut().zip(caps).zip(gathered) {
-            p.subsurface_row = Vec3::ONE;
-            if p.footprint_m.is_none() || !self.is_translucent(p.material) {
-                continue;
-            }
-            for c in 0..3 {
-                if g[c] > 0.0 && cap[c] > 0.0 {
-                    p.subsurface_row[c] = (cap[c] / g[c]).clamp(lo, hi) as f32;
-                }
-            }
-        }
+        let (q, near) = self.reemission(patches, progress, true)?;
+        self.scale_subsurface_with(patches, &q, progress)?;
+        Ok(near)
     }
 
     /// Sets every patch's [`Patch::subsurface_scale`] to `min(1, Q̂_j / Q_j)` per channel from its
@@ -647,18 +502,6 @@ impl Kernels {
         q: &[[f64; 3]],
         progress: &SetupProgress,
     ) -> Result<usize, Cancelled> {
-        self.scale_columns(patches, q, progress)
-            .map(|(scaled, _)| scaled)
-    }
-
-    /// [`Kernels::scale_subsurface_with`], also returning each patch's `Q̂` (the cap; 0 for
-    /// opaque patches), which the receiver scales reuse ([`Kernels::scale_rows`]).
-    pub(crate) fn scale_columns(
-        &self,
-        patches: &mut [Patch],
-        q: &[[f64; 3]],
-        progress: &SetupProgress,
-    ) -> Result<(usize, Vec<[f64; 3]>), Cancelled> {
         let n = patches.len();
         // Only texels of a scene's translucent surface ask for the continuous surface's
         // integral; every other patch is scaled at once, unreported.
@@ -671,7 +514,7 @@ impl Kernels {
         } else {
             &none
         };
-        let (scaled, caps): (Vec<usize>, Vec<[f64; 3]>) = patches
+        let scaled = patches
             .par_iter_mut()
             .zip(q)
             .enumerate()
@@ -680,12 +523,12 @@ impl Kernels {
                     progress.advance(4096.min(n - j) as u64);
                 }
                 if progress.check().is_err() {
-                    return (0, [0.0; 3]);
+                    return 0;
                 }
                 p.subsurface_scale = Vec3::ONE;
                 let m = p.material as usize;
                 let Some(profile) = self.profiles[m].as_ref() else {
-                    return (0, [0.0; 3]);
+                    return 0;
                 };
                 let cap = match (&self.surface, &self.tables[m], p.footprint_m) {
                     (Some(s), Some(table), Some(_)) => {
@@ -698,37 +541,11 @@ impl Kernels {
                         p.subsurface_scale[c] = (cap[c] / q[c]) as f32;
                     }
                 }
-                (usize::from(p.subsurface_scale != Vec3::ONE), cap)
+                usize::from(p.subsurface_scale != Vec3::ONE)
             })
-            .unzip();
+            .sum();
         progress.check()?;
-        Ok((scaled.into_iter().sum(), caps))
-    }
-
-    /// Lowers every translucent patch's [`Patch::subsurface_scale`] `k_j` to
-    /// `min(k_j, Q̂_j / Q_j')` per channel, from its cap `caps[j]` (`Q̂_j`) and its column sum
-    /// `q[j]` of the raw weights times the receivers' scales (`Q_j'`): its column, scales
-    /// included, re-emits at most `Q̂_j`, and no scale rises, so no row gathers more than
-    /// before. Returns the number of patches scaled in some channel.
-    pub(crate) fn cap_columns(
-        &self,
-        patches: &mut [Patch],
-        caps: &[[f64; 3]],
-        q: &[[f64; 3]],
-    ) -> usize {
-        let mut scaled = 0;
-        for ((p, cap), q) in patches.iter_mut().zip(caps).zip(q) {
-            if !self.is_translucent(p.material) {
-                continue;
-            }
-            for c in 0..3 {
-                if q[c] * p.subsurface_scale[c] as f64 > cap[c] {
-                    p.subsurface_scale[c] = (cap[c] / q[c]) as f32;
-                }
-            }
-            scaled += usize::from(p.subsurface_scale != Vec3::ONE);
-        }
-        scaled
+        Ok(scaled)
     }
 
     /// True when material `m` scatters under the surface.
@@ -766,7 +583,7 @@ impl Kernels {
     ) -> [f64; 3] {
         let mut out = [0.0f64; 3];
         let scaled = |s: [f64; 3]| {
-            let k = b.subsurface_scale * a.subsurface_row;
+            let k = b.subsurface_scale;
             [s[0] * k.x as f64, s[1] * k.y as f64, s[2] * k.z as f64]
         };
         if self.is_translucent(a.material)
@@ -920,7 +737,7 @@ impl SupportGrid {
 /// First bytes of [`Transport::to_bytes`].
 const TRANSPORT_MAGIC: &[u8; 8] = b"ORTMTRNS";
 /// Version of [`Transport::to_bytes`]'s layout (the serde form of its parts, postcard-encoded).
-const TRANSPORT_VERSION: u32 = 2;
+const TRANSPORT_VERSION: u32 = 1;
 
 /// Evaluates `R(t, t')` for any pair of covered texels of a lightmap (see the module docs).
 pub struct Transport {
@@ -1167,7 +984,6 @@ mod tests {
                     rho: Vec3::ONE,
                     material: 0,
                     subsurface_scale: Vec3::ONE,
-                    subsurface_row: Vec3::ONE,
                     footprint_m: None,
                 });
             }

@@ -67,7 +67,6 @@ impl SurfaceReemission {
                     rho: Vec3::ONE,
                     material: *m,
                     subsurface_scale: Vec3::ONE,
-                    subsurface_row: Vec3::ONE,
                     footprint_m: None,
                 }
             })

@@ -39,12 +39,7 @@
 //!   symmetric; only that weight is integrated). Then the same per-channel scale as
 //!   [`Kernels::normalise_subsurface`] ([`Kernels::scale_subsurface`]). The texel pairs it
 //!   integrated in polar form (the costly near ones, [`NearWeights`]) are kept, and later
-//!   walks read a single texel's weight from them instead of integrating it again. Then the
-//!   receiver scales (`Kernels::scale_rows`, module docs of [`super::super`]): a walk from
-//!   each texel sums `G_i` (each visit's profile value times `Σ_{j∈s} A_j k_j`), and a second
-//!   walk from each sender its column sum with the receivers' scales (a node's
-//!   `Σ_{i∈s} A_i r_i`) for the sender caps once more. [`SubsurfaceWalk::walk`] hands its
-//!   visits the receiver's scale applied.
+//!   walks read a single texel's weight from them instead of integrating it again.
 //! - The bake's cell integration ([`crate::bake::cells`]): a visit adds
 //!   `R·W_s` to the receiver's transfer, `W_s = Σ_{j ∈ s} A_j k_j / ρ_j` per channel
 //!   ([`SubsurfaceWalk::weight`]; `k_j` the sender scale, `ρ_j` its albedo), and the self visit
@@ -300,11 +295,7 @@ impl SubsurfaceWalk {
         let leaf = |j: usize, a: &Patch, b: &Patch| {
             (self.near.get(i as u32, j as u32)).or_else(|| kernels.subsurface_raw(a, b, i == j))
         };
-        let row = patches[i].subsurface_row;
-        let mut visit = visit;
-        self.walk_with(tree, patches, kernels, i, leaf, |s, rd, me| {
-            visit(s, [0, 1, 2].map(|c| rd[c] * row[c] as f64), me)
-        });
+        self.walk_with(tree, patches, kernels, i, leaf, visit);
     }
 
     /// [`SubsurfaceWalk::walk`] with the raw weight of a single texel `j` (patch `b`) seen
@@ -361,166 +352,60 @@ impl SubsurfaceWalk {
         kernels: &Kernels,
         progress: &SetupProgress,
     ) -> Result<usize, Cancelled> {
-        for p in patches.iter_mut() {
-            p.subsurface_row = Vec3::ONE;
-        }
-        let (q, near) = self.columns(tree, patches, kernels, progress, false)?;
-        let (mut scaled, caps) = kernels.scale_columns(patches, &q, progress)?;
-        self.set_weights(tree, patches);
-        self.near = near;
-        if kernels.rows_apply(patches) {
-            let gathered = self.gathered(tree, patches, kernels, progress)?;
-            kernels.scale_rows(patches, &caps, &gathered);
-            let (q, _) = self.columns(tree, patches, kernels, progress, true)?;
-            scaled = kernels.cap_columns(patches, &caps, &q);
-            self.set_weights(tree, patches);
-        }
-        Ok(scaled)
-    }
-
-    /// Per patch `j`, its column sum `Q_j = Σ_i S_ij^raw A_i / A_j` per channel as the walk
-    /// from `j` sums it, and the near pairs' raw weights it integrated ([`NearWeights`]). With
-    /// `rows`, each receiver counts times its receiver scale ([`Patch::subsurface_row`]; a node,
-    /// `Σ_{i∈s} A_i r_i`) and the near pairs are read from the weights kept by the first pass
-    /// (none are returned): the column sums after the receiver scales. Reports "transport:
-    /// subsurface weights" (or "… columns" with `rows`).
-    fn columns(
-        &self,
-        tree: &Tree,
-        patches: &[Patch],
-        kernels: &Kernels,
-        progress: &SetupProgress,
-        rows: bool,
-    ) -> Result<(Vec<[f64; 3]>, NearWeights), Cancelled> {
-        let nodes = &tree.nodes;
-        let mut node_weight = vec![[0.0f64; 3]; nodes.len()];
-        for id in (0..nodes.len()).rev() {
-            let n = &nodes[id];
-            node_weight[id] = if !rows {
-                [n.area_m2 as f64; 3]
-            } else if n.is_leaf() {
-                let p = &patches[tree.order[n.first as usize] as usize];
-                [0, 1, 2].map(|c| p.area_m2 as f64 * p.subsurface_row[c] as f64)
-            } else {
-                let [a, b] = n.children.map(|c| node_weight[c as usize]);
-                [0, 1, 2].map(|c| a[c] + b[c])
-            };
-        }
-        let phase = if rows {
-            "transport: subsurface columns"
-        } else {
-            "transport: subsurface weights"
-        };
-        progress.phase(phase, patches.len() as u64);
+        progress.phase("transport: subsurface weights", patches.len() as u64);
         type Near = Vec<(u32, [f32; 3])>;
-        let per_sender: Vec<([f64; 3], Near)> = (0..patches.len())
-            .into_par_iter()
-            .map(|j| {
-                if j % 4096 == 0 {
-                    progress.advance(4096.min(patches.len() - j) as u64);
-                }
-                let (mut q, mut q_texels) = ([0.0f64; 3], [0.0f64; 3]);
-                let mut near: Near = Vec::new();
-                if progress.check().is_err() {
-                    return (q, near);
-                }
-                let b = &patches[j];
-                let inv_area = 1.0 / b.area_m2.max(f32::MIN_POSITIVE) as f64;
-                // A texel `i` beside a sender with a footprint: its weight as the receiver
-                // of `j` (the footprint rule is not symmetric in the pair), summed here;
-                // the walk's own weight (`j` seen from `i`) is not needed.
-                let leaf = |i: usize, walker: &Patch, a: &Patch| {
-                    let Some(f) = walker.footprint_m else {
-                        return kernels.subsurface_raw(walker, a, i == j);
-                    };
-                    let raw = if rows {
-                        (self.near.get(i as u32, j as u32))
-                            .or_else(|| kernels.subsurface_raw(a, walker, i == j))
-                    } else {
-                        kernels.subsurface_raw(a, walker, i == j)
-                    };
-                    if let Some(w) = raw {
-                        if !rows && footprint::is_near(a.position_m, walker.position_m, f) {
-                            near.push((i as u32, w.map(|x| x as f32)));
+        let per_sender: Vec<([f64; 3], Near)> = {
+            let patches: &[Patch] = patches;
+            (0..patches.len())
+                .into_par_iter()
+                .map(|j| {
+                    if j % 4096 == 0 {
+                        progress.advance(4096.min(patches.len() - j) as u64);
+                    }
+                    let (mut q, mut q_texels) = ([0.0f64; 3], [0.0f64; 3]);
+                    let mut near: Near = Vec::new();
+                    if progress.check().is_err() {
+                        return (q, near);
+                    }
+                    let b = &patches[j];
+                    let inv_area = 1.0 / b.area_m2.max(f32::MIN_POSITIVE) as f64;
+                    // A texel `i` beside a sender with a footprint: its weight as the receiver
+                    // of `j` (the footprint rule is not symmetric in the pair), summed here;
+                    // the walk's own weight (`j` seen from `i`) is not needed.
+                    let leaf = |i: usize, walker: &Patch, a: &Patch| {
+                        let Some(f) = walker.footprint_m else {
+                            return kernels.subsurface_raw(walker, a, i == j);
+                        };
+                        if let Some(w) = kernels.subsurface_raw(a, walker, i == j) {
+                            if footprint::is_near(a.position_m, walker.position_m, f) {
+                                near.push((i as u32, w.map(|x| x as f32)));
+                            }
+                            for c in 0..3 {
+                                q_texels[c] += w[c] * a.area_m2 as f64 * inv_area;
+                            }
                         }
-                        let row = if rows { a.subsurface_row } else { Vec3::ONE };
+                        None
+                    };
+                    self.walk_with(tree, patches, kernels, j, leaf, |s, rd, _| {
+                        let area = tree.nodes[s as usize].area_m2 as f64;
                         for c in 0..3 {
-                            q_texels[c] += w[c] * a.area_m2 as f64 * inv_area * row[c] as f64;
+                            q[c] += rd[c] * area;
                         }
-                    }
-                    None
-                };
-                self.walk_with(tree, patches, kernels, j, leaf, |s, rd, _| {
-                    let w = node_weight[s as usize];
+                    });
                     for c in 0..3 {
-                        q[c] += rd[c] * w[c];
+                        q[c] += q_texels[c];
                     }
-                });
-                for c in 0..3 {
-                    q[c] += q_texels[c];
-                }
-                (q, near)
-            })
-            .collect();
+                    (q, near)
+                })
+                .collect()
+        };
         progress.check()?;
         let near = NearWeights::by_receiver(patches.len(), per_sender.iter().map(|(_, n)| n));
-        Ok((per_sender.into_iter().map(|(q, _)| q).collect(), near))
-    }
-
-    /// Per texel, `G_i = Σ_j S_ij^raw k_j` per channel as the walk sums it (each visited
-    /// node's profile value times `Σ_{j∈s} A_j k_j`; 0 for opaque texels and patches without a
-    /// footprint), for the receiver scales ([`Kernels::scale_rows`]). Reports "transport:
-    /// subsurface rows".
-    fn gathered(
-        &self,
-        tree: &Tree,
-        patches: &[Patch],
-        kernels: &Kernels,
-        progress: &SetupProgress,
-    ) -> Result<Vec<[f64; 3]>, Cancelled> {
-        let nodes = &tree.nodes;
-        let mut scaled_area = vec![[0.0f64; 3]; nodes.len()];
-        for id in (0..nodes.len()).rev() {
-            let n = &nodes[id];
-            scaled_area[id] = if n.is_leaf() {
-                let p = &patches[tree.order[n.first as usize] as usize];
-                [0, 1, 2].map(|c| p.area_m2 as f64 * p.subsurface_scale[c] as f64)
-            } else {
-                let [a, b] = n.children.map(|c| scaled_area[c as usize]);
-                [0, 1, 2].map(|c| a[c] + b[c])
-            };
-        }
-        let n = patches.len();
-        progress.phase("transport: subsurface rows", n as u64);
-        let g = (0..n)
-            .into_par_iter()
-            .map(|i| {
-                if i % 4096 == 0 {
-                    progress.advance(4096.min(n - i) as u64);
-                }
-                let mut g = [0.0f64; 3];
-                let a = &patches[i];
-                if a.footprint_m.is_none()
-                    || !kernels.is_translucent(a.material)
-                    || progress.check().is_err()
-                {
-                    return g;
-                }
-                let leaf = |j: usize, a: &Patch, b: &Patch| {
-                    (self.near.get(i as u32, j as u32))
-                        .or_else(|| kernels.subsurface_raw(a, b, i == j))
-                };
-                self.walk_with(tree, patches, kernels, i, leaf, |s, rd, _| {
-                    let w = scaled_area[s as usize];
-                    for c in 0..3 {
-                        g[c] += rd[c] * w[c];
-                    }
-                });
-                g
-            })
-            .collect();
-        progress.check()?;
-        Ok(g)
+        let q: Vec<[f64; 3]> = per_sender.into_iter().map(|(q, _)| q).collect();
+        let scaled = kernels.scale_subsurface_with(patches, &q, progress)?;
+        self.set_weights(tree, patches);
+        self.near = near;
+        Ok(scaled)
     }
 }
 
@@ -554,7 +439,6 @@ mod tests {
                     rho: Vec3::new(0.8, 0.5, 0.4),
                     material: u32::from(x >= 3 * n / 4),
                     subsurface_scale: Vec3::ONE,
-                    subsurface_row: Vec3::ONE,
                     footprint_m: footprints.then(|| {
                         let side = pitch * (1.0 + 0.3 * fx).sqrt();
                         [Vec3::X * side, Vec3::Y * side]
@@ -769,134 +653,5 @@ mod tests {
             .map(|p| (p.area_m2 * p.subsurface_scale.x / p.rho.x) as f64)
             .sum();
         assert!((root[0] as f64 - sum).abs() < 1e-4 * sum);
-    }
-
-    /// The sheet of [`sheet`] as a triangle mesh through its texel centres, materials as the
-    /// texels': the continuous surface whose re-emission `Q̂` the scales are held to.
-    fn sheet_mesh(n: usize, pitch: f32) -> crate::scene::Mesh {
-        use crate::scene::{Mesh, MeshTriangle};
-        let patches = sheet(n, pitch, true);
-        let positions_m: Vec<Vec3> = patches.iter().map(|p| p.position_m).collect();
-        let mut triangles = Vec::new();
-        for y in 0..n - 1 {
-            for x in 0..n - 1 {
-                let v = |dx: usize, dy: usize| ((y + dy) * n + x + dx) as u32;
-                let material = u32::from(x >= 3 * n / 4);
-                for position in [[v(0, 0), v(1, 0), v(1, 1)], [v(0, 0), v(1, 1), v(0, 1)]] {
-                    triangles.push(MeshTriangle {
-                        position,
-                        uv: position,
-                        normal: position,
-                        material,
-                    });
-                }
-            }
-        }
-        Mesh {
-            uvs: vec![glam::Vec2::ZERO; positions_m.len()],
-            normals: vec![Vec3::Z; positions_m.len()],
-            positions_m,
-            triangles,
-        }
-    }
-
-    /// With the continuous surface known, every texel gathers what it gathers at its centre
-    /// under uniform light — `Σ_j S_ij = Q̂_i` — up to what the second sender cap takes, where
-    /// the sender caps alone leave the rows off by the footprints' misfit on the curved,
-    /// unevenly stretched sheet; and the walk sets the same receiver and sender scales as the
-    /// pairwise normalisation.
-    #[test]
-    fn texels_gather_what_the_continuous_surface_does() {
-        let (n, pitch) = (32, 2e-3);
-        let mut k = kernels();
-        k.surface = Some(crate::bake::transport::surface::SurfaceReemission::new(
-            &sheet_mesh(n, pitch),
-            |_| true,
-        ));
-        let patches = sheet(n, pitch, true);
-        let mut exact = patches.clone();
-        k.normalise_subsurface(&mut exact);
-        let rows_set = exact
-            .iter()
-            .filter(|p| (p.subsurface_row - Vec3::ONE).abs().max_element() > 1e-3)
-            .count();
-        assert!(
-            rows_set > n * n / 4,
-            "{rows_set} texels have a receiver scale"
-        );
-        // `Σ_j S_ij` against `Q̂_i`, relative, per texel and channel: with both scales, and with
-        // the sender caps alone (receiver scales reset, sender caps of the pass without rows).
-        let mut caps_only = patches.clone();
-        let q = k.subsurface_reemission(&caps_only);
-        k.scale_subsurface(&mut caps_only, &q);
-        // The mesh ends at the border texels' centres, their footprints half a texel beyond:
-        // there `G_i` reaches 2–4 × `Q̂_i` and the receiver scale stops at its range
-        // (`ROW_SCALE_RANGE`), on the border only.
-        let (lo, hi) = crate::bake::transport::ROW_SCALE_RANGE;
-        let clamped = |p: &Patch| {
-            (p.subsurface_row.to_array().iter()).any(|&r| r as f64 <= lo || r as f64 >= hi)
-        };
-        for (i, p) in exact.iter().enumerate() {
-            let (x, y) = (i % n, i / n);
-            let border = x == 0 || y == 0 || x == n - 1 || y == n - 1;
-            assert!(!clamped(p) || border, "texel ({x}, {y}) at the range's end");
-        }
-        let misfit = |ps: &[Patch]| -> (f64, f64) {
-            let (mut sq, mut above, mut count) = (0.0f64, 0.0f64, 0usize);
-            for (i, a) in ps.iter().enumerate() {
-                if clamped(&exact[i]) {
-                    continue;
-                }
-                let m = a.material as usize;
-                let table = k.tables[m].as_ref().unwrap();
-                let cap = (k.surface.as_ref().unwrap()).at(
-                    table,
-                    a.material,
-                    a.position_m,
-                    k.support_m[m],
-                );
-                let mut g = [0.0f64; 3];
-                for (j, b) in ps.iter().enumerate() {
-                    if let Some(s) = k.subsurface(a, b, i == j) {
-                        for c in 0..3 {
-                            g[c] += s[c];
-                        }
-                    }
-                }
-                for c in 0..3 {
-                    let r = g[c] / cap[c] - 1.0;
-                    sq += r * r;
-                    above = above.max(r);
-                    count += 1;
-                }
-            }
-            ((sq / count as f64).sqrt(), above)
-        };
-        let (rms_both, above_both) = misfit(&exact);
-        let (rms_caps, _) = misfit(&caps_only);
-        println!(
-            "Σ_j S_ij / Q̂_i − 1: RMS {rms_both:.5} with receiver scales (largest {above_both:.2e}), {rms_caps:.5} with sender caps alone"
-        );
-        assert!(
-            above_both < 1e-5,
-            "a texel gathers more than the continuous surface"
-        );
-        assert!(rms_both < 0.25 * rms_caps, "{rms_both} against {rms_caps}");
-
-        let tree = Tree::build(&patches);
-        let mut walked = patches.clone();
-        let mut walk = SubsurfaceWalk::new(&tree, &walked, 0.0);
-        walk.normalise(&tree, &mut walked, &k, &SetupProgress::none())
-            .unwrap();
-        for (a, b) in exact.iter().zip(&walked) {
-            let rows = (a.subsurface_row - b.subsurface_row).abs().max_element();
-            let cols = (a.subsurface_scale - b.subsurface_scale)
-                .abs()
-                .max_element();
-            assert!(
-                rows < 1e-5 && cols < 1e-5,
-                "walk against pairs: rows {rows}, senders {cols}"
-            );
-        }
     }
 }
