@@ -1,7 +1,9 @@
-//! `ortm solve SCENE [--effects radiosity,sss] -o DIR`: the global-illumination solve `B = B_o + R·B_o` of a lightmap with
-//! the scene's lights (or `--light` ones, as `ortm render` takes them); writes the first-order,
-//! final and indirect lightmaps as linear OpenEXR (W/m², the inputs of `ortm compare`) and as
-//! tone-mapped PNGs, and prints energy figures.
+//! `ortm solve SCENE [--effects radiosity,sss] -o DIR`: the global-illumination solve
+//! `B = B_o + R·B_o` of a lightmap with the scene's lights (or `--light` ones, as `ortm render`
+//! takes them) and the effects asked for (both by default; one alone splits an error against
+//! `ortm reference --effects` by effect); writes the first-order, final and indirect lightmaps
+//! as linear OpenEXR (W/m², the inputs of `ortm compare`) and as tone-mapped PNGs, and prints
+//! energy figures.
 //!
 //! `--method dense` is the exact dense solve (up to [`MAX_DENSE_TEXELS`] covered texels: memory
 //! n², time n³); `--method hierarchical` the hierarchical operator
