@@ -432,6 +432,64 @@ fn solve_effects_select_the_transport_terms() {
 }
 
 #[test]
+fn solve_first_order_samples_average_the_transfer_input() {
+    // `ortm solve --first-order-samples 3`: the written first order stays the centres' values,
+    // the final changes (the Cornell box's lamp sits 2 cm under the ceiling, so the ceiling's
+    // texels beside it send far more light averaged over their squares than at their centres),
+    // and an even or too large N is refused with the rule.
+    let dir = tempfile::tempdir().unwrap();
+    for (out, n) in [("one", "1"), ("three", "3")] {
+        ok(ortm(
+            &[
+                "solve",
+                "cornell",
+                "--size",
+                "32",
+                "-o",
+                out,
+                "--first-order-samples",
+                n,
+            ],
+            dir.path(),
+        ));
+    }
+    let read = |out: &str, n: &str| read_lightmap_exr(&dir.path().join(out).join(n)).unwrap();
+    assert_eq!(
+        read("one", "first_order.exr").data,
+        read("three", "first_order.exr").data
+    );
+    let sum = |out: &str| -> f64 {
+        (read(out, "indirect.exr").data.iter())
+            .map(|v| v[0] as f64)
+            .sum()
+    };
+    let (one, three) = (sum("one"), sum("three"));
+    assert!(
+        three > 1.05 * one,
+        "indirect light, centres {one:.1} vs averaged {three:.1}"
+    );
+    for bad in ["2", "9"] {
+        let text = fails(ortm(
+            &[
+                "solve",
+                "cornell",
+                "--size",
+                "32",
+                "-o",
+                "x",
+                "--first-order-samples",
+                bad,
+            ],
+            dir.path(),
+        ));
+        assert!(
+            text.contains(&format!("--first-order-samples {bad}: must be odd, 1 to 7")),
+            "{text}"
+        );
+    }
+}
+
+#[test]
 fn bad_inputs_are_refused_naming_the_file() {
     let dir = tempfile::tempdir().unwrap();
     let grid = cornell_grid(32);

@@ -10,6 +10,16 @@
 //! ([`ortm::bake::transport::hier`], error tolerance `--tolerance`) at any size; `auto` (the
 //! default) takes the dense solve where it fits. Progress bars for every phase; Ctrl-C stops
 //! between steps and writes nothing.
+//!
+//! `--first-order-samples N` (odd) feeds the transfer the first-order light averaged over each
+//! texel's square from N×N sub-texels ([`lighting::first_order_averaged`]) instead of its
+//! value at the texel's centre: a sender half in shadow then sends half its light, where the
+//! centre's value sends all or none. The written first order stays the centres' (what a
+//! reference's first order is); an opaque texel's final is its centre's first order plus the
+//! transfer of the averaged light, a translucent texel's the scattered averaged light. It
+//! measures how much of an error against `ortm reference` comes from sampling the first
+//! order at the centres (README, *Transport model*); the bake and the renderer still take it
+//! there.
 
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -32,6 +42,10 @@ use ortm::scene::light::{LIGHT_SYNTAX, parse_light};
 use super::progress::Progress;
 
 use ortm::bake::transport::dense::MAX_TEXELS as MAX_DENSE_TEXELS;
+
+/// The largest `--first-order-samples` (the sub-texel grid holds N² times the lightmap's
+/// texels).
+const MAX_FIRST_ORDER_SAMPLES: u32 = 7;
 
 /// Arguments of `ortm solve`.
 #[derive(clap::Args, Debug)]
@@ -59,6 +73,10 @@ pub struct Args {
     /// Effects: comma-separated `radiosity`, `sss` (as `ortm bake`).
     #[arg(long, default_value = "radiosity,sss")]
     effects: String,
+    /// The transfer's input: the first-order light averaged over each texel's square from
+    /// N×N sub-texels (odd N); 1 takes it at the texel centres.
+    #[arg(long, default_value_t = 1)]
+    first_order_samples: u32,
 }
 
 /// `--method`.
@@ -72,6 +90,13 @@ enum Method {
 /// Runs `ortm solve`.
 pub fn run(a: Args) -> Result<()> {
     let effects = super::bake::parse_effects(&a.effects)?;
+    let n = a.first_order_samples;
+    if n.is_multiple_of(2) || n > MAX_FIRST_ORDER_SAMPLES {
+        bail!(
+            "--first-order-samples {n}: must be odd, 1 to {MAX_FIRST_ORDER_SAMPLES} (N×N \
+             sub-texels per texel, one at its centre); 3 is enough"
+        );
+    }
     let mut scene = super::load_scene(&a.scene, a.size)?;
     if !a.lights.is_empty() {
         scene.lights = a
@@ -117,6 +142,8 @@ pub fn run(a: Args) -> Result<()> {
     let kernels = Kernels::new(&scene, effects, vis.clone());
     let patches = texel_patches(&grid);
     let b_o = lighting::first_order(&grid, &scene.lights, &vis);
+    let b_in =
+        lighting::first_order_averaged(&scene, &grid, &scene.lights, &vis, a.first_order_samples)?;
     let bar = Mutex::new(Progress::hidden());
     let events = |e: BakeEvent| match e {
         BakeEvent::Phase { name, total } => {
@@ -134,7 +161,7 @@ pub fn run(a: Args) -> Result<()> {
             DenseTransport::build(&patches, &kernels, &progress).map_err(|_| interrupted())?;
         let t_assemble = t0.elapsed();
         (
-            dense.solve(&b_o),
+            dense.solve(&b_in),
             t_assemble,
             "exact dense solve".to_string(),
         )
@@ -160,7 +187,7 @@ pub fn run(a: Args) -> Result<()> {
         };
         let t_assemble = t0.elapsed();
         let sol = op
-            .solve(&b_o, &settings, &progress)
+            .solve(&b_in, &settings, &progress)
             .map_err(|_| interrupted())?;
         let how = format!(
             "hierarchical solve, ε = {:e}: {} links ({:.1} MB), {} sweeps (last change {:.1e})",
@@ -174,6 +201,18 @@ pub fn run(a: Args) -> Result<()> {
     };
     bar.lock().expect("progress lock").finish_and_clear();
     let t_total = t0.elapsed();
+    // With an averaged input, an opaque texel's own first order is still its centre's: its
+    // final is that plus the transfer of the averaged light. A translucent texel's final is
+    // the scattered light alone (its transfer holds `−B_in` at the texel itself), kept.
+    let b: Vec<glam::Vec3> = (b.iter().zip(&b_in).zip(&b_o).zip(&patches))
+        .map(|(((&b, &b_in), &b_o), p)| {
+            if kernels.is_translucent(p.material) {
+                b
+            } else {
+                b - b_in + b_o
+            }
+        })
+        .collect();
     let first = lighting::to_lightmap(&grid, &b_o);
     let fin = lighting::to_lightmap(&grid, &b);
     let indirect: Vec<_> = b.iter().zip(&b_o).map(|(x, y)| *x - *y).collect();
