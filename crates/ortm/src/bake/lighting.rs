@@ -198,6 +198,19 @@ pub fn from_lightmap(grid: &TexelGrid, map: &Lightmap) -> Vec<Vec3> {
 mod tests {
     use super::*;
 
+    fn lum(v: Vec3) -> f32 {
+        v.x + v.y + v.z
+    }
+
+    /// The summed channels of `values` at the covered 4-neighbours of `t`.
+    fn neighbours(grid: &TexelGrid, t: &Texel, values: &[Vec3]) -> Vec<f32> {
+        [(-1, 0), (1, 0), (0, -1), (0, 1)]
+            .iter()
+            .filter_map(|(dx, dy)| grid.at(t.x as i32 + dx, t.y as i32 + dy))
+            .map(|j| lum(values[j as usize]))
+            .collect()
+    }
+
     /// The Cornell box at 32² with its lamp: centre values, and the averages over 3×3
     /// sub-texels.
     fn cornell() -> (TexelGrid, Vec<Vec3>, Vec<Vec3>) {
@@ -216,19 +229,14 @@ mod tests {
 
     /// Where the light is smooth (the texel and its four neighbours lit, within 2× of each
     /// other) the average over the square is the centre's value to second order: within 3 %
-    /// (the lamp's `cos/d²` over a 3 cm texel); over the whole box the power differs by little.
+    /// (the lamp's `cos/d²` over a 3 cm texel).
     #[test]
     fn averaged_first_order_is_the_centre_value_where_the_light_is_smooth() {
         let (grid, centre, avg) = cornell();
-        let lum = |v: Vec3| v.x + v.y + v.z;
         let (mut smooth, mut worst) = (0, 0.0f32);
         for (i, t) in grid.texels.iter().enumerate() {
             let c = lum(centre[i]);
-            let n: Vec<f32> = [(-1, 0), (1, 0), (0, -1), (0, 1)]
-                .iter()
-                .filter_map(|(dx, dy)| grid.at(t.x as i32 + dx, t.y as i32 + dy))
-                .map(|j| lum(centre[j as usize]))
-                .collect();
+            let n = neighbours(&grid, t, &centre);
             if c <= 0.0 || n.len() < 4 || n.iter().any(|&v| v < 0.5 * c || v > 2.0 * c) {
                 continue;
             }
@@ -304,16 +312,11 @@ mod tests {
     #[test]
     fn averaged_first_order_sees_shadow_edges_within_a_texel() {
         let (grid, centre, avg) = cornell();
-        let lum = |v: Vec3| v.x + v.y + v.z;
         let (mut lit_in_dark, mut dark_in_lit) = (0, 0);
         for (i, t) in grid.texels.iter().enumerate() {
             let c = lum(centre[i]);
             let a = lum(avg[i]);
-            let n: Vec<f32> = [(-1, 0), (1, 0), (0, -1), (0, 1)]
-                .iter()
-                .filter_map(|(dx, dy)| grid.at(t.x as i32 + dx, t.y as i32 + dy))
-                .map(|j| lum(centre[j as usize]))
-                .collect();
+            let n = neighbours(&grid, t, &centre);
             let hi = n.iter().copied().fold(c, f32::max);
             if c == 0.0 && n.iter().any(|&v| v > 0.0) {
                 // No light from nowhere: a dark centre's square holds at most its brightest
