@@ -206,7 +206,8 @@ pub fn run(a: Args) -> Result<()> {
     // the scattered light alone (its transfer holds `−B_in` at the texel itself), kept.
     let b: Vec<glam::Vec3> = (b.iter().zip(&b_in).zip(&b_o).zip(&patches))
         .map(|(((&b, &b_in), &b_o), p)| {
-            if kernels.is_translucent(p.material) {
+            // (With N = 1 the input is the centres' first order: the final as it is.)
+            if n == 1 || kernels.is_translucent(p.material) {
                 b
             } else {
                 b - b_in + b_o
