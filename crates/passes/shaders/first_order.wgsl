@@ -10,6 +10,14 @@
 // fs_lightmap: (per frame, full-screen triangle) G-buffer position/normal of the texel; E
 //              summed over lights with shadows; out = (ρ·E, 1): alpha = 1 marks coverage,
 //              uncovered texels 0.
+// fs_lightmap_averaged: the same with SAMPLES×SAMPLES sub-texels per texel (odd SAMPLES; the
+//              G-buffer is SAMPLES× the lightmap's size and its normal.w holds each sub-texel's
+//              world area): location 1 (the transfer's input) = ρ × the area-weighted mean of
+//              E over the covered sub-texels; location 0 (the lightmap's first-order term) =
+//              ρ × mix(mean, E at the centre, albedo.a) — albedo.a = 1 on opaque texels (their
+//              own first order is the centre's, as the reference defines it), 0 on translucent
+//              ones (their light is the scattered mean). Coverage = the centre sub-texel's,
+//              which is the texel's centre (odd SAMPLES).
 //
 // Bindings (bind-group order = @binding order; must match `FirstOrderPass` in first_order.rs):
 //   group 0: 0 = Params (uniform), 1 = lights (uniform array), 2 = layer matrices (uniform
@@ -46,7 +54,9 @@ struct GbufferOut {
 fn fs_gbuffer(in: LightmapOut) -> GbufferOut {
     var out: GbufferOut;
     out.position = vec4<f32>(in.world, 1.0);
-    out.normal = vec4<f32>(in.normal, 0.0);
+    // The world area of this framebuffer pixel (a texel, or a sub-texel of the averaged
+    // pass): |∂P/∂x × ∂P/∂y|, constant over a triangle (P is affine in the pixel's position).
+    out.normal = vec4<f32>(in.normal, length(cross(dpdx(in.world), dpdy(in.world))));
     return out;
 }
 
@@ -79,4 +89,49 @@ fn fs_lightmap(@builtin(position) clip: vec4<f32>) -> @location(0) vec4<f32> {
     let n = normalize(load_gbuffer_normal(t).xyz);
     let e = shadowed_irradiance(world, n);
     return vec4<f32>(rho * e, 1.0);
+}
+
+// Sub-texels per texel side of `fs_lightmap_averaged` (substituted by the host; odd).
+const SAMPLES: i32 = SAMPLES_PER_SIDE;
+
+struct AveragedOut {
+    @location(0) first_order: vec4<f32>,
+    @location(1) transfer_input: vec4<f32>,
+}
+
+@fragment
+fn fs_lightmap_averaged(@builtin(position) clip: vec4<f32>) -> AveragedOut {
+    var out: AveragedOut;
+    let t = vec2<i32>(floor(clip.xy));
+    let base = t * SAMPLES;
+    let c = base + vec2<i32>(SAMPLES / 2);
+    let gc = load_gbuffer_position(c);
+    if (gc.w == 0.0) {
+        out.first_order = vec4<f32>(0.0);
+        out.transfer_input = vec4<f32>(0.0);
+        return out;
+    }
+    let centre = shadowed_irradiance(gc.xyz, normalize(load_gbuffer_normal(c).xyz));
+    var sum = vec3<f32>(0.0);
+    var area = 0.0;
+    for (var sy = 0; sy < SAMPLES; sy++) {
+        for (var sx = 0; sx < SAMPLES; sx++) {
+            let s = base + vec2<i32>(sx, sy);
+            let g = load_gbuffer_position(s);
+            if (g.w == 0.0) {
+                continue;
+            }
+            let nrm = load_gbuffer_normal(s);
+            sum += nrm.w * shadowed_irradiance(g.xyz, normalize(nrm.xyz));
+            area += nrm.w;
+        }
+    }
+    var mean = centre;
+    if (area > 0.0) {
+        mean = sum / area;
+    }
+    let albedo = load_albedo(t);
+    out.transfer_input = vec4<f32>(albedo.rgb * mean, 1.0);
+    out.first_order = vec4<f32>(albedo.rgb * mix(mean, centre, albedo.a), 1.0);
+    return out;
 }

@@ -89,7 +89,14 @@ pub struct FirstOrderOptions {
     /// How the lighting pass reads the albedo and G-buffer textures; `None` =
     /// [`Gpu::best_texel_reads`] (same values either way, see [`util::TexelReads`]).
     pub texel_reads: Option<util::TexelReads>,
+    /// Sub-texels per texel side (odd, 1–[`MAX_SAMPLES`]): with `N > 1` the transfer's input
+    /// is the first order averaged over each texel's square ("Averaged input" in the module
+    /// docs); 1 takes it at the centres.
+    pub samples: u32,
 }
+
+/// The largest [`FirstOrderOptions::samples`].
+pub const MAX_SAMPLES: u32 = 7;
 
 impl Default for FirstOrderOptions {
     fn default() -> Self {
@@ -99,6 +106,7 @@ impl Default for FirstOrderOptions {
             normal_offset_texels: 1.5,
             slope_bias: 2.0,
             texel_reads: None,
+            samples: 1,
         }
     }
 }
@@ -449,6 +457,8 @@ pub struct FirstOrderPass {
     shadow_layout: wgpu::BindGroupLayout,
     /// Shadow pipelines: `[both sides, back faces culled]`.
     shadow_pipelines: [wgpu::RenderPipeline; 2],
+    /// `fs_lightmap` (one target), or with `samples > 1` `fs_lightmap_averaged` (two: the
+    /// first order and the transfer's input).
     lightmap_pipeline: wgpu::RenderPipeline,
     gbuffer_pipeline: wgpu::RenderPipeline,
     sampler: wgpu::Sampler,
@@ -470,7 +480,12 @@ pub struct FirstOrderScene {
     shadow_cache: std::sync::Mutex<Option<Vec<[f32; 16]>>>,
     bind_group: wgpu::BindGroup,
     shadow_bind_group: wgpu::BindGroup,
+    /// The albedo texture (RGB ρ; alpha 1 on opaque texels, 0 on translucent ones) and the
+    /// values it holds.
+    albedo: (wgpu::Texture, Vec<[f32; 4]>),
     output: wgpu::Texture,
+    /// The transfer's input when it is averaged (`samples > 1`).
+    transfer_input: Option<wgpu::Texture>,
 }
 
 impl FirstOrderScene {
@@ -527,6 +542,13 @@ impl FirstOrderScene {
         &self.output
     }
 
+    /// The first order the transfer multiplies (its shifted reads and the pyramid): with
+    /// [`FirstOrderOptions::samples`] `> 1` the light averaged over each texel's square, else
+    /// [`FirstOrderScene::output`] itself.
+    pub fn transfer_input(&self) -> &wgpu::Texture {
+        self.transfer_input.as_ref().unwrap_or(&self.output)
+    }
+
     /// What the display's per-pixel direct light binds (`shaders/shadow.wgsl`, bindings 0,
     /// 1, 2 and 4): this frame's params, lights and layer matrices (written by the last
     /// `encode`) and the shadow-map array. Their uniform arrays hold the pass's
@@ -560,6 +582,16 @@ pub struct FirstOrderOutput {
 
 /// Checks `options` against the device; returns the resolved texel reads.
 fn check_options(gpu: &Gpu, options: &FirstOrderOptions) -> Result<util::TexelReads, PassError> {
+    if options.samples % 2 == 0 || options.samples > MAX_SAMPLES {
+        return Err(PassError::InvalidInput {
+            what: "FirstOrderOptions.samples".into(),
+            problem: format!(
+                "is {}; give an odd number of sub-texels per side from 1 to {MAX_SAMPLES} (odd, \
+                 so that a texel's centre is a sub-texel's)",
+                options.samples
+            ),
+        });
+    }
     if options.shadow_map_size == 0 || options.max_shadow_layers == 0 {
         return Err(PassError::InvalidInput {
             what: "FirstOrderOptions".into(),
@@ -628,12 +660,14 @@ fn shader_module(
     device: &wgpu::Device,
     max_layers: u32,
     reads: util::TexelReads,
+    samples: u32,
 ) -> wgpu::ShaderModule {
     let source = format!(
         "{}{}{}",
         include_str!("../shaders/lights.wgsl"),
         shadow_wgsl(0, max_layers),
         include_str!("../shaders/first_order.wgsl")
+            .replace("SAMPLES_PER_SIDE", &samples.to_string())
     );
     let f32x4 = wgpu::TextureFormat::Rgba32Float;
     let source = format!(
@@ -747,6 +781,41 @@ fn gbuffer_pipeline(device: &wgpu::Device, module: &wgpu::ShaderModule) -> wgpu:
     })
 }
 
+/// The averaged lighting pipeline (`fs_lightmap_averaged`, full-screen): two RGBA32F
+/// targets, the first-order lightmap and the transfer's input.
+fn averaged_pipeline(
+    device: &wgpu::Device,
+    layout: &wgpu::PipelineLayout,
+    module: &wgpu::ShaderModule,
+) -> wgpu::RenderPipeline {
+    let target = Some(wgpu::ColorTargetState {
+        format: wgpu::TextureFormat::Rgba32Float,
+        blend: None,
+        write_mask: wgpu::ColorWrites::ALL,
+    });
+    device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+        label: Some("ortm.first_order.averaged_pipeline"),
+        layout: Some(layout),
+        vertex: wgpu::VertexState {
+            module,
+            entry_point: Some("vs_fullscreen"),
+            compilation_options: Default::default(),
+            buffers: &[],
+        },
+        primitive: wgpu::PrimitiveState::default(),
+        depth_stencil: None,
+        multisample: Default::default(),
+        fragment: Some(wgpu::FragmentState {
+            module,
+            entry_point: Some("fs_lightmap_averaged"),
+            compilation_options: Default::default(),
+            targets: &[target.clone(), target],
+        }),
+        multiview_mask: None,
+        cache: None,
+    })
+}
+
 /// Checks that `albedo` holds `width·height` values of a lightmap the device can hold;
 /// returns `[W, H]`.
 fn check_albedo(gpu: &Gpu, albedo: &AlbedoMap) -> Result<[u32; 2], PassError> {
@@ -810,7 +879,7 @@ impl FirstOrderPass {
         let reads = check_options(gpu, options)?;
         gpu.scoped("ortm.first_order.new", || {
             let device = &gpu.device;
-            let module = shader_module(device, options.max_shadow_layers, reads);
+            let module = shader_module(device, options.max_shadow_layers, reads, options.samples);
             let layout = lighting_layout(device, reads);
             let pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
                 label: Some("ortm.first_order.pipeline_layout"),
@@ -831,15 +900,19 @@ impl FirstOrderPass {
             let shadow =
                 |cull| shadow_pipeline(device, &shadow_pl, &module, options.slope_bias, cull);
             let shadow_pipelines = [shadow(None), shadow(Some(wgpu::Face::Back))];
-            let lightmap_pipeline = util::fullscreen_pipeline(
-                device,
-                "ortm.first_order.lightmap_pipeline",
-                Some(&pl),
-                &module,
-                "fs_lightmap",
-                wgpu::TextureFormat::Rgba32Float,
-                None,
-            );
+            let lightmap_pipeline = if options.samples > 1 {
+                averaged_pipeline(device, &pl, &module)
+            } else {
+                util::fullscreen_pipeline(
+                    device,
+                    "ortm.first_order.lightmap_pipeline",
+                    Some(&pl),
+                    &module,
+                    "fs_lightmap",
+                    wgpu::TextureFormat::Rgba32Float,
+                    None,
+                )
+            };
             let sampler = shadow_sampler(device);
             Self {
                 options: *options,
@@ -879,6 +952,7 @@ impl FirstOrderPass {
     ) -> Result<FirstOrderScene, PassError> {
         let size = check_albedo(gpu, albedo)?;
         let device = &gpu.device;
+        // Alpha 1: opaque (the first-order term is the centre's) until `set_translucent`.
         let rgba: Vec<[f32; 4]> = albedo.rgb.iter().map(|c| [c[0], c[1], c[2], 1.0]).collect();
         let albedo_tex = gpu.create_rgba32f_texture(
             "ortm.first_order.albedo",
@@ -893,7 +967,17 @@ impl FirstOrderPass {
             self.options.shadow_map_size,
             self.options.max_shadow_layers,
         );
-        let gbuffer = self.texel_gbuffer(gpu, mesh, size);
+        let n = self.options.samples;
+        let gsize = [size[0].saturating_mul(n), size[1].saturating_mul(n)];
+        if n > 1 {
+            gpu.check_texture_size(
+                "first-order G-buffer (FirstOrderOptions.samples × the lightmap's size; fewer \
+                 samples or a smaller lightmap)",
+                gsize[0],
+                gsize[1],
+            )?;
+        }
+        let gbuffer = self.texel_gbuffer(gpu, mesh, gsize);
         let bind_group = self.lighting_bind_group(
             device,
             &uniforms,
@@ -909,17 +993,21 @@ impl FirstOrderPass {
                 resource: uniforms.matrices.as_entire_binding(),
             }],
         });
-        let output = util::texture_2d(
-            device,
-            "ortm.first_order.first_order_lightmap",
-            size,
-            wgpu::TextureFormat::Rgba32Float,
-            wgpu::TextureUsages::RENDER_ATTACHMENT
-                | wgpu::TextureUsages::TEXTURE_BINDING
-                | wgpu::TextureUsages::COPY_SRC
-                // The transfer pass may read it as a storage texture (`util::TexelReads`).
-                | gpu.best_texel_reads().usage(),
-        );
+        let lightmap = |label| {
+            util::texture_2d(
+                device,
+                label,
+                size,
+                wgpu::TextureFormat::Rgba32Float,
+                wgpu::TextureUsages::RENDER_ATTACHMENT
+                    | wgpu::TextureUsages::TEXTURE_BINDING
+                    | wgpu::TextureUsages::COPY_SRC
+                    // The transfer pass may read it as a storage texture (`util::TexelReads`).
+                    | gpu.best_texel_reads().usage(),
+            )
+        };
+        let output = lightmap("ortm.first_order.first_order_lightmap");
+        let transfer_input = (n > 1).then(|| lightmap("ortm.first_order.transfer_input"));
         gpu.check("ortm.first_order.prepare")?;
         Ok(FirstOrderScene {
             lightmap_size: size,
@@ -930,8 +1018,45 @@ impl FirstOrderPass {
             shadow_cache: std::sync::Mutex::new(None),
             bind_group,
             shadow_bind_group,
+            albedo: (albedo_tex, rgba),
             output,
+            transfer_input,
         })
+    }
+
+    /// Marks the translucent texels (`true`; row-major like the albedo): with
+    /// [`FirstOrderOptions::samples`] `> 1` their first-order term is the averaged light,
+    /// whose scattering their transfer holds, instead of the centre's. Without averaging it
+    /// changes nothing.
+    pub fn set_translucent(
+        &self,
+        gpu: &Gpu,
+        scene: &mut FirstOrderScene,
+        translucent: &[bool],
+    ) -> Result<(), PassError> {
+        let (tex, rgba) = &mut scene.albedo;
+        if translucent.len() != rgba.len() {
+            return Err(PassError::BadLength {
+                what: "translucent texels".into(),
+                expected: rgba.len(),
+                got: translucent.len(),
+                hint: "one flag per lightmap texel (width·height)".into(),
+            });
+        }
+        for (v, &t) in rgba.iter_mut().zip(translucent) {
+            v[3] = if t { 0.0 } else { 1.0 };
+        }
+        gpu.queue.write_texture(
+            tex.as_image_copy(),
+            bytemuck::cast_slice(rgba),
+            wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(16 * scene.lightmap_size[0]),
+                rows_per_image: None,
+            },
+            tex.size(),
+        );
+        Ok(())
     }
 
     /// The texel G-buffer: the mesh rasterised once by its UVs into `[position + coverage,
@@ -1043,7 +1168,18 @@ impl FirstOrderPass {
             self.encode_shadow_layers(encoder, scene, &lights, inputs.lights, layers);
         }
         let target = util::view(&scene.output);
-        let mut pass = util::clear_pass(encoder, "ortm.first_order.lightmap_pass", &target);
+        let input = scene.transfer_input.as_ref().map(util::view);
+        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("ortm.first_order.lightmap_pass"),
+            color_attachments: &[
+                util::cleared_attachment(&target),
+                input.as_ref().and_then(util::cleared_attachment),
+            ][..1 + input.is_some() as usize],
+            depth_stencil_attachment: None,
+            timestamp_writes: None,
+            occlusion_query_set: None,
+            multiview_mask: None,
+        });
         pass.set_pipeline(&self.lightmap_pipeline);
         pass.set_bind_group(0, &scene.bind_group, &[]);
         pass.draw(0..3, 0..1);

@@ -400,7 +400,10 @@ impl Renderer {
 
     /// Sets the diffusion length of every lightmap texel (metres, row-major like the albedo;
     /// 0 on diffuse surfaces): where it exceeds a pixel's footprint the per-pixel direct
-    /// light gives way to the lightmap's diffused light (see [`crate::display`]).
+    /// light gives way to the lightmap's diffused light (see [`crate::display`]). Texels with
+    /// a length > 0 are translucent: with an averaged first order
+    /// ([`FirstOrderOptions::samples`] > 1) their first-order term is the average
+    /// ([`FirstOrderPass::set_translucent`]).
     pub fn set_diffusion_lengths(
         &self,
         gpu: &Gpu,
@@ -409,6 +412,9 @@ impl Renderer {
     ) -> Result<(), PassError> {
         let texels =
             crate::display::surface_texels(&scene.albedo, Some(lengths_m), &scene.dilate_plan)?;
+        let translucent: Vec<bool> = lengths_m.iter().map(|&l| l > 0.0).collect();
+        self.first_order
+            .set_translucent(gpu, &mut scene.first_order, &translucent)?;
         scene.surface = crate::display::upload_surface(gpu, scene.lightmap_size, &texels)?;
         scene.subsurface = lengths_m.iter().any(|&l| l > 0.0);
         scene.triangle_lengths = scene
@@ -465,17 +471,22 @@ impl Renderer {
         stamp(encoder, 1);
         let fo_view = util::view(scene.first_order.output());
         if stages.transfer {
+            // What the transfer multiplies: the first order, or its averages over the texels'
+            // squares (`FirstOrderOptions::samples`; the final then starts from `fo_view`).
+            let averaged = self.first_order.options().samples > 1;
+            let input_view = util::view(scene.first_order.transfer_input());
             // The pyramid of this frame's first order, when some piece reads a level > 0.
             if let Some(pyramid) = &scene.pyramid {
                 let inputs = PyramidInputs {
                     scene: pyramid,
-                    first_order: &fo_view,
+                    first_order: &input_view,
                 };
                 self.pyramid.encode(gpu, encoder, &inputs);
             }
             let inputs = TransferInputs {
                 scene: &scene.transfer,
-                first_order: &fo_view,
+                first_order: &input_view,
+                base: averaged.then_some(&fo_view),
                 pyramid: scene.pyramid.as_ref(),
             };
             self.transfer.encode(gpu, encoder, &inputs)?;

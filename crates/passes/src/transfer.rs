@@ -250,8 +250,13 @@ struct PairGpu {
 pub struct TransferInputs<'a> {
     /// Prepared scene.
     pub scene: &'a TransferScene,
-    /// First-order lightmap (RGBA, alpha = coverage), the size given to `prepare`.
+    /// First-order lightmap (RGBA, alpha = coverage), the size given to `prepare`: what the
+    /// pieces multiply.
     pub first_order: &'a wgpu::TextureView,
+    /// The first-order term the final starts from, when it is not `first_order` (same size
+    /// and coverage): the centres' first order when `first_order` is averaged over the
+    /// texels' squares ([`crate::first_order::FirstOrderScene::transfer_input`]).
+    pub base: Option<&'a wgpu::TextureView>,
     /// The first-order pyramid (written this frame by [`crate::pyramid::PyramidPass`] from
     /// `first_order`), holding at least the highest piece level; required when some piece has
     /// level > 0, ignored otherwise.
@@ -727,7 +732,7 @@ impl TransferPass {
                 device,
                 encoder,
                 gs,
-                (inputs.first_order, pyramid),
+                (inputs.first_order, inputs.base, pyramid),
                 &scene.atlas_views,
             );
         } else if let Some(bp) = &self.blend {
@@ -779,24 +784,29 @@ impl TransferPass {
     ) {
         let scene = inputs.scene;
         // Order = @binding order in transfer.wgsl.
-        let frame_bg = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("ortm.transfer.frame_bind_group"),
-            layout: &bp.frame_layout,
-            entries: &[
-                wgpu::BindGroupEntry {
-                    binding: 0,
-                    resource: scene.params.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 1,
-                    resource: wgpu::BindingResource::TextureView(inputs.first_order),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 2,
-                    resource: wgpu::BindingResource::TextureView(pyramid),
-                },
-            ],
-        });
+        let frame_bind_group = |first_order| {
+            device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("ortm.transfer.frame_bind_group"),
+                layout: &bp.frame_layout,
+                entries: &[
+                    wgpu::BindGroupEntry {
+                        binding: 0,
+                        resource: scene.params.as_entire_binding(),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 1,
+                        resource: wgpu::BindingResource::TextureView(first_order),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 2,
+                        resource: wgpu::BindingResource::TextureView(pyramid),
+                    },
+                ],
+            })
+        };
+        let frame_bg = frame_bind_group(inputs.first_order);
+        // The copy starts the final from the base when one is given.
+        let copy_bg = inputs.base.map(frame_bind_group);
         // Paired path: the unpaired pieces here, the pairs after them.
         let (batches, instance_buffers) = match (&scene.paired, &scene.pair_gpu) {
             (Some(p), Some(g)) => (&p.singles.batches, &g.single_buffers),
@@ -822,11 +832,12 @@ impl TransferPass {
         let final_view = util::view(&scene.final_tex);
         let target = scene.accum.as_ref().map_or(&final_view, |(view, _)| view);
         let mut pass = util::clear_pass(encoder, "ortm.transfer.blend_pass", target);
-        pass.set_bind_group(0, &frame_bg, &[]);
+        pass.set_bind_group(0, copy_bg.as_ref().unwrap_or(&frame_bg), &[]);
         pass.set_pipeline(&bp.copy);
         let [lw, lh] = scene.schedule.lightmap_size;
         pass.set_scissor_rect(0, 0, lw, lh);
         pass.draw(0..3, 0..1);
+        pass.set_bind_group(0, &frame_bg, &[]);
         let [tw, th] = scene.schedule.target_size();
         pass.set_scissor_rect(0, 0, tw, th);
         pass.set_pipeline(&bp.piece);

@@ -192,42 +192,23 @@ impl GatherPass {
     }
 
     /// Records init, one gather dispatch per atlas, and resolve. `pyramid` is the packed
-    /// first-order pyramid (levels ≥ 1) or any RGBA32F texture when every piece has level 0.
+    /// first-order pyramid (levels ≥ 1) or any RGBA32F texture when every piece has level 0;
+    /// the init copies `base` when given (the first-order term; same coverage as
+    /// `first_order`, which the pieces read), else `first_order`.
     pub fn encode(
         &self,
         device: &wgpu::Device,
         encoder: &mut wgpu::CommandEncoder,
         scene: &GatherScene,
-        (first_order, pyramid): (&wgpu::TextureView, &wgpu::TextureView),
+        (first_order, base, pyramid): (
+            &wgpu::TextureView,
+            Option<&wgpu::TextureView>,
+            &wgpu::TextureView,
+        ),
         atlas_views: &[wgpu::TextureView],
     ) {
-        // Order = @binding order in transfer_gather.wgsl.
-        let frame_bg = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("ortm.transfer_gather.frame_bind_group"),
-            layout: &self.frame_layout,
-            entries: &[
-                wgpu::BindGroupEntry {
-                    binding: 0,
-                    resource: scene.params.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 1,
-                    resource: wgpu::BindingResource::TextureView(first_order),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 2,
-                    resource: scene.acc.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 3,
-                    resource: wgpu::BindingResource::TextureView(&scene.final_view),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 4,
-                    resource: wgpu::BindingResource::TextureView(pyramid),
-                },
-            ],
-        });
+        let frame_bg = self.frame_bind_group(device, scene, first_order, pyramid);
+        let init_bg = base.map(|b| self.frame_bind_group(device, scene, b, pyramid));
         let atlas_bgs: Vec<(wgpu::BindGroup, u32)> = scene
             .atlases
             .iter()
@@ -262,9 +243,10 @@ impl GatherPass {
             label: Some("ortm.transfer_gather.pass"),
             timestamp_writes: None,
         });
-        pass.set_bind_group(0, &frame_bg, &[]);
+        pass.set_bind_group(0, init_bg.as_ref().unwrap_or(&frame_bg), &[]);
         pass.set_pipeline(&self.init);
         pass.dispatch_workgroups(tw.div_ceil(8), th.div_ceil(8), 1);
+        pass.set_bind_group(0, &frame_bg, &[]);
         pass.set_pipeline(&self.gather);
         for (bg, n) in &atlas_bgs {
             pass.set_bind_group(1, bg, &[]);
@@ -274,5 +256,42 @@ impl GatherPass {
         pass.set_pipeline(&self.resolve);
         pass.dispatch_workgroups(w.div_ceil(8), h.div_ceil(8), 1);
         debug_assert_eq!(TILE_SIZE, 8);
+    }
+
+    /// Group 0 of the gather pipelines with `first_order` at binding 1; order = @binding
+    /// order in transfer_gather.wgsl.
+    fn frame_bind_group(
+        &self,
+        device: &wgpu::Device,
+        scene: &GatherScene,
+        first_order: &wgpu::TextureView,
+        pyramid: &wgpu::TextureView,
+    ) -> wgpu::BindGroup {
+        device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("ortm.transfer_gather.frame_bind_group"),
+            layout: &self.frame_layout,
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: scene.params.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: wgpu::BindingResource::TextureView(first_order),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 2,
+                    resource: scene.acc.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 3,
+                    resource: wgpu::BindingResource::TextureView(&scene.final_view),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 4,
+                    resource: wgpu::BindingResource::TextureView(pyramid),
+                },
+            ],
+        })
     }
 }

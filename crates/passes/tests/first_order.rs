@@ -312,3 +312,129 @@ fn back_face_culled_shadow_maps_change_no_texel() {
         );
     }
 }
+
+/// The averaged pass (`samples = 3`) against the mirror's [`mirror::first_order_averaged`]:
+/// coverage exactly, and both outputs — the first order (centres on opaque texels, averages
+/// on the translucent box top) and the transfer's input (averages) — within 1e-3 of their
+/// unshadowed value on texels whose every sub-texel is away from shadow edges. The averages
+/// must differ from the centres where the light varies within a texel (the spot's rim, the
+/// point light's falloff), and equal them on the box top only there.
+#[test]
+fn averaged_first_order_matches_ray_traced_mirror() {
+    const N: u32 = 3;
+    let lights = demo_lights();
+    let (mesh, _) = floor_and_box(SIZE);
+    let albedo = patterned_albedo();
+    // The box's top face: the 12×12 chart at (36, 2) (floor_and_box's layout at W = 64).
+    let top = |x: u32, y: u32| (36..48).contains(&x) && (2..14).contains(&y);
+    let translucent: Vec<bool> = (0..SIZE * SIZE).map(|i| top(i % SIZE, i / SIZE)).collect();
+    let options = FirstOrderOptions {
+        shadow_map_size: 512,
+        max_shadow_layers: 8,
+        samples: N,
+        ..Default::default()
+    };
+    let gpu = gpu();
+    let pass = FirstOrderPass::new(&gpu, &options).unwrap();
+    let mut scene = pass.prepare(&gpu, &mesh, &albedo).unwrap();
+    pass.set_translucent(&gpu, &mut scene, &translucent)
+        .unwrap();
+    let got = render_first_order(&gpu, &pass, &scene, &lights, "test.averaged");
+    let got_input = gpu
+        .read_texel_image("test.averaged_input", scene.transfer_input())
+        .unwrap();
+    let (want, want_input) =
+        mirror::first_order_averaged(&mesh, &albedo, Some(&translucent), &lights, N);
+    let centres = mirror::first_order(&mesh, &albedo, &lights);
+    for (i, ((g, gi), w)) in got
+        .rgba
+        .iter()
+        .zip(&got_input.rgba)
+        .zip(&want.rgba)
+        .enumerate()
+    {
+        assert_eq!(g[3], w[3], "coverage differs at texel {i}");
+        assert_eq!(gi[3], w[3], "input coverage differs at texel {i}");
+        assert_eq!(
+            w[3], centres.rgba[i][3],
+            "the centre rule decides coverage ({i})"
+        );
+        if w[3] == 0.0 {
+            assert_eq!((*g, *gi), ([0.0; 4], [0.0; 4]), "uncovered texel {i}");
+        }
+    }
+    // Texels whose sub-texels are all away from shadow edges, with their largest unshadowed
+    // first order.
+    let gl = mirror::packed_lights(&mesh, &lights);
+    let mut scale = vec![0.0f32; (SIZE * SIZE) as usize];
+    let mut stable = vec![true; (SIZE * SIZE) as usize];
+    for s in mirror::rasterize_uv(&mesh, SIZE * N, SIZE * N) {
+        let i = ((s.y / N) * SIZE + s.x / N) as usize;
+        let (ok, _, unshadowed) =
+            shadow_state(&mesh, &gl, s.position, s.normal, options.shadow_map_size);
+        stable[i] &= ok;
+        scale[i] = scale[i].max((Vec3::from(albedo.rgb[i]) * unshadowed).max_element());
+    }
+    let (mut compared, mut averaged_differ, mut top_texels) = (0, 0, 0);
+    for (i, w) in want.rgba.iter().enumerate() {
+        if w[3] == 0.0 || !stable[i] {
+            continue;
+        }
+        compared += 1;
+        for (name, g, w) in [
+            ("first order", got.rgba[i], *w),
+            ("input", got_input.rgba[i], want_input.rgba[i]),
+        ] {
+            for c in 0..3 {
+                assert!(
+                    (g[c] - w[c]).abs() <= 1e-3 * scale[i] + 1e-6,
+                    "{name} texel {i} ch {c}: gpu {} cpu {} (scale {})",
+                    g[c],
+                    w[c],
+                    scale[i]
+                );
+            }
+        }
+        let (x, y) = (i as u32 % SIZE, i as u32 / SIZE);
+        let differ = (0..3)
+            .any(|c| (want_input.rgba[i][c] - centres.rgba[i][c]).abs() > 1e-3 * scale[i] + 1e-6);
+        averaged_differ += differ as usize;
+        if top(x, y) {
+            top_texels += 1;
+            assert_eq!(
+                got.rgba[i], got_input.rgba[i],
+                "translucent texel {i}: the average"
+            );
+        } else {
+            assert_eq!(
+                w, &centres.rgba[i],
+                "opaque texel {i}: the centre's first order"
+            );
+        }
+    }
+    eprintln!(
+        "averaged first order: {compared} texels compared, {averaged_differ} whose average \
+         differs from the centre, {top_texels} translucent"
+    );
+    assert!(
+        compared > 1000 && top_texels > 50,
+        "{compared} / {top_texels}"
+    );
+    assert!(
+        averaged_differ > 40,
+        "{averaged_differ} averaged texels differ"
+    );
+}
+
+#[test]
+fn even_or_too_many_samples_are_refused() {
+    let gpu = gpu();
+    for samples in [0, 2, 9] {
+        let options = FirstOrderOptions {
+            samples,
+            ..Default::default()
+        };
+        let e = FirstOrderPass::new(&gpu, &options).unwrap_err().to_string();
+        assert!(e.contains("samples") && e.contains("odd"), "{samples}: {e}");
+    }
+}

@@ -68,6 +68,66 @@ fn renderer_final_map_matches_mirror_and_stages_make_the_frame() {
     assert_frame_timestamps(&gpu, &renderer, &scene, &params);
 }
 
+/// With an averaged first order (`FirstOrderOptions::samples = 3`) the pieces multiply the
+/// averages and the final starts from the first order: `final = first_order + (T(input) −
+/// input)`, `T` the mirror's transfer of the input, on both paths; translucent texels (the
+/// box, given a diffusion length) take the average as their first order.
+#[test]
+fn averaged_first_order_feeds_the_transfer() {
+    let gpu = gpu();
+    let size = 64;
+    let lights = demo_lights();
+    for path in [TransferPath::Blend, TransferPath::Compute] {
+        let mut options = common::demo_renderer_options(64, 32);
+        options.first_order.samples = 3;
+        options.transfer = TransferOptions {
+            path,
+            ..TransferOptions::best_for(&gpu)
+        };
+        let renderer = Renderer::new(&gpu, &options).unwrap();
+        let (mut scene, atlases) = prepare_demo(&gpu, &renderer, size);
+        // The box's charts (x ≥ 35 texels at W = 64) are translucent.
+        let lengths: Vec<f32> = (0..size * size)
+            .map(|i| if i % size >= 35 { 0.002 } else { 0.0 })
+            .collect();
+        renderer
+            .set_diffusion_lengths(&gpu, &mut scene, &lengths)
+            .unwrap();
+        let (fo, fin) = renderer.render_lightmaps(&gpu, &scene, &lights).unwrap();
+        let input = gpu
+            .read_texel_image("test.input", scene.first_order.transfer_input())
+            .unwrap();
+        let t = cpu::transfer::transfer(&scene.transfer.schedule, &atlases, &input);
+        let (mut opaque_differ, mut translucent) = (0, 0);
+        for i in 0..fo.rgba.len() {
+            let (f, g, x, w) = (fo.rgba[i], fin.rgba[i], input.rgba[i], t.rgba[i]);
+            for c in 0..3 {
+                let want = f[c] + (w[c] - x[c]);
+                assert!(
+                    (g[c] - want).abs() <= 1e-3 * w[c].abs().max(1e-3),
+                    "{path:?} texel {i} ch {c}: final {} want {want} (first order {}, input {}, T(input) {})",
+                    g[c],
+                    f[c],
+                    x[c],
+                    w[c]
+                );
+            }
+            assert_eq!(g[3], f[3], "{path:?}: coverage of texel {i}");
+            if f[3] > 0.0 && lengths[i] > 0.0 {
+                translucent += 1;
+                assert_eq!(f, x, "{path:?}: translucent texel {i} takes the average");
+            } else if f[3] > 0.0 && (f[0] - x[0]).abs() > 1e-3 * f[0].abs().max(1e-3) {
+                opaque_differ += 1;
+            }
+        }
+        assert!(
+            translucent > 500 && opaque_differ > 20,
+            "{path:?}: {translucent} translucent texels, {opaque_differ} opaque ones whose \
+             average differs from the centre"
+        );
+    }
+}
+
 /// The whole frame, then the same frame one stage per submission (the benchmarks' way):
 /// each stage reads what the previous one left in the scene; static lights give the same
 /// image as moving ones.

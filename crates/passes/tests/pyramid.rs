@@ -386,6 +386,7 @@ fn run_transfer(
             &TransferInputs {
                 scene: &scene,
                 first_order: &fo,
+                base: None,
                 pyramid: pyr.as_ref(),
             },
         )
@@ -534,6 +535,7 @@ fn level_zero_ignores_the_pyramid_bit_for_bit() {
                 &TransferInputs {
                     scene: &scene,
                     first_order: &fo,
+                    base: None,
                     pyramid: Some(&pyr),
                 },
             )
@@ -595,6 +597,7 @@ fn levels_without_weights_and_bad_inputs_are_errors() {
     let inputs = TransferInputs {
         scene: &scene,
         first_order: &fo,
+        base: None,
         pyramid: None,
     };
     let e = pass

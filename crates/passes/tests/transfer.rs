@@ -141,6 +141,7 @@ fn run_gpu_paired(c: &Case, options: TransferOptions) -> (TexelImage, Option<Pai
             &TransferInputs {
                 scene: &scene,
                 first_order: &fo_view,
+                base: None,
                 pyramid: None,
             },
         )

@@ -142,8 +142,16 @@ pub fn run(a: Args) -> Result<()> {
     let kernels = Kernels::new(&scene, effects, vis.clone());
     let patches = texel_patches(&grid);
     let b_o = lighting::first_order(&grid, &scene.lights, &vis);
-    let b_in =
-        lighting::first_order_averaged(&scene, &grid, &scene.lights, &vis, a.first_order_samples)?;
+    // The final starts from `first` (the centres' first order on opaque texels, the input on
+    // translucent ones, whose transfer holds `−B_in` at the texel itself).
+    let (first, b_in) = lighting::first_order_and_input(
+        &scene,
+        &grid,
+        &scene.lights,
+        &vis,
+        a.first_order_samples,
+        |m| kernels.is_translucent(m),
+    )?;
     let bar = Mutex::new(Progress::hidden());
     let events = |e: BakeEvent| match e {
         BakeEvent::Phase { name, total } => {
@@ -201,19 +209,8 @@ pub fn run(a: Args) -> Result<()> {
     };
     bar.lock().expect("progress lock").finish_and_clear();
     let t_total = t0.elapsed();
-    // With an averaged input, an opaque texel's own first order is still its centre's: its
-    // final is that plus the transfer of the averaged light. A translucent texel's final is
-    // the scattered light alone (its transfer holds `−B_in` at the texel itself), kept.
-    let b: Vec<glam::Vec3> = (b.iter().zip(&b_in).zip(&b_o).zip(&patches))
-        .map(|(((&b, &b_in), &b_o), p)| {
-            // (With N = 1 the input is the centres' first order: the final as it is.)
-            if n == 1 || kernels.is_translucent(p.material) {
-                b
-            } else {
-                b - b_in + b_o
-            }
-        })
-        .collect();
+    let mut b = b;
+    lighting::with_first_order(&mut b, &first, &b_in);
     let first = lighting::to_lightmap(&grid, &b_o);
     let fin = lighting::to_lightmap(&grid, &b);
     let indirect: Vec<_> = b.iter().zip(&b_o).map(|(x, y)| *x - *y).collect();

@@ -177,6 +177,41 @@ pub fn first_order_averaged(
         .collect())
 }
 
+/// The two first orders of a render with `n` sub-texels per side (odd; the GPU's
+/// `FirstOrderOptions::samples`): `(first order, transfer input)` per texel. The input is
+/// [`first_order_averaged`]; the first order the lightmap holds is the centre's
+/// ([`first_order`], what `ortm reference` defines) on opaque texels and the input on those
+/// `translucent(material)` names (their transfer holds `−B_in` at the texel itself, so their
+/// final is the scattered input). The final is then `first + (apply(maps, input) − input)`
+/// ([`with_first_order`]). `n = 1`: both are the centres' first order.
+pub fn first_order_and_input(
+    scene: &crate::scene::Scene,
+    grid: &TexelGrid,
+    lights: &[Light],
+    vis: &Visibility,
+    n: u32,
+    translucent: impl Fn(u32) -> bool,
+) -> Result<(Vec<Vec3>, Vec<Vec3>), crate::bake::texels::TexelError> {
+    let centre = first_order(grid, lights, vis);
+    if n == 1 {
+        return Ok((centre.clone(), centre));
+    }
+    let input = first_order_averaged(scene, grid, lights, vis, n)?;
+    let first = (centre.into_iter().zip(&input).zip(&grid.texels))
+        .map(|((c, &i), t)| if translucent(t.material) { i } else { c })
+        .collect();
+    Ok((first, input))
+}
+
+/// `final + (first − input)` per texel: the final of a transfer applied to `input`
+/// (`input + Σ R·input`) turned into one that starts from `first` instead
+/// ([`first_order_and_input`]).
+pub fn with_first_order(final_b: &mut [Vec3], first: &[Vec3], input: &[Vec3]) {
+    for ((b, f), i) in final_b.iter_mut().zip(first).zip(input) {
+        *b += *f - *i;
+    }
+}
+
 /// Scatters per-texel values into a lightmap (uncovered texels 0).
 pub fn to_lightmap(grid: &TexelGrid, values: &[Vec3]) -> Lightmap {
     let mut m = Lightmap::new(grid.width, grid.height);

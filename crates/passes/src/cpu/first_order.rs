@@ -24,6 +24,9 @@ pub struct TexelSample {
     pub position: Vec3,
     /// Unit normal.
     pub normal: Vec3,
+    /// World area of the texel's square on its triangle (m²): the triangle's 3D area over
+    /// its area in texels (`|∂P/∂x × ∂P/∂y|`, the G-buffer's `normal.w`).
+    pub area_m2: f32,
 }
 
 /// Texels whose centre lies in a UV triangle (last triangle wins), with interpolated
@@ -61,11 +64,13 @@ pub fn rasterize_uv(mesh: &MeshData, width: u32, height: u32) -> Vec<TexelSample
                 let nor = |i: usize| Vec3::from(mesh.normals[i]);
                 let position = wa * pos(a) + wb * pos(b) + wc * pos(c);
                 let normal = (wa * nor(a) + wb * nor(b) + wc * nor(c)).normalize_or_zero();
+                let area_m2 = (pos(b) - pos(a)).cross(pos(c) - pos(a)).length() / area.abs();
                 owner[(y * width + x) as usize] = Some(TexelSample {
                     x,
                     y,
                     position,
                     normal,
+                    area_m2,
                 });
             }
         }
@@ -151,21 +156,72 @@ pub fn packed_lights(mesh: &MeshData, lights: &[LightDesc]) -> Vec<GpuLight> {
         .unwrap_or_default()
 }
 
+/// Irradiance at `s` from the packed lights, with exact shadows (W/m²).
+fn irradiance(mesh: &MeshData, lights: &[GpuLight], s: &TexelSample) -> Vec3 {
+    let mut e = Vec3::ZERO;
+    for light in lights {
+        let e_light = unshadowed_irradiance(light, s.position, s.normal);
+        if e_light.max_element() > 0.0 && !occluded(mesh, light, s.position, s.normal) {
+            e += e_light;
+        }
+    }
+    e
+}
+
 /// The first-order lightmap with exact shadows (`fs_lightmap` with ray-traced visibility).
 pub fn first_order(mesh: &MeshData, albedo: &AlbedoMap, lights: &[LightDesc]) -> TexelImage {
     let gl = packed_lights(mesh, lights);
     let mut out = TexelImage::new(albedo.width, albedo.height);
     for s in rasterize_uv(mesh, albedo.width, albedo.height) {
         let rho = Vec3::from(albedo.rgb[(s.y * albedo.width + s.x) as usize]);
-        let mut e = Vec3::ZERO;
-        for light in &gl {
-            let e_light = unshadowed_irradiance(light, s.position, s.normal);
-            if e_light.max_element() > 0.0 && !occluded(mesh, light, s.position, s.normal) {
-                e += e_light;
-            }
-        }
-        let b = rho * e;
+        let b = rho * irradiance(mesh, &gl, &s);
         *out.at_mut(s.x, s.y) = [b.x, b.y, b.z, 1.0];
     }
     out
+}
+
+/// The averaged first-order pass (`fs_lightmap_averaged`, `samples` odd) with exact
+/// shadows: returns `(first order, transfer input)`. The mesh is rasterised at `samples×`
+/// the albedo's size; a texel is covered when its centre sub-texel is, its input is `ρ` times
+/// the irradiance averaged over its covered sub-texels weighted by their world areas, and its
+/// first order `ρ` times the centre's irradiance — or the average where `translucent` (one
+/// flag per texel, row-major) says so.
+pub fn first_order_averaged(
+    mesh: &MeshData,
+    albedo: &AlbedoMap,
+    translucent: Option<&[bool]>,
+    lights: &[LightDesc],
+    samples: u32,
+) -> (TexelImage, TexelImage) {
+    assert!(samples % 2 == 1, "samples must be odd");
+    let gl = packed_lights(mesh, lights);
+    let (w, h) = (albedo.width, albedo.height);
+    let n = samples;
+    // Per texel: centre irradiance (if covered), Σ area·E, Σ area.
+    let mut acc = vec![(None::<Vec3>, Vec3::ZERO, 0.0f32); w as usize * h as usize];
+    for s in rasterize_uv(mesh, w * n, h * n) {
+        let e = irradiance(mesh, &gl, &s);
+        let slot = &mut acc[((s.y / n) * w + s.x / n) as usize];
+        if s.x % n == n / 2 && s.y % n == n / 2 {
+            slot.0 = Some(e);
+        }
+        slot.1 += s.area_m2 * e;
+        slot.2 += s.area_m2;
+    }
+    let mut first = TexelImage::new(w, h);
+    let mut input = TexelImage::new(w, h);
+    for (i, (centre, sum, area)) in acc.into_iter().enumerate() {
+        let Some(centre) = centre else { continue };
+        let mean = if area > 0.0 { sum / area } else { centre };
+        let rho = Vec3::from(albedo.rgb[i]);
+        let own = if translucent.is_some_and(|t| t[i]) {
+            mean
+        } else {
+            centre
+        };
+        let (x, y) = (i as u32 % w, i as u32 / w);
+        *first.at_mut(x, y) = (rho * own).extend(1.0).to_array();
+        *input.at_mut(x, y) = (rho * mean).extend(1.0).to_array();
+    }
+    (first, input)
 }
