@@ -23,19 +23,9 @@ mod common;
 use std::path::Path;
 use std::process::Output;
 
-use common::{fails, ok, ortm, ortm_command, tiny_cornell_bake};
+use common::{fails, ok, ortm, ortm_command, ortm_no_gpu, tiny_cornell_bake};
 use ortm::bake_dir::BakeIndex;
 use ortm::render::read_lightmap_exr;
-
-/// `ortm <args>` in `cwd` with no usable GPU adapter (only a backend this build lacks).
-fn ortm_no_gpu(args: &[&str], cwd: &Path) -> Output {
-    ortm_command()
-        .args(args)
-        .current_dir(cwd)
-        .env("WGPU_BACKEND", "metal")
-        .output()
-        .expect("the ortm binary runs")
-}
 
 /// The three numbers after `label` in `text` (`label [r, g, b]`).
 fn rgb_after(text: &str, label: &str) -> [f64; 3] {

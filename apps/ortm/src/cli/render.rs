@@ -217,6 +217,11 @@ pub struct Args {
     /// Side of each shadow-map layer, texels.
     #[arg(long, default_value_t = DEFAULT_SHADOW_SIZE)]
     shadow_size: u32,
+    /// Sub-texels per texel side (odd, 1–7) over which the transfer's input is averaged: the
+    /// maps then multiply each sender's light over its whole square instead of at its centre
+    /// (README, "The transfer's input"); 1 takes the centres.
+    #[arg(long, default_value_t = 1, value_name = "N")]
+    first_order_samples: u32,
     /// Atlas side when the bake has no atlases.json (power of two).
     #[arg(long, default_value_t = DEFAULT_ATLAS_SIDE)]
     atlas_size: u32,
@@ -234,6 +239,7 @@ pub struct Args {
 /// Runs `ortm render`.
 pub fn run(a: Args) -> Result<()> {
     let t0 = Instant::now();
+    super::solve::check_first_order_samples(a.first_order_samples)?;
     let (img_w, img_h) = render::parse_size(&a.size)?;
     let BakeAndScene {
         set, source, scene, ..
@@ -262,6 +268,8 @@ pub fn run(a: Args) -> Result<()> {
             let cpu = super::render_cpu::CpuRender {
                 grid: &grid,
                 mesh: &scene.mesh,
+                scene: &scene,
+                first_order_samples: a.first_order_samples,
                 set: &set,
                 lights: &lights,
                 camera: camera(&a, &scene.mesh, (img_w, img_h))?,
@@ -363,6 +371,7 @@ fn renderer_options(
         first_order: FirstOrderOptions {
             shadow_map_size: a.shadow_size,
             max_shadow_layers: render::shadow_layers_for(lights),
+            samples: a.first_order_samples,
             ..Default::default()
         },
         transfer,

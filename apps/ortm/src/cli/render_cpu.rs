@@ -37,17 +37,33 @@ pub struct CpuLightmaps {
     pub final_map: TexelImage,
 }
 
-/// First-order and final lightmaps of `lights` on the CPU (see the module docs).
+/// First-order and final lightmaps of `lights` on the CPU (see the module docs), the
+/// transfer's input averaged over `samples × samples` sub-texels per texel (odd; 1: the
+/// centres) as `--first-order-samples` makes the GPU's (translucent texels: those of a
+/// subsurface material, as the display's diffusion lengths say).
 pub fn lightmaps(
+    scene: &ortm::scene::Scene,
     grid: &TexelGrid,
-    mesh: &Mesh,
     set: &AtlasSet,
     lights: &[Light],
+    samples: u32,
 ) -> Result<CpuLightmaps> {
-    let vis = Visibility::new(mesh);
-    let values = ortm::bake::lighting::first_order(grid, lights, &vis);
-    let first = ortm::bake::lighting::to_lightmap(grid, &values);
-    let fin = apply_atlas_pieces(set, |_| true, &first, Some(&grid.area_map()))?;
+    use ortm::bake::lighting;
+    let vis = Visibility::new(&scene.mesh);
+    let translucent = |m: u32| {
+        scene
+            .materials
+            .get(m as usize)
+            .is_some_and(|m| m.subsurface.is_some())
+    };
+    let (values, input) =
+        lighting::first_order_and_input(scene, grid, lights, &vis, samples, translucent)?;
+    let first = lighting::to_lightmap(grid, &values);
+    let input_map = lighting::to_lightmap(grid, &input);
+    let fin = apply_atlas_pieces(set, |_| true, &input_map, Some(&grid.area_map()))?;
+    let mut fin_values = lighting::from_lightmap(grid, &fin);
+    lighting::with_first_order(&mut fin_values, &values, &input);
+    let fin = lighting::to_lightmap(grid, &fin_values);
     let to_image = |map: &ortm::Lightmap| {
         let mut img = TexelImage::new(grid.width, grid.height);
         for t in &grid.texels {
@@ -160,6 +176,10 @@ pub struct CpuRender<'a> {
     pub grid: &'a TexelGrid,
     /// The scene's mesh.
     pub mesh: &'a Mesh,
+    /// The scene (materials: which texels are translucent).
+    pub scene: &'a ortm::scene::Scene,
+    /// `--first-order-samples`.
+    pub first_order_samples: u32,
     /// The bake's atlases (from `atlases.json` or packed in memory).
     pub set: &'a AtlasSet,
     /// The lights.
@@ -189,7 +209,7 @@ pub fn run(r: &CpuRender, why: &passes::PassError) -> Result<()> {
          --path blend or --path compute requires a GPU"
     );
     let t = std::time::Instant::now();
-    let maps = lightmaps(r.grid, r.mesh, r.set, r.lights)?;
+    let maps = lightmaps(r.scene, r.grid, r.set, r.lights, r.first_order_samples)?;
     let exposure = r
         .exposure
         .unwrap_or_else(|| ortm::render::auto_exposure(&maps.final_map));

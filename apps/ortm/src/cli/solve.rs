@@ -87,16 +87,21 @@ enum Method {
     Hierarchical,
 }
 
-/// Runs `ortm solve`.
-pub fn run(a: Args) -> Result<()> {
-    let effects = super::bake::parse_effects(&a.effects)?;
-    let n = a.first_order_samples;
+/// Refuses a `--first-order-samples` that is even or out of range, with the rule.
+pub fn check_first_order_samples(n: u32) -> Result<()> {
     if n.is_multiple_of(2) || n > MAX_FIRST_ORDER_SAMPLES {
         bail!(
             "--first-order-samples {n}: must be odd, 1 to {MAX_FIRST_ORDER_SAMPLES} (N×N \
              sub-texels per texel, one at its centre); 3 is enough"
         );
     }
+    Ok(())
+}
+
+/// Runs `ortm solve`.
+pub fn run(a: Args) -> Result<()> {
+    let effects = super::bake::parse_effects(&a.effects)?;
+    check_first_order_samples(a.first_order_samples)?;
     let mut scene = super::load_scene(&a.scene, a.size)?;
     if !a.lights.is_empty() {
         scene.lights = a

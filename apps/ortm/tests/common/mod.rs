@@ -3,7 +3,8 @@
 //! - Paths: [`data`] names a file under `tests/data/`, [`head_obj`] the scanned head
 //!   (`../shared/faces/head.obj` beside the repository).
 //! - The binary: [`ortm_command`] is the built `ortm` as a [`Command`] (for tests that set its
-//!   environment or stdio); [`ortm`] runs it with arguments in a folder; [`ok`] and [`fails`]
+//!   environment or stdio); [`ortm`] runs it with arguments in a folder ([`ortm_no_gpu`]: with
+//!   no usable GPU adapter); [`ok`] and [`fails`]
 //!   assert the exit status and return its text ([`output_text`]: stdout then stderr).
 //! - Bakes on disk: [`tiny_cornell_bake`] copies one tiny Cornell bake made by the binary (made
 //!   once per test binary, see [`TINY_CORNELL_BAKE`]); [`fixture_bake`] copies the stored fixture
@@ -58,6 +59,17 @@ pub fn ortm<S: AsRef<OsStr>>(args: &[S], cwd: &Path) -> Output {
     ortm_command()
         .args(args)
         .current_dir(cwd)
+        .output()
+        .expect("the ortm binary runs")
+}
+
+/// `ortm <args>` in `cwd` with no usable GPU adapter (only a backend this build lacks):
+/// `ortm render` then runs on the CPU mirrors of the passes.
+pub fn ortm_no_gpu(args: &[&str], cwd: &Path) -> Output {
+    ortm_command()
+        .args(args)
+        .current_dir(cwd)
+        .env("WGPU_BACKEND", "metal")
         .output()
         .expect("the ortm binary runs")
 }
