@@ -98,6 +98,11 @@ pub struct Args {
     /// `--levels` painted from it and one bake per offset budget and cell rule on it.
     #[arg(long, value_delimiter = ',')]
     tolerances: Vec<f32>,
+    /// Sub-texels per texel side (odd, 1–7) over which the transfer's input is averaged, as
+    /// `ortm render --first-order-samples`: every row (and the exact solve) multiplies the
+    /// averaged first order; 1 takes the centres.
+    #[arg(long, default_value_t = 1, value_name = "N")]
+    first_order_samples: u32,
 }
 
 /// One way of producing the final lightmap, measured against the reference.
@@ -114,7 +119,21 @@ struct Case {
     label: String,
     scene: Scene,
     grid: TexelGrid,
+    /// The centres' first order (what the reference's indirect term is measured from).
     b_o: Vec<Vec3>,
+    /// The first order a lightmap holds and the transfer's input
+    /// ([`lighting::first_order_and_input`]; both `b_o` with `--first-order-samples 1`).
+    first: Vec<Vec3>,
+    input: Vec<Vec3>,
+}
+
+impl Case {
+    /// A final computed from the transfer's input (`input + Σ R·input`) made to start from
+    /// the lightmap's first order ([`lighting::with_first_order`]).
+    fn finish(&self, mut final_b: Vec<Vec3>) -> Vec<Vec3> {
+        lighting::with_first_order(&mut final_b, &self.first, &self.input);
+        final_b
+    }
 }
 
 /// Runs `ortm bench accuracy`.
@@ -128,13 +147,18 @@ pub fn run(a: Args) -> Result<()> {
     if a.spp == 0 || a.max_spp < a.spp {
         bail!("--spp must be at least 1 and --max-spp at least --spp");
     }
+    super::solve::check_first_order_samples(a.first_order_samples)?;
     println!("threads: {}", rayon::current_num_threads());
+    if a.first_order_samples > 1 {
+        let n = a.first_order_samples;
+        println!("transfer input: the first order averaged over {n}×{n} sub-texels per texel");
+    }
     println!(
         "| case | texels (interior) | method | offsets | total RMSE | indirect RMSE | energy | bake (s) | frame cost (map texels) |"
     );
     println!("|---|---|---|---|---|---|---|---|---|");
     for spec in &a.cases {
-        let case = load_case(spec)?;
+        let case = load_case(spec, a.first_order_samples)?;
         let rows = measure_rows(&case, &a)?;
         let (reference, label) = reference_for(&case, &rows, &a)?;
         println!("| {} | | reference: {label} | | | | | | |", case.label);
@@ -153,7 +177,7 @@ pub fn run(a: Args) -> Result<()> {
 }
 
 /// Parses `SCENE-SIZE` and loads the scene, its texels and its first order.
-fn load_case(spec: &str) -> Result<Case> {
+fn load_case(spec: &str, samples: u32) -> Result<Case> {
     let (name, size) = spec
         .rsplit_once('-')
         .and_then(|(n, s)| s.parse::<u32>().ok().map(|s| (n, s)))
@@ -165,11 +189,17 @@ fn load_case(spec: &str) -> Result<Case> {
         .with_context(|| format!("rasterizing the lightmap UVs of '{name}' at {size}²"))?;
     let vis = Visibility::new(&scene.mesh);
     let b_o = lighting::first_order(&grid, &scene.lights, &vis);
+    let translucent =
+        |m: u32| (scene.materials.get(m as usize)).is_some_and(|m| m.subsurface.is_some());
+    let (first, input) =
+        lighting::first_order_and_input(&scene, &grid, &scene.lights, &vis, samples, translucent)?;
     Ok(Case {
         label: format!("{name} {size}²"),
         scene,
         grid,
         b_o,
+        first,
+        input,
     })
 }
 
@@ -182,8 +212,8 @@ fn measure_rows(case: &Case, a: &Args) -> Result<Vec<Row>> {
         let t = Instant::now();
         let tr = Transport::new(&case.scene, &case.grid, Effects::default(), a.coarse_block);
         let block = tr.remainder.block;
-        let final_b = ortm::bake::eval::evaluator_final(&tr, &case.b_o);
-        let senders = ortm::bake::eval::senders(&case.b_o).len() as u64;
+        let final_b = case.finish(ortm::bake::eval::evaluator_final(&tr, &case.input));
+        let senders = ortm::bake::eval::senders(&case.input).len() as u64;
         let build_s = t.elapsed().as_secs_f64();
         rows.push(Row {
             method: format!("evaluator, every pair ({block}×{block} clusters)"),
@@ -256,13 +286,13 @@ fn hierarchical_rows(case: &Case, tolerance: f32, a: &Args) -> Result<Vec<Row>> 
     let row_of = multires::hierarchical_row(&tr).expect("built with the hierarchical operator");
     let build_s = t.elapsed().as_secs_f64();
     let t = Instant::now();
-    let final_b = evaluator_from_rows(&row_of, &case.b_o);
+    let final_b = case.finish(evaluator_from_rows(&row_of, &case.input));
     let mut rows = vec![Row {
         method: format!("evaluator, every pair, hierarchical ε = {tolerance:.0e}"),
         offsets: None,
         final_b,
         bake_s: build_s + t.elapsed().as_secs_f64(),
-        frame_cost: n as u64 * ortm::bake::eval::senders(&case.b_o).len() as u64,
+        frame_cost: n as u64 * ortm::bake::eval::senders(&case.input).len() as u64,
     }];
     for mut row in level_rows(case, &row_of, build_s, a)? {
         row.method = format!("{}, hierarchical ε = {tolerance:.0e}", row.method);
@@ -328,7 +358,7 @@ fn level_rows(
     )
     .expect("never cancelled");
     let shared_s = build_s + t.elapsed().as_secs_f64();
-    let first = lighting::to_lightmap(&case.grid, &case.b_o);
+    let first = lighting::to_lightmap(&case.grid, &case.input);
     let area = case.grid.area_map();
     let mut rows = Vec::new();
     for (eps, e) in a.levels.iter().zip(&entries) {
@@ -339,7 +369,7 @@ fn level_rows(
         rows.push(Row {
             method: format!("multi-resolution maps, ε = {eps:.0e}"),
             offsets: Some(maps.len()),
-            final_b: lighting::from_lightmap(&case.grid, &final_map),
+            final_b: case.finish(lighting::from_lightmap(&case.grid, &final_map)),
             bake_s,
             frame_cost: ortm::maps::levels::stored_texels(&maps),
         });
@@ -356,7 +386,7 @@ fn level_rows(
                 thousands(blocks.len() as u64)
             ),
             offsets: Some(block_maps.len()),
-            final_b: lighting::from_lightmap(&case.grid, &final_map),
+            final_b: case.finish(lighting::from_lightmap(&case.grid, &final_map)),
             bake_s: shared_s + t.elapsed().as_secs_f64(),
             // What the GPU draws: the maps' cropped rectangles, zeros between blocks included.
             frame_cost: ortm::maps::levels::stored_texels(&block_maps),
@@ -401,12 +431,12 @@ fn bake_row(
     let bake_s = t.elapsed().as_secs_f64();
     let _ = std::fs::remove_dir_all(&dir);
     let (summary, maps) = result?;
-    let first = lighting::to_lightmap(&case.grid, &case.b_o);
+    let first = lighting::to_lightmap(&case.grid, &case.input);
     let final_map = ortm::maps::apply(&maps, &first)?;
     Ok(Row {
         method: format!("importance offsets, {name}"),
         offsets: Some(k),
-        final_b: lighting::from_lightmap(&case.grid, &final_map),
+        final_b: case.finish(lighting::from_lightmap(&case.grid, &final_map)),
         bake_s,
         frame_cost: summary.stored_texels,
     })
@@ -421,7 +451,10 @@ fn reference_for(case: &Case, rows: &[Row], a: &Args) -> Result<(Vec<Vec3>, Stri
         let vis = std::sync::Arc::new(Visibility::new(&case.scene.mesh));
         let kernels = Kernels::new(&case.scene, Effects::default(), vis);
         let dense = DenseTransport::new(&texel_patches(&case.grid), &kernels);
-        return Ok((dense.solve(&case.b_o), "exact dense solve".into()));
+        return Ok((
+            case.finish(dense.solve(&case.input)),
+            "exact dense solve".into(),
+        ));
     }
     let mask = compare::interior_mask(&case.grid);
     let mut spp = a.spp;

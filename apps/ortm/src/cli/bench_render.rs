@@ -98,6 +98,10 @@ pub struct Args {
     /// Shadow-map side, texels.
     #[arg(long, default_value_t = 1024)]
     shadow_size: u32,
+    /// Sub-texels per texel side of the first-order pass's averaged transfer input (odd, 1–7;
+    /// as `ortm render --first-order-samples`).
+    #[arg(long, default_value_t = 1, value_name = "N")]
+    first_order_samples: u32,
     /// Displayed image size, WIDTHxHEIGHT.
     #[arg(long, default_value = "1280x720")]
     image: String,
@@ -199,11 +203,18 @@ struct Job {
 /// Runs `ortm bench render`.
 pub fn run(a: Args) -> Result<()> {
     let (img_w, img_h) = render::parse_size(&a.image)?;
+    super::solve::check_first_order_samples(a.first_order_samples)?;
     let gpu = Gpu::new_headless()?;
     println!(
         "adapter: {} ({:?}); iterations: {} ({:?}, after 1 warm-up); shadow maps {}²; \
-         display {img_w}×{img_h}",
-        gpu.adapter_info.name, gpu.adapter_info.backend, a.iterations, a.statistic, a.shadow_size
+         first order {}×{} sub-texels per texel; display {img_w}×{img_h}",
+        gpu.adapter_info.name,
+        gpu.adapter_info.backend,
+        a.iterations,
+        a.statistic,
+        a.shadow_size,
+        a.first_order_samples,
+        a.first_order_samples
     );
     let mut rows = Vec::new();
     for job in jobs(&a) {
@@ -304,6 +315,7 @@ fn renderer_options(
             shadow_map_size: a.shadow_size,
             max_shadow_layers: render::shadow_layers_for(&scene.lights),
             texel_reads,
+            samples: a.first_order_samples,
             ..Default::default()
         },
         transfer: TransferOptions {
