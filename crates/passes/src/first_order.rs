@@ -6,8 +6,9 @@
 //! Once: [`FirstOrderPass::new`] builds the pipelines; [`FirstOrderPass::prepare_mesh`]
 //! takes the uploaded mesh ([`GpuMesh`]: interleaved [`Vertex`], plus positions alone for
 //! the shadow pass), uploads the albedo map, allocates the shadow-map array and the output,
-//! and rasterises the mesh once by its UVs into a texel G-buffer (interpolated world position + coverage, interpolated normal;
-//! two RGBA32F maps). Per frame: [`FirstOrderPass::encode`] writes the lights
+//! and rasterises the mesh once by its UVs into a texel G-buffer (interpolated world position
+//! + coverage, interpolated normal + the texel's world area; two RGBA32F maps, `N×` the
+//! lightmap's size with an averaged input, below). Per frame: [`FirstOrderPass::encode`] writes the lights
 //! ([`GpuLight`]) and one view-projection matrix per shadow layer ([`shadow_layers`]),
 //! renders every shadow layer (depth only), then the lightmap as one full-screen triangle:
 //! per texel the G-buffer's position and normal, `E = Σ_lights E_light·visibility`, output
@@ -15,6 +16,23 @@
 //! same values as shading while rasterising the mesh (same interpolants, stored in f32)
 //! but shades each texel once: rasterising 17k small triangles into 256² shades partial
 //! 4×4 blocks many times over on a software rasteriser.
+//!
+//! # Averaged input ([`FirstOrderOptions::samples`] `N > 1`, odd)
+//! The transfer multiplies each sender's first order, and a sender stands for its whole
+//! square: where the light changes within a texel (a shadow's edge, a lamp beside a wall) the
+//! centre's value is the wrong sample. With `N > 1` the G-buffer is rasterised at `N×` the
+//! lightmap's size (odd `N`: a texel's centre is its middle sub-texel's, so coverage is
+//! unchanged) with each sub-texel's world area in `normal.w` (`|∂P/∂x × ∂P/∂y|` from the
+//! position's derivatives, constant per triangle), and `fs_lightmap_averaged` writes two
+//! targets per texel: the **transfer's input** ([`FirstOrderScene::transfer_input`]) `ρ · Σ
+//! a_s E_s / Σ a_s` over the covered sub-texels, and the **first order**
+//! ([`FirstOrderScene::output`]) — the centre's `ρ·E` on opaque texels (what a texel's own
+//! light is, as the path-traced reference defines it), the average on translucent ones
+//! ([`FirstOrderPass::set_translucent`], the albedo texture's alpha: their transfer holds
+//! `−B_in` at the texel itself, so their final is the scattered average). The transfer's
+//! pieces and the pyramid read the input and its final starts from the first order
+//! ([`crate::transfer::TransferInputs::base`]): `final = first order + T(input) − input`.
+//! Cost: `N² + 1` shadowed irradiance evaluations per texel instead of one.
 //!
 //! # Lights (SI units)
 //! Point/spot `E = I·cosθ/d²` (spot × `smoothstep(cos outer, cos inner, cos α)`),
