@@ -113,7 +113,8 @@ fn assert_row_matches(row: &Row, cmp: &str, how: &str) {
     }
 }
 
-/// `ortm bake cornell --size 64 ARGS -o bake`, `ortm solve cornell --size 64 -o exact` (once per
+/// `ortm bake cornell --size 64 ARGS -o bake`, `ortm solve cornell --size 64
+/// --first-order-samples 1 -o exact` (once per
 /// `dir`), the maps applied on the CPU to the solve's first order and `ortm compare`d with the
 /// exact solve: the bake's index and the comparison's output.
 fn bake_and_compare(dir: &std::path::Path, args: &[&str]) -> (BakeIndex, String) {
@@ -123,7 +124,17 @@ fn bake_and_compare(dir: &std::path::Path, args: &[&str]) -> (BakeIndex, String)
     ok(ortm(&bake, dir));
     if !dir.join("exact/final.exr").exists() {
         ok(ortm(
-            &["solve", "cornell", "--size", "64", "-o", "exact"],
+            // The bench's default input: the centres' first order.
+            &[
+                "solve",
+                "cornell",
+                "--size",
+                "64",
+                "--first-order-samples",
+                "1",
+                "-o",
+                "exact",
+            ],
             dir,
         ));
     }

@@ -56,6 +56,8 @@ fn without_a_gpu_adapter_render_runs_on_the_cpu_mirrors() {
         "final.exr",
         "--first-order-out",
         "first.exr",
+        "--transfer-input-out",
+        "input.exr",
     ];
     let mut cpu = args.to_vec();
     cpu.extend(["-o", "cpu.png"]);
@@ -64,12 +66,14 @@ fn without_a_gpu_adapter_render_runs_on_the_cpu_mirrors() {
         text.contains("CPU mirrors of the passes") && text.contains("no GPU adapter"),
         "{text}"
     );
-    // Eq. 9 with the maps of index.json (not the atlas pieces the fallback applied).
+    // Eq. 9 with the maps of index.json (not the atlas pieces the fallback applied) on the
+    // transfer's input, started from the first order.
     let first = read_lightmap_exr(&dir.join("first.exr")).unwrap();
+    let input = read_lightmap_exr(&dir.join("input.exr")).unwrap();
     let fin = read_lightmap_exr(&dir.join("final.exr")).unwrap();
     let bake = dir.join("bake");
     let maps = BakeIndex::read(&bake).unwrap().load_maps(&bake).unwrap();
-    let want = ortm::maps::apply(&maps, &first).unwrap();
+    let want = common::started_from(&ortm::maps::apply(&maps, &input).unwrap(), &first, &input);
     let max = want.data.iter().flatten().fold(0f32, |a, &b| a.max(b));
     for (g, c) in fin.data.iter().flatten().zip(want.data.iter().flatten()) {
         assert!((g - c).abs() <= 1e-4 * c.abs() + 1e-6 * max, "{g} vs {c}");

@@ -220,7 +220,7 @@ pub struct Args {
     /// Sub-texels per texel side (odd, 1–7) over which the transfer's input is averaged: the
     /// maps then multiply each sender's light over its whole square instead of at its centre
     /// (README, "The transfer's input"); 1 takes the centres.
-    #[arg(long, default_value_t = 1, value_name = "N")]
+    #[arg(long, default_value_t = super::solve::DEFAULT_FIRST_ORDER_SAMPLES, value_name = "N")]
     first_order_samples: u32,
     /// Atlas side when the bake has no atlases.json (power of two).
     #[arg(long, default_value_t = DEFAULT_ATLAS_SIDE)]
@@ -234,6 +234,11 @@ pub struct Args {
     /// Also write the first-order lightmap (W/m², linear) as OpenEXR.
     #[arg(long)]
     first_order_out: Option<PathBuf>,
+    /// Also write the transfer's input (W/m², linear; the first order averaged over each
+    /// texel's square with --first-order-samples > 1) as OpenEXR: the final is the first
+    /// order plus the maps applied to it, less it.
+    #[arg(long)]
+    transfer_input_out: Option<PathBuf>,
 }
 
 /// Runs `ortm render`.
@@ -279,6 +284,7 @@ pub fn run(a: Args) -> Result<()> {
                 output: &a.output,
                 lightmap_out: a.lightmap_out.as_deref(),
                 first_order_out: a.first_order_out.as_deref(),
+                transfer_input_out: a.transfer_input_out.as_deref(),
             };
             return super::render_cpu::run(&cpu, &e);
         }
@@ -317,6 +323,13 @@ pub fn run(a: Args) -> Result<()> {
     if let Some(p) = &a.first_order_out {
         write_lightmap_exr(p, &to_lightmap(&fo))?;
     }
+    if let Some(p) = &a.transfer_input_out {
+        let input = gpu.read_texel_image(
+            "ortm.render.transfer_input",
+            rscene.first_order.transfer_input(),
+        )?;
+        write_lightmap_exr(p, &to_lightmap(&input))?;
+    }
     let stats = set.stats();
     println!(
         "{}: {} covered texels at {w}x{h}, {} lights, {} atlases of {}x{} ({}), {} pieces of {} maps",
@@ -339,10 +352,11 @@ pub fn run(a: Args) -> Result<()> {
     );
     print_power(&grid, &fo, &fin);
     println!(
-        "wrote {} ({img_w}x{img_h}){}{}; load {t_load:.2} s, GPU {t_gpu:.2} s",
+        "wrote {} ({img_w}x{img_h}){}{}{}; load {t_load:.2} s, GPU {t_gpu:.2} s",
         a.output.display(),
         optional_path(a.lightmap_out.as_deref()),
         optional_path(a.first_order_out.as_deref()),
+        optional_path(a.transfer_input_out.as_deref()),
     );
     Ok(())
 }

@@ -33,8 +33,10 @@ use rayon::prelude::*;
 pub struct CpuLightmaps {
     /// First order with ray-cast shadows.
     pub first_order: TexelImage,
-    /// First order plus every map's transfer (Eq. 9).
+    /// First order plus every map's transfer (Eq. 9) of the transfer's input.
     pub final_map: TexelImage,
+    /// The transfer's input (the first order averaged over each texel's square).
+    pub transfer_input: TexelImage,
 }
 
 /// First-order and final lightmaps of `lights` on the CPU (see the module docs), the
@@ -76,6 +78,7 @@ pub fn lightmaps(
     Ok(CpuLightmaps {
         first_order: to_image(&first),
         final_map: to_image(&fin),
+        transfer_input: to_image(&input_map),
     })
 }
 
@@ -198,6 +201,8 @@ pub struct CpuRender<'a> {
     pub lightmap_out: Option<&'a std::path::Path>,
     /// `--first-order-out`.
     pub first_order_out: Option<&'a std::path::Path>,
+    /// `--transfer-input-out`.
+    pub transfer_input_out: Option<&'a std::path::Path>,
 }
 
 /// Renders on the CPU and writes the outputs `ortm render` writes, saying that the CPU mirrors
@@ -230,6 +235,9 @@ pub fn run(r: &CpuRender, why: &passes::PassError) -> Result<()> {
     if let Some(p) = r.first_order_out {
         ortm::render::write_lightmap_exr(p, &to_map(&maps.first_order))?;
     }
+    if let Some(p) = r.transfer_input_out {
+        ortm::render::write_lightmap_exr(p, &to_map(&maps.transfer_input))?;
+    }
     println!(
         "renderer: CPU mirrors of the passes (no GPU adapter); {} covered texels at {}x{}, {} \
          lights; exposure {exposure:.4}",
@@ -239,7 +247,7 @@ pub fn run(r: &CpuRender, why: &passes::PassError) -> Result<()> {
         r.lights.len()
     );
     super::render::print_power(r.grid, &maps.first_order, &maps.final_map);
-    let extra: String = [r.lightmap_out, r.first_order_out]
+    let extra: String = [r.lightmap_out, r.first_order_out, r.transfer_input_out]
         .into_iter()
         .flatten()
         .map(|p| format!(", {}", p.display()))

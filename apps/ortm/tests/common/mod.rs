@@ -74,6 +74,22 @@ pub fn ortm_no_gpu(args: &[&str], cwd: &Path) -> Output {
         .expect("the ortm binary runs")
 }
 
+/// What `ortm render` writes as its final from the transfer's input: `applied` (the maps
+/// applied to `input`, `input + Σ R·input`) started from `first` instead of `input`.
+pub fn started_from(
+    applied: &ortm::Lightmap,
+    first: &ortm::Lightmap,
+    input: &ortm::Lightmap,
+) -> ortm::Lightmap {
+    let mut out = applied.clone();
+    for ((o, f), i) in out.data.iter_mut().zip(&first.data).zip(&input.data) {
+        for c in 0..3 {
+            o[c] += f[c] - i[c];
+        }
+    }
+    out
+}
+
 /// A run's stdout followed by its stderr, as text.
 pub fn output_text(out: &Output) -> String {
     format!(
