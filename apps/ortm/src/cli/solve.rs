@@ -11,15 +11,14 @@
 //! default) takes the dense solve where it fits. Progress bars for every phase; Ctrl-C stops
 //! between steps and writes nothing.
 //!
-//! `--first-order-samples N` (odd) feeds the transfer the first-order light averaged over each
-//! texel's square from N×N sub-texels ([`lighting::first_order_averaged`]) instead of its
-//! value at the texel's centre: a sender half in shadow then sends half its light, where the
-//! centre's value sends all or none. The written first order stays the centres' (what a
-//! reference's first order is); an opaque texel's final is its centre's first order plus the
-//! transfer of the averaged light, a translucent texel's the scattered averaged light. It
-//! measures how much of an error against `ortm reference` comes from sampling the first
-//! order at the centres (README, *Transport model*); the bake and the renderer still take it
-//! there.
+//! `--first-order-samples N` (odd, default [`DEFAULT_FIRST_ORDER_SAMPLES`]) feeds the transfer
+//! the first-order light averaged over each texel's square from N×N sub-texels
+//! ([`lighting::first_order_and_input`]); 1 takes its value at the texel's centre, where a
+//! sender half in shadow sends all its light or none. The written first order stays the
+//! centres' (what a reference's first order is); an opaque texel's final is its centre's first
+//! order plus the transfer of the averaged light, a translucent texel's the scattered averaged
+//! light — the rule `ortm render --first-order-samples N` follows with a bake's maps (README,
+//! *The transfer's input*).
 
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
