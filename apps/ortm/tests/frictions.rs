@@ -21,7 +21,6 @@
 mod common;
 
 use std::path::Path;
-use std::process::Output;
 
 use common::{fails, ok, ortm, ortm_command, ortm_no_gpu, tiny_cornell_bake};
 use ortm::bake_dir::BakeIndex;

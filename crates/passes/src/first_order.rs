@@ -7,7 +7,7 @@
 //! takes the uploaded mesh ([`GpuMesh`]: interleaved [`Vertex`], plus positions alone for
 //! the shadow pass), uploads the albedo map, allocates the shadow-map array and the output,
 //! and rasterises the mesh once by its UVs into a texel G-buffer (interpolated world position
-//! + coverage, interpolated normal + the texel's world area; two RGBA32F maps, `N×` the
+//! and coverage, interpolated normal and the texel's world area; two RGBA32F maps, `N×` the
 //! lightmap's size with an averaged input, below). Per frame: [`FirstOrderPass::encode`] writes the lights
 //! ([`GpuLight`]) and one view-projection matrix per shadow layer ([`shadow_layers`]),
 //! renders every shadow layer (depth only), then the lightmap as one full-screen triangle:
@@ -600,7 +600,7 @@ pub struct FirstOrderOutput {
 
 /// Checks `options` against the device; returns the resolved texel reads.
 fn check_options(gpu: &Gpu, options: &FirstOrderOptions) -> Result<util::TexelReads, PassError> {
-    if options.samples % 2 == 0 || options.samples > MAX_SAMPLES {
+    if options.samples.is_multiple_of(2) || options.samples > MAX_SAMPLES {
         return Err(PassError::InvalidInput {
             what: "FirstOrderOptions.samples".into(),
             problem: format!(

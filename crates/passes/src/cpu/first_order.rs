@@ -193,7 +193,7 @@ pub fn first_order_averaged(
     lights: &[LightDesc],
     samples: u32,
 ) -> (TexelImage, TexelImage) {
-    assert!(samples % 2 == 1, "samples must be odd");
+    assert!(!samples.is_multiple_of(2), "samples must be odd");
     let gl = packed_lights(mesh, lights);
     let (w, h) = (albedo.width, albedo.height);
     let n = samples;
