@@ -46,10 +46,8 @@ use ortm::bake::transport::dense::MAX_TEXELS as MAX_DENSE_TEXELS;
 /// texels).
 const MAX_FIRST_ORDER_SAMPLES: u32 = 7;
 
-/// `--first-order-samples` of `ortm solve` and `ortm render` (so `ortm demo`): 3×3 sub-texels per
-/// texel. Against the path-traced reference it is as good as or better than the centres on
-/// every scene measured, and 5 or 7 add nothing (README, "The transfer's input").
-pub const DEFAULT_FIRST_ORDER_SAMPLES: u32 = 3;
+/// `--first-order-samples` of `ortm solve` and `ortm render` (so `ortm demo`).
+pub use ortm::bake::lighting::DEFAULT_FIRST_ORDER_SAMPLES;
 
 /// Arguments of `ortm solve`.
 #[derive(clap::Args, Debug)]

@@ -74,6 +74,12 @@ pub struct Args {
     /// more spot and directional ones).
     #[arg(long, default_value_t = super::render::DEFAULT_SHADOW_SIZE, help = format!("Side of each shadow-map layer, texels ({SHADOW_LAYERS} layers: 4 point lights, or more spot and directional ones)"))]
     shadow_size: u32,
+    /// Sub-texels per texel side (odd, 1–7) over which the transfer's input is averaged, as
+    /// `ortm render --first-order-samples` (whose default is 3); the viewer takes the centres
+    /// by default, since on a CPU adapter (lavapipe) the averaged first order costs about ten
+    /// times the pass (README, "The transfer's input").
+    #[arg(long, default_value_t = 1, value_name = "N")]
+    first_order_samples: u32,
     /// Atlas side when the bake has no atlases.json (power of two).
     #[arg(long, default_value_t = DEFAULT_ATLAS_SIDE)]
     atlas_size: u32,
@@ -237,6 +243,7 @@ fn load_input(a: &Args) -> Result<ViewerInput> {
         map_order,
         lights,
         shadow_size: a.shadow_size,
+        first_order_samples: a.first_order_samples,
         note,
         effects,
         display: a.display,

@@ -12,8 +12,9 @@
 //!
 //! # The CPU mirror
 //! [`cpu_mirror()`] computes the first order on the CPU with ray-cast shadows
-//! ([`ortm::bake::lighting::first_order`], exact point-to-light visibility instead of shadow maps)
-//! and applies the *same* atlas pieces on the CPU ([`ortm::atlas::apply_atlas_pieces`], Eq. 9
+//! ([`ortm::bake::lighting::first_order_and_input`], exact point-to-light visibility instead of
+//! shadow maps; the transfer's input averaged over the texels' squares as the viewer's
+//! `--first-order-samples` asks) and applies the *same* atlas pieces on the CPU ([`ortm::atlas::apply_atlas_pieces`], Eq. 9
 //! in f64): it shows what the GPU should display, up to shadow-map aliasing and float
 //! rounding — the bake's approximation, not the truth (a check of the GPU passes).
 //!
@@ -171,25 +172,33 @@ pub struct CpuMirror {
     pub final_map: Lightmap,
 }
 
-/// Computes the [`CpuMirror`] (see the module docs).
+/// Computes the [`CpuMirror`] (see the module docs) of `scene`'s texels `grid`, the transfer's
+/// input averaged over `samples × samples` sub-texels per texel as the GPU's first-order pass
+/// averages it (translucent texels: those of a subsurface material).
 pub fn cpu_mirror(
-    grid: &TexelGrid,
+    (scene, grid): (&ortm::scene::Scene, &TexelGrid),
     vis: &Visibility,
     set: &AtlasSet,
-    lights: &[Light],
+    (lights, samples): (&[Light], u32),
     keep_map: impl Fn(u32) -> bool,
-) -> Result<CpuMirror, ortm::atlas::AtlasError> {
-    let values: Vec<Vec3> = ortm::bake::lighting::first_order(grid, lights, vis);
-    let first_order = ortm::bake::lighting::to_lightmap(grid, &values);
-    let final_map = apply_atlas_pieces(
+) -> anyhow::Result<CpuMirror> {
+    use ortm::bake::lighting;
+    let translucent =
+        |m: u32| (scene.materials.get(m as usize)).is_some_and(|m| m.subsurface.is_some());
+    let (values, input) =
+        lighting::first_order_and_input(scene, grid, lights, vis, samples, translucent)?;
+    let first_order = lighting::to_lightmap(grid, &values);
+    let applied = apply_atlas_pieces(
         set,
         |p| keep_map(p.map_index),
-        &first_order,
+        &lighting::to_lightmap(grid, &input),
         Some(&grid.area_map()),
     )?;
+    let mut final_values = lighting::from_lightmap(grid, &applied);
+    lighting::with_first_order(&mut final_values, &values, &input);
     Ok(CpuMirror {
         first_order,
-        final_map,
+        final_map: lighting::to_lightmap(grid, &final_values),
     })
 }
 

@@ -61,6 +61,9 @@ pub struct ViewerInput {
     pub lights: Vec<Light>,
     /// Side of each shadow-map layer, texels.
     pub shadow_size: u32,
+    /// Sub-texels per texel side of the transfer's input (`--first-order-samples`; the GPU's
+    /// first-order pass and the CPU mirror).
+    pub first_order_samples: u32,
     /// First status line (e.g. a warning).
     pub note: String,
     /// The bake's effects (from its settings), which the reference includes.

@@ -6,8 +6,10 @@
 //!   ([`ortm::bake::transport::dense::MAX_TEXELS`]): the transport system over every covered
 //!   texel is assembled and factorised once ([`DenseTransport::new`], `n(n−1)/2` visibility
 //!   rays, and [`DenseTransport::factor`], `O(n³)`: seconds), then each lighting is one
-//!   [`FactoredTransport::solve`] (`O(n²)`) of the ray-cast first order
-//!   ([`ortm::bake::lighting::first_order`]).
+//!   [`FactoredTransport::solve`] (`O(n²)`) of the ray-cast first order averaged over each
+//!   texel's square, the final started from the centres' first order as `ortm solve` does
+//!   by default ([`ortm::bake::lighting::first_order_and_input`]; the reported first order is
+//!   the centres').
 //! - **Path-traced reference** otherwise ([`ortm::accuracy::reference::trace`], `spp` paths per
 //!   texel, seed [`REFERENCE_SEED`]): progress (fraction, ETA) is shown, and a lighting change
 //!   raises the running trace's `cancel` flag and starts a new one.
@@ -535,10 +537,28 @@ impl Worker {
         }
         req.progress.set_stage(Stage::Solving);
         let first_order = lighting::first_order(&self.grid, &req.lights, &vis);
-        let final_b = self
+        // The transfer's input averaged over the texels' squares, as `ortm solve` takes it by
+        // default: the nearer truth (README, "The transfer's input").
+        let translucent = |m: u32| {
+            (self.scene.materials.get(m as usize)).is_some_and(|m| m.subsurface.is_some())
+                && self.effects.subsurface
+        };
+        // (The sub-texel grid is 3× one that fits the dense solve, far inside the rasteriser's
+        // limits; should it fail, the centres' first order is the input.)
+        let (first, input) = lighting::first_order_and_input(
+            &self.scene,
+            &self.grid,
+            &req.lights,
+            &vis,
+            lighting::DEFAULT_FIRST_ORDER_SAMPLES,
+            translucent,
+        )
+        .unwrap_or_else(|_| (first_order.clone(), first_order.clone()));
+        let mut final_b = self
             .dense
             .as_ref()
-            .map_or_else(|| first_order.clone(), |d| d.solve(&first_order));
+            .map_or_else(|| input.clone(), |d| d.solve(&input));
+        lighting::with_first_order(&mut final_b, &first, &input);
         RefMaps {
             solver: Solver::Exact,
             first_order,
@@ -593,13 +613,23 @@ mod tests {
     use super::*;
     use ortm::scene::cornell::cornell_box;
 
-    /// The exact solve written out as `ortm solve` does it.
+    /// The exact solve written out as `ortm solve` does it (its default averaged input).
     fn exact_solve(scene: &Scene, grid: &TexelGrid, lights: &[Light]) -> (Vec<Vec3>, Vec<Vec3>) {
         let vis = Arc::new(Visibility::new(&scene.mesh));
         let kernels = Kernels::new(scene, Effects::default(), Arc::clone(&vis));
         let dense = DenseTransport::new(&texel_patches(grid), &kernels);
         let b_o = lighting::first_order(grid, lights, &vis);
-        let b = dense.solve(&b_o);
+        let (first, input) = lighting::first_order_and_input(
+            scene,
+            grid,
+            lights,
+            &vis,
+            lighting::DEFAULT_FIRST_ORDER_SAMPLES,
+            |m| kernels.is_translucent(m),
+        )
+        .unwrap();
+        let mut b = dense.solve(&input);
+        lighting::with_first_order(&mut b, &first, &input);
         (b_o, b)
     }
 

@@ -742,10 +742,10 @@ impl Running {
             .get_or_insert_with(|| Visibility::new(&self.data.scene.mesh));
         let keep = self.data.first_maps(self.app.k);
         Ok(debug::cpu_mirror(
-            &self.data.grid,
+            (&self.data.scene, &self.data.grid),
             vis,
             &self.data.set,
-            &self.app.lights,
+            (&self.app.lights, self.data.first_order_samples),
             |m| keep.get(m as usize).copied().unwrap_or(false),
         )?)
     }
@@ -862,6 +862,7 @@ fn view_renderer(gpu: Gpu, data: &ViewerInput) -> Result<ViewRenderer> {
         first_order: passes::first_order::FirstOrderOptions {
             shadow_map_size: data.shadow_size,
             max_shadow_layers: super::SHADOW_LAYERS,
+            samples: data.first_order_samples,
             ..Default::default()
         },
         transfer: passes::transfer::TransferOptions::best_for(&gpu),
