@@ -219,9 +219,10 @@ pub struct Args {
     shadow_size: u32,
     /// Sub-texels per texel side (odd, 1–7) over which the transfer's input is averaged: the
     /// maps then multiply each sender's light over its whole square instead of at its centre
-    /// (README, "The transfer's input"); 1 takes the centres.
-    #[arg(long, default_value_t = super::solve::DEFAULT_FIRST_ORDER_SAMPLES, value_name = "N")]
-    first_order_samples: u32,
+    /// (README, "The transfer's input"); 1 takes the centres. Default: 3 where the sub-texels
+    /// fit (on a GPU lightmaps up to 1365², on the CPU mirrors up to 682²), else 1.
+    #[arg(long, value_name = "N")]
+    first_order_samples: Option<u32>,
     /// Atlas side when the bake has no atlases.json (power of two).
     #[arg(long, default_value_t = DEFAULT_ATLAS_SIDE)]
     atlas_size: u32,
@@ -244,7 +245,9 @@ pub struct Args {
 /// Runs `ortm render`.
 pub fn run(a: Args) -> Result<()> {
     let t0 = Instant::now();
-    super::solve::check_first_order_samples(a.first_order_samples)?;
+    if let Some(n) = a.first_order_samples {
+        super::solve::check_first_order_samples(n)?;
+    }
     let (img_w, img_h) = render::parse_size(&a.size)?;
     let BakeAndScene {
         set, source, scene, ..
@@ -274,7 +277,12 @@ pub fn run(a: Args) -> Result<()> {
                 grid: &grid,
                 mesh: &scene.mesh,
                 scene: &scene,
-                first_order_samples: a.first_order_samples,
+                first_order_samples: super::solve::first_order_samples(
+                    a.first_order_samples,
+                    (w, h),
+                    ortm::bake::lighting::DEFAULT_SAMPLES_CPU_BUDGET,
+                    u32::MAX,
+                )?,
                 set: &set,
                 lights: &lights,
                 camera: camera(&a, &scene.mesh, (img_w, img_h))?,
@@ -290,7 +298,13 @@ pub fn run(a: Args) -> Result<()> {
         }
         Err(e) => return Err(e.into()),
     };
-    let options = renderer_options(&a, &gpu, &lights, (img_w, img_h));
+    let samples = super::solve::first_order_samples(
+        a.first_order_samples,
+        (w, h),
+        ortm::bake::lighting::DEFAULT_SAMPLES_GPU_BUDGET,
+        gpu.device.limits().max_texture_dimension_2d,
+    )?;
+    let options = renderer_options(&a, &gpu, &lights, (img_w, img_h), samples);
     let renderer = Renderer::new(&gpu, &options)?;
     let mesh = render::mesh_data(&scene.mesh);
     let mut rscene = renderer.prepare_with_weights(
@@ -368,6 +382,7 @@ fn renderer_options(
     gpu: &Gpu,
     lights: &[Light],
     (width, height): (u32, u32),
+    samples: u32,
 ) -> RendererOptions {
     let best = TransferOptions::best_for(gpu);
     let transfer = match a.path {
@@ -385,7 +400,7 @@ fn renderer_options(
         first_order: FirstOrderOptions {
             shadow_map_size: a.shadow_size,
             max_shadow_layers: render::shadow_layers_for(lights),
-            samples: a.first_order_samples,
+            samples,
             ..Default::default()
         },
         transfer,

@@ -76,10 +76,11 @@ pub struct Args {
     #[arg(long, default_value = "radiosity,sss")]
     effects: String,
     /// The transfer's input: the first-order light averaged over each texel's square from
-    /// N×N sub-texels (odd N, 1–7); 1 takes it at the texel centres. The written first order
-    /// is the centres' either way.
-    #[arg(long, default_value_t = DEFAULT_FIRST_ORDER_SAMPLES, value_name = "N")]
-    first_order_samples: u32,
+    /// N×N sub-texels (odd N, 1–7); 1 takes it at the texel centres. Default: 3 where its
+    /// sub-texels fit (up to 682² lightmaps), else 1. The written first order is the
+    /// centres' either way.
+    #[arg(long, value_name = "N")]
+    first_order_samples: Option<u32>,
 }
 
 /// `--method`.
@@ -88,6 +89,33 @@ enum Method {
     Auto,
     Dense,
     Hierarchical,
+}
+
+/// `--first-order-samples` as asked (checked), or the default for a `width × height`
+/// lightmap within `budget` sub-texels and `max_side` (saying so when it falls back to the
+/// centres).
+pub fn first_order_samples(
+    asked: Option<u32>,
+    (width, height): (u32, u32),
+    budget: u64,
+    max_side: u32,
+) -> Result<u32> {
+    if let Some(n) = asked {
+        check_first_order_samples(n)?;
+        return Ok(n);
+    }
+    let n = ortm::bake::lighting::default_first_order_samples(width, height, budget, max_side);
+    if n != DEFAULT_FIRST_ORDER_SAMPLES {
+        let d = DEFAULT_FIRST_ORDER_SAMPLES;
+        eprintln!(
+            "note: the transfer's input is the first order at the texel centres: averaging it \
+             over {d}×{d} sub-texels of this {width}×{height} lightmap would take {} sub-texels \
+             (more than the default's {budget}); give --first-order-samples {d} to average \
+             anyway",
+            (d as u64).pow(2) * width as u64 * height as u64
+        );
+    }
+    Ok(n)
 }
 
 /// Refuses a `--first-order-samples` that is even or out of range, with the rule.
@@ -104,7 +132,6 @@ pub fn check_first_order_samples(n: u32) -> Result<()> {
 /// Runs `ortm solve`.
 pub fn run(a: Args) -> Result<()> {
     let effects = super::bake::parse_effects(&a.effects)?;
-    check_first_order_samples(a.first_order_samples)?;
     let mut scene = super::load_scene(&a.scene, a.size)?;
     if !a.lights.is_empty() {
         scene.lights = a
@@ -115,6 +142,12 @@ pub fn run(a: Args) -> Result<()> {
     }
     let grid = TexelGrid::build(&scene)
         .with_context(|| format!("rasterizing the lightmap UVs of '{}'", a.scene))?;
+    let samples = first_order_samples(
+        a.first_order_samples,
+        (grid.width, grid.height),
+        lighting::DEFAULT_SAMPLES_CPU_BUDGET,
+        u32::MAX,
+    )?;
     let dense = match a.method {
         Method::Dense => true,
         Method::Hierarchical => false,
@@ -152,14 +185,10 @@ pub fn run(a: Args) -> Result<()> {
     let b_o = lighting::first_order(&grid, &scene.lights, &vis);
     // The final starts from `first` (the centres' first order on opaque texels, the input on
     // translucent ones, whose transfer holds `−B_in` at the texel itself).
-    let (first, b_in) = lighting::first_order_and_input(
-        &scene,
-        &grid,
-        &scene.lights,
-        &vis,
-        a.first_order_samples,
-        |m| kernels.is_translucent(m),
-    )?;
+    let (first, b_in) =
+        lighting::first_order_and_input(&scene, &grid, &scene.lights, &vis, samples, |m| {
+            kernels.is_translucent(m)
+        })?;
     let bar = Mutex::new(Progress::hidden());
     let events = |e: BakeEvent| match e {
         BakeEvent::Phase { name, total } => {

@@ -183,6 +183,25 @@ pub fn first_order_averaged(
 /// "The transfer's input").
 pub const DEFAULT_FIRST_ORDER_SAMPLES: u32 = 3;
 
+/// Sub-texels (`N²·W·H`) the default averaged input may rasterise on the CPU
+/// ([`first_order_averaged`] holds the whole sub-texel grid, ~100 bytes each): 4 Mi, so
+/// lightmaps up to 682² at `N = 3`.
+pub const DEFAULT_SAMPLES_CPU_BUDGET: u64 = 1 << 22;
+
+/// Sub-texels the default averaged input may rasterise on the GPU (its G-buffer: two RGBA32F
+/// maps, 32 bytes each): 16 Mi, 512 MiB, so lightmaps up to 1365² at `N = 3`.
+pub const DEFAULT_SAMPLES_GPU_BUDGET: u64 = 1 << 24;
+
+/// The sub-texels per side a tool takes when none is asked for: [`DEFAULT_FIRST_ORDER_SAMPLES`]
+/// where its `N²·W·H` sub-texels fit `budget` and its `N·W × N·H` grid fits `max_side`, else
+/// 1 (the centres).
+pub fn default_first_order_samples(width: u32, height: u32, budget: u64, max_side: u32) -> u32 {
+    let n = DEFAULT_FIRST_ORDER_SAMPLES;
+    let fits = (n as u64).pow(2) * width as u64 * height as u64 <= budget
+        && (n as u64) * (width.max(height) as u64) <= max_side as u64;
+    if fits { n } else { 1 }
+}
+
 /// The two first orders of a render with `n` sub-texels per side (odd; the GPU's
 /// `FirstOrderOptions::samples`): `(first order, transfer input)` per texel. The input is
 /// [`first_order_averaged`]; the first order the lightmap holds is the centre's
@@ -250,6 +269,18 @@ mod tests {
             .filter_map(|(dx, dy)| grid.at(t.x as i32 + dx, t.y as i32 + dy))
             .map(|j| lum(values[j as usize]))
             .collect()
+    }
+
+    #[test]
+    fn the_default_averages_where_the_sub_texels_fit() {
+        let (cpu, gpu) = (DEFAULT_SAMPLES_CPU_BUDGET, DEFAULT_SAMPLES_GPU_BUDGET);
+        assert_eq!(default_first_order_samples(256, 256, cpu, u32::MAX), 3);
+        assert_eq!(default_first_order_samples(682, 682, cpu, u32::MAX), 3);
+        assert_eq!(default_first_order_samples(683, 683, cpu, u32::MAX), 1);
+        assert_eq!(default_first_order_samples(1024, 1024, gpu, 8192), 3);
+        assert_eq!(default_first_order_samples(1366, 1366, gpu, 8192), 1);
+        // The device's texture side: 3 × 1024 > 2048.
+        assert_eq!(default_first_order_samples(1024, 64, gpu, 2048), 1);
     }
 
     /// The Cornell box at 32² with its lamp: centre values, and the averages over 3×3
