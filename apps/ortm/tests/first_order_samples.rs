@@ -4,6 +4,8 @@
 //! the same input — on the CPU mirrors (ray-cast first order, the solve's own) to float
 //! rounding, on the GPU (lavapipe; shadow maps) to the shadow maps' differences — while the
 //! centres' input is measurably off it (the Cornell box's lamp hangs 2 cm under the ceiling).
+//! `ortm solve --supersample K` is the solve at K× the size read at the texel centres (on the
+//! head, whose UVs do not depend on the lightmap's size, unlike the built-in rooms' gutters).
 
 mod common;
 
@@ -106,4 +108,63 @@ fn render_with_an_averaged_input_is_the_exact_solve_with_it() {
         e.contains("--first-order-samples 4: must be odd, 1 to 7"),
         "{e}"
     );
+}
+
+#[test]
+fn a_supersampled_solve_is_the_finer_solve_at_the_centres() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let solve = |size: &str, extra: &[&str], out: &str| {
+        let args = [
+            &[
+                "solve",
+                "head",
+                "--size",
+                size,
+                "--method",
+                "hierarchical",
+                "--first-order-samples",
+                "1",
+            ][..],
+            extra,
+            &["-o", out],
+        ]
+        .concat();
+        ok(ortm(&args, d))
+    };
+    let text = solve("24", &["--supersample", "3"], "ss");
+    assert!(text.contains("solved at 3× the size"), "{text}");
+    solve("72", &[], "fine");
+    for name in ["final.exr", "first_order.exr"] {
+        let (ss, fine) = (
+            read_lightmap_exr(&d.join("ss").join(name)).unwrap(),
+            read_lightmap_exr(&d.join("fine").join(name)).unwrap(),
+        );
+        assert_eq!((ss.width, ss.height, fine.width), (24, 24, 72));
+        let mut covered = 0;
+        for y in 0..24 {
+            for x in 0..24 {
+                let v = ss.get(x, y);
+                if v != [0.0; 3] {
+                    covered += 1;
+                    assert_eq!(v, fine.get(3 * x + 1, 3 * y + 1), "{name} ({x}, {y})");
+                }
+            }
+        }
+        assert!(covered > 150, "{name}: {covered} lit texels");
+    }
+    let e = fails(ortm(
+        &[
+            "solve",
+            "head",
+            "--size",
+            "24",
+            "--supersample",
+            "2",
+            "-o",
+            "x",
+        ],
+        d,
+    ));
+    assert!(e.contains("--supersample 2: must be odd, 1 to 7"), "{e}");
 }

@@ -81,6 +81,13 @@ pub struct Args {
     /// centres' either way.
     #[arg(long, value_name = "N")]
     first_order_samples: Option<u32>,
+    /// Solve at K× the lightmap's size (odd K, 1–7) and write each texel's value at its centre
+    /// (the middle sub-texel of its K×K block): a deterministic answer nearer the continuous
+    /// one where light or the subsurface profile changes within a texel, for K²× the texels.
+    /// The transfer's input is then the sub-texels' own first order unless
+    /// --first-order-samples is given.
+    #[arg(long, default_value_t = 1, value_name = "K")]
+    supersample: u32,
 }
 
 /// `--method`.
@@ -129,9 +136,45 @@ pub fn check_first_order_samples(n: u32) -> Result<()> {
     Ok(())
 }
 
+/// Per texel of `coarse`, the value of `fine` (the same scene at `k×` the size, `k` odd) at its
+/// centre sub-texel — the same point, since `k` is odd; where that sub-texel is not covered
+/// (a centre exactly on a UV edge, decided the other way by rounding) the mean of its
+/// block's covered sub-texels.
+fn at_centres(
+    coarse: &TexelGrid,
+    fine: &TexelGrid,
+    k: u32,
+    values: &[glam::Vec3],
+) -> Vec<glam::Vec3> {
+    coarse
+        .texels
+        .iter()
+        .map(|t| {
+            let (x0, y0) = ((t.x * k) as i32, (t.y * k) as i32);
+            let c = (k / 2) as i32;
+            if let Some(j) = fine.at(x0 + c, y0 + c) {
+                return values[j as usize];
+            }
+            let block: Vec<glam::Vec3> = (0..k as i32)
+                .flat_map(|dy| (0..k as i32).map(move |dx| (dx, dy)))
+                .filter_map(|(dx, dy)| fine.at(x0 + dx, y0 + dy))
+                .map(|j| values[j as usize])
+                .collect();
+            block.iter().copied().sum::<glam::Vec3>() / block.len().max(1) as f32
+        })
+        .collect()
+}
+
 /// Runs `ortm solve`.
 pub fn run(a: Args) -> Result<()> {
     let effects = super::bake::parse_effects(&a.effects)?;
+    let k = a.supersample;
+    if k.is_multiple_of(2) || k > MAX_FIRST_ORDER_SAMPLES {
+        bail!(
+            "--supersample {k}: must be odd, 1 to {MAX_FIRST_ORDER_SAMPLES} (each texel's \
+             centre is then a sub-texel's centre)"
+        );
+    }
     let mut scene = super::load_scene(&a.scene, a.size)?;
     if !a.lights.is_empty() {
         scene.lights = a
@@ -140,14 +183,32 @@ pub fn run(a: Args) -> Result<()> {
             .map(|l| parse_light(l))
             .collect::<Result<_, _>>()?;
     }
-    let grid = TexelGrid::build(&scene)
+    let out_grid = TexelGrid::build(&scene)
         .with_context(|| format!("rasterizing the lightmap UVs of '{}'", a.scene))?;
-    let samples = first_order_samples(
-        a.first_order_samples,
-        (grid.width, grid.height),
-        lighting::DEFAULT_SAMPLES_CPU_BUDGET,
-        u32::MAX,
-    )?;
+    // The grid solved: the lightmap's, or K× finer.
+    let grid = if k == 1 {
+        out_grid.clone()
+    } else {
+        TexelGrid::build_with_size(&scene, out_grid.width * k, out_grid.height * k).with_context(
+            || {
+                format!(
+                    "rasterizing the lightmap UVs of '{}' at --supersample {k}",
+                    a.scene
+                )
+            },
+        )?
+    };
+    let samples = if k > 1 {
+        a.first_order_samples
+            .map_or(Ok(1), |n| check_first_order_samples(n).map(|_| n))?
+    } else {
+        first_order_samples(
+            a.first_order_samples,
+            (grid.width, grid.height),
+            lighting::DEFAULT_SAMPLES_CPU_BUDGET,
+            u32::MAX,
+        )?
+    };
     let dense = match a.method {
         Method::Dense => true,
         Method::Hierarchical => false,
@@ -248,6 +309,17 @@ pub fn run(a: Args) -> Result<()> {
     let t_total = t0.elapsed();
     let mut b = b;
     lighting::with_first_order(&mut b, &first, &b_in);
+    // Supersampled: each texel takes its centre sub-texel's values.
+    let (b, b_o) = if k > 1 {
+        (
+            at_centres(&out_grid, &grid, k, &b),
+            at_centres(&out_grid, &grid, k, &b_o),
+        )
+    } else {
+        (b, b_o)
+    };
+    let solved = grid.texels.len();
+    let grid = out_grid;
     let first = lighting::to_lightmap(&grid, &b_o);
     let fin = lighting::to_lightmap(&grid, &b);
     let indirect: Vec<_> = b.iter().zip(&b_o).map(|(x, y)| *x - *y).collect();
@@ -261,8 +333,13 @@ pub fn run(a: Args) -> Result<()> {
     }
     save_solution_pngs(&a.output, &first, &fin, &ind)?;
     let power = |v: &[glam::Vec3]| power_w(&grid, v);
+    let at = if k > 1 {
+        format!(" (solved at {k}× the size: {solved} texels, each texel its centre's value)")
+    } else {
+        String::new()
+    };
     println!(
-        "{how}: {} texels at {}x{}: assembled in {:.2} s, solved in {:.2} s",
+        "{how}: {} texels at {}x{}{at}: assembled in {:.2} s, solved in {:.2} s",
         grid.texels.len(),
         grid.width,
         grid.height,
