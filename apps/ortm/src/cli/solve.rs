@@ -19,6 +19,10 @@
 //! order plus the transfer of the averaged light, a translucent texel's the scattered averaged
 //! light — the rule `ortm render --first-order-samples N` follows with a bake's maps (README,
 //! *The transfer's input*).
+//!
+//! `--supersample K` (odd) solves the scene at K× the lightmap's size and writes each texel's
+//! centre sub-texel ([`at_centres`]): the same points, a finer discretisation (README,
+//! *Resolution*).
 
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
