@@ -741,13 +741,13 @@ impl Running {
             .vis
             .get_or_insert_with(|| Visibility::new(&self.data.scene.mesh));
         let keep = self.data.first_maps(self.app.k);
-        Ok(debug::cpu_mirror(
+        debug::cpu_mirror(
             (&self.data.scene, &self.data.grid),
             vis,
             &self.data.set,
             (&self.app.lights, self.data.first_order_samples),
             |m| keep.get(m as usize).copied().unwrap_or(false),
-        )?)
+        )
     }
 
     fn handle_requests(&mut self) {
