@@ -19,7 +19,11 @@
 //! (multi-resolution maps); it needs the scene's texel weights
 //! ([`Renderer::prepare_with_weights`]) and is recorded with the transfer stage, before it.
 //! The transfer pass reads the *undilated* first-order map (first order is 0 outside
-//! coverage, as in the bake); only the display sees dilated maps. Every dilation uses one
+//! coverage, as in the bake); only the display sees dilated maps. With
+//! [`FirstOrderOptions::samples`] `> 1` the first-order pass also writes the transfer's input
+//! (the first order averaged over each texel's square): the pyramid and the pieces read that,
+//! and the final starts from the first order (`final = first order + T(input) − input`;
+//! [`crate::transfer::TransferInputs::base`]). Every dilation uses one
 //! [`DilatePlan`], built at [`Renderer::prepare`] from the coverage the first-order pass
 //! rasterises (the maps share it).
 //!
