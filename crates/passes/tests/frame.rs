@@ -99,7 +99,7 @@ fn averaged_first_order_feeds_the_transfer() {
             .unwrap();
         let t = cpu::transfer::transfer(&scene.transfer.schedule, &atlases, &input);
         let (mut opaque_differ, mut translucent) = (0, 0);
-        for i in 0..fo.rgba.len() {
+        for (i, &length) in lengths.iter().enumerate() {
             let (f, g, x, w) = (fo.rgba[i], fin.rgba[i], input.rgba[i], t.rgba[i]);
             for c in 0..3 {
                 let want = f[c] + (w[c] - x[c]);
@@ -113,7 +113,7 @@ fn averaged_first_order_feeds_the_transfer() {
                 );
             }
             assert_eq!(g[3], f[3], "{path:?}: coverage of texel {i}");
-            if f[3] > 0.0 && lengths[i] > 0.0 {
+            if f[3] > 0.0 && length > 0.0 {
                 translucent += 1;
                 assert_eq!(f, x, "{path:?}: translucent texel {i} takes the average");
             } else if f[3] > 0.0 && (f[0] - x[0]).abs() > 1e-3 * f[0].abs().max(1e-3) {
