@@ -23,6 +23,11 @@
 //! `--supersample K` (odd) solves the scene at K× the lightmap's size and writes each texel's
 //! centre sub-texel ([`at_centres`]): the same points, a finer discretisation (README,
 //! *Resolution*).
+//!
+//! `--near-field N` (odd, 3–7) adds [`near_field::correction`] after the solve: the first
+//! scattering of the direct light under the skin from each translucent texel's nearby senders,
+//! resolved at N×N sub-texels (README, *The subsurface near field*). A bake's maps do not hold
+//! it, so `ortm render` of a bake equals the solve without it.
 
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -33,6 +38,7 @@ use anyhow::{Context, Result, bail};
 use ortm::accuracy::compare::power_w;
 use ortm::bake::BakeEvent;
 use ortm::bake::lighting;
+use ortm::bake::near_field::{self, NearField, NearFieldError};
 use ortm::bake::raycast::Visibility;
 use ortm::bake::report::save_solution_pngs;
 use ortm::bake::texels::TexelGrid;
@@ -92,6 +98,13 @@ pub struct Args {
     /// --first-order-samples is given.
     #[arg(long, default_value_t = 1, value_name = "K")]
     supersample: u32,
+    /// Resolve the subsurface near field at N×N sub-texels (odd N, 3–7; 1 = off): each
+    /// translucent texel's senders within 2 texels scatter the direct light as it falls across
+    /// their footprint, lit at N× the lightmap's size, instead of its value at their centre
+    /// (a correction added after the solve; README, *The subsurface near field*). Nearer the
+    /// path-traced reference where shadow edges cross skin; the bake's maps do not hold it.
+    #[arg(long, default_value_t = 1, value_name = "N")]
+    near_field: u32,
 }
 
 /// `--method`.
@@ -213,6 +226,14 @@ pub fn run(a: Args) -> Result<()> {
             u32::MAX,
         )?
     };
+    let near = (a.near_field != 1)
+        .then(|| {
+            let near = NearField::new(a.near_field);
+            near.check()
+                .map(|_| near)
+                .map_err(|e| anyhow::anyhow!("--near-field {}: {e}; 1 turns it off", a.near_field))
+        })
+        .transpose()?;
     let dense = match a.method {
         Method::Dense => true,
         Method::Hierarchical => false,
@@ -313,6 +334,37 @@ pub fn run(a: Args) -> Result<()> {
     let t_total = t0.elapsed();
     let mut b = b;
     lighting::with_first_order(&mut b, &first, &b_in);
+    if let Some(near) = near {
+        let t_near = Instant::now();
+        let delta = near_field::correction(
+            &scene,
+            &grid,
+            &kernels,
+            &scene.lights,
+            &vis,
+            &b_in,
+            near,
+            &progress,
+        )
+        .map_err(|e| match e {
+            NearFieldError::Cancelled => interrupted(),
+            NearFieldError::Texels(e) => anyhow::Error::new(e).context(format!(
+                "rasterizing the lightmap UVs of '{}' for --near-field {}",
+                a.scene, near.subdivision
+            )),
+        })?;
+        bar.lock().expect("progress lock").finish_and_clear();
+        for (x, d) in b.iter_mut().zip(&delta) {
+            *x += *d;
+        }
+        eprintln!(
+            "near field: {}×{} sub-texels per texel, senders within {} texels, in {:.2} s",
+            near.subdivision,
+            near.subdivision,
+            near.reach,
+            t_near.elapsed().as_secs_f64()
+        );
+    }
     // Supersampled: each texel takes its centre sub-texel's values.
     let (b, b_o) = if k > 1 {
         (

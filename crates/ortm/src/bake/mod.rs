@@ -38,6 +38,7 @@ pub mod cells;
 pub mod eval;
 pub mod lighting;
 pub mod multires;
+pub mod near_field;
 pub mod offsets;
 pub mod pipeline;
 pub mod raycast;
