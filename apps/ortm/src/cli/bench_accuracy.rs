@@ -189,10 +189,10 @@ fn load_case(spec: &str, samples: u32) -> Result<Case> {
         .with_context(|| format!("rasterizing the lightmap UVs of '{name}' at {size}²"))?;
     let vis = Visibility::new(&scene.mesh);
     let b_o = lighting::first_order(&grid, &scene.lights, &vis);
-    let translucent =
-        |m: u32| (scene.materials.get(m as usize)).is_some_and(|m| m.subsurface.is_some());
     let (first, input) =
-        lighting::first_order_and_input(&scene, &grid, &scene.lights, &vis, samples, translucent)?;
+        lighting::first_order_and_input(&scene, &grid, &scene.lights, &vis, samples, |m| {
+            scene.is_translucent(m)
+        })?;
     Ok(Case {
         label: format!("{name} {size}²"),
         scene,

@@ -52,14 +52,10 @@ pub fn lightmaps(
 ) -> Result<CpuLightmaps> {
     use ortm::bake::lighting;
     let vis = Visibility::new(&scene.mesh);
-    let translucent = |m: u32| {
-        scene
-            .materials
-            .get(m as usize)
-            .is_some_and(|m| m.subsurface.is_some())
-    };
     let (values, input) =
-        lighting::first_order_and_input(scene, grid, lights, &vis, samples, translucent)?;
+        lighting::first_order_and_input(scene, grid, lights, &vis, samples, |m| {
+            scene.is_translucent(m)
+        })?;
     let first = lighting::to_lightmap(grid, &values);
     let input_map = lighting::to_lightmap(grid, &input);
     let fin = apply_atlas_pieces(set, |_| true, &input_map, Some(&grid.area_map()))?;

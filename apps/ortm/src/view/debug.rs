@@ -183,10 +183,10 @@ pub fn cpu_mirror(
     keep_map: impl Fn(u32) -> bool,
 ) -> anyhow::Result<CpuMirror> {
     use ortm::bake::lighting;
-    let translucent =
-        |m: u32| (scene.materials.get(m as usize)).is_some_and(|m| m.subsurface.is_some());
     let (values, input) =
-        lighting::first_order_and_input(scene, grid, lights, vis, samples, translucent)?;
+        lighting::first_order_and_input(scene, grid, lights, vis, samples, |m| {
+            scene.is_translucent(m)
+        })?;
     let first_order = lighting::to_lightmap(grid, &values);
     let applied = apply_atlas_pieces(
         set,

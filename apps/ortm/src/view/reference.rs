@@ -539,10 +539,7 @@ impl Worker {
         let first_order = lighting::first_order(&self.grid, &req.lights, &vis);
         // The transfer's input averaged over the texels' squares, as `ortm solve` takes it by
         // default: the nearer truth (README, "The transfer's input").
-        let translucent = |m: u32| {
-            (self.scene.materials.get(m as usize)).is_some_and(|m| m.subsurface.is_some())
-                && self.effects.subsurface
-        };
+        let translucent = |m: u32| self.scene.is_translucent(m) && self.effects.subsurface;
         // (The sub-texel grid is 3× one that fits the dense solve, far inside the rasteriser's
         // limits; should it fail, the centres' first order is the input.)
         let (first, input) = lighting::first_order_and_input(

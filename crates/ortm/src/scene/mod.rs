@@ -197,6 +197,14 @@ pub struct Scene {
     pub allow_uv_overlap: bool,
 }
 
+impl Scene {
+    /// True when material `m` scatters light under its surface (it has a subsurface profile);
+    /// false for opaque materials and for an index beyond [`Scene::materials`].
+    pub fn is_translucent(&self, m: u32) -> bool {
+        (self.materials.get(m as usize)).is_some_and(|m| m.subsurface.is_some())
+    }
+}
+
 /// A stable hash (SHA-256, 64 lower-case hex digits) of everything in the scene that a bake
 /// depends on: geometry, UVs, normals, triangles, materials, `allow_uv_overlap`; not the lights
 /// nor the lightmap size (the bake key adds its settings). A bake stores it and rendering
