@@ -245,6 +245,8 @@ pub struct Args {
 /// Runs `ortm render`.
 pub fn run(a: Args) -> Result<()> {
     let t0 = Instant::now();
+    // A bad --first-order-samples fails before the bake is opened (the default is chosen once
+    // the device's limits are known, below).
     if let Some(n) = a.first_order_samples {
         super::solve::check_first_order_samples(n)?;
     }

@@ -9,7 +9,9 @@
 //!   [`FactoredTransport::solve`] (`O(n²)`) of the ray-cast first order averaged over each
 //!   texel's square, the final started from the centres' first order as `ortm solve` does
 //!   by default ([`ortm::bake::lighting::first_order_and_input`]; the reported first order is
-//!   the centres').
+//!   the centres'), plus skin's near field resolved at the same sub-texels
+//!   ([`ortm::bake::near_field`], as `ortm solve --near-field 3`: README, "The subsurface near
+//!   field").
 //! - **Path-traced reference** otherwise ([`ortm::accuracy::reference::trace`], `spp` paths per
 //!   texel, seed [`REFERENCE_SEED`]): progress (fraction, ETA) is shown, and a lighting change
 //!   raises the running trace's `cancel` flag and starts a new one.
@@ -33,10 +35,11 @@ use std::time::{Duration, Instant};
 use glam::Vec3;
 use ortm::accuracy::reference::{ReferenceError, Settings, trace};
 use ortm::bake::lighting;
+use ortm::bake::near_field::{self, NearField};
 use ortm::bake::raycast::Visibility;
 use ortm::bake::texels::TexelGrid;
 use ortm::bake::transport::dense::{DenseTransport, FactoredTransport, MAX_TEXELS};
-use ortm::bake::transport::{Effects, Kernels, texel_patches};
+use ortm::bake::transport::{Effects, Kernels, SetupProgress, texel_patches};
 use ortm::scene::{Light, Scene};
 
 /// Default paths per texel of the path-traced reference.
@@ -300,6 +303,7 @@ impl ReferenceState {
                     solver,
                     vis: None,
                     dense: None,
+                    kernels: None,
                 }
                 .run(requests, done)
             })
@@ -468,6 +472,8 @@ struct Worker {
     solver: Solver,
     vis: Option<Arc<Visibility>>,
     dense: Option<FactoredTransport>,
+    /// The dense solve's kernels, for the subsurface near field of each lighting.
+    kernels: Option<Kernels>,
 }
 
 impl Worker {
@@ -534,6 +540,7 @@ impl Worker {
             req.progress.set_stage(Stage::Assembling);
             let kernels = Kernels::new(&self.scene, self.effects, Arc::clone(&vis));
             self.dense = Some(DenseTransport::new(&texel_patches(&self.grid), &kernels).factor());
+            self.kernels = Some(kernels);
         }
         req.progress.set_stage(Stage::Solving);
         let first_order = lighting::first_order(&self.grid, &req.lights, &vis);
@@ -556,6 +563,24 @@ impl Worker {
             .as_ref()
             .map_or_else(|| input.clone(), |d| d.solve(&input));
         lighting::with_first_order(&mut final_b, &first, &input);
+        // Skin's near field at the input's sub-texels (nothing to do without skin; should the
+        // sub-texel grid fail, the solve stands as it is).
+        if let Some(kernels) = &self.kernels
+            && let Ok(delta) = near_field::correction(
+                &self.scene,
+                &self.grid,
+                kernels,
+                &req.lights,
+                &vis,
+                &input,
+                NearField::new(lighting::DEFAULT_FIRST_ORDER_SAMPLES),
+                &SetupProgress::none(),
+            )
+        {
+            for (b, d) in final_b.iter_mut().zip(&delta) {
+                *b += *d;
+            }
+        }
         RefMaps {
             solver: Solver::Exact,
             first_order,
