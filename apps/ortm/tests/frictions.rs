@@ -153,6 +153,18 @@ fn unknown_scene_names_are_answered_with_the_built_in_names() {
     }
 }
 
+/// The bench's lists take spaces as their help's defaults show them, as well as commas: the
+/// second case is parsed, the first (unknown) one named.
+#[test]
+fn bench_lists_take_spaces_as_well_as_commas() {
+    let tmp = tempfile::tempdir().unwrap();
+    for cases in [&["nosuch-32", "other-32"][..], &["nosuch-32,other-32"]] {
+        let args = [&["bench", "accuracy", "--cases"][..], cases].concat();
+        let e = fails(ortm(&args, tmp.path()));
+        assert!(e.contains("unknown scene 'nosuch'"), "{cases:?}: {e}");
+    }
+}
+
 #[test]
 fn a_wrong_ortm_head_obj_is_named_in_the_error() {
     let tmp = tempfile::tempdir().unwrap();

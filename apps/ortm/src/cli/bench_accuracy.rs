@@ -54,14 +54,14 @@ pub const DEFAULT_CASES: [&str; 5] = [
 #[derive(clap::Args, Debug)]
 pub struct Args {
     /// Cases as SCENE-SIZE (a built-in scene or a scene file, then the square lightmap size).
-    #[arg(long, value_delimiter = ',', default_values_t = DEFAULT_CASES.map(String::from))]
+    #[arg(long, value_delimiter = ',', num_args = 1.., default_values_t = DEFAULT_CASES.map(String::from))]
     cases: Vec<String>,
     /// Offset budgets: one bake per budget and cell rule.
-    #[arg(long, value_delimiter = ',', default_values_t = [100usize, 400])]
+    #[arg(long, value_delimiter = ',', num_args = 1.., default_values_t = [100usize, 400])]
     offsets: Vec<usize>,
     /// Tolerances `ε` of the multi-resolution maps (rows where the evaluator row fits): one set
     /// of maps per tolerance, from the evaluator's rows.
-    #[arg(long, value_delimiter = ',', default_values_t = [1e-2, 3e-3, 1e-3])]
+    #[arg(long, value_delimiter = ',', num_args = 1.., default_values_t = [1e-2, 3e-3, 1e-3])]
     levels: Vec<f64>,
     /// Paths per texel the path-traced reference starts with.
     #[arg(
@@ -96,7 +96,7 @@ pub struct Args {
     /// Tolerances `ε` of the hierarchical transport (`ortm bake --tolerance`): per tolerance, the
     /// evaluator on its operator (where the evaluator row fits), the multi-resolution maps of
     /// `--levels` painted from it and one bake per offset budget and cell rule on it.
-    #[arg(long, value_delimiter = ',')]
+    #[arg(long, value_delimiter = ',', num_args = 1..)]
     tolerances: Vec<f32>,
     /// Sub-texels per texel side (odd, 1–7) over which the transfer's input is averaged, as
     /// `ortm render --first-order-samples`: every row (and the exact solve) multiplies the

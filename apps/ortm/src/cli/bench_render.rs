@@ -73,10 +73,10 @@ pub enum Paths {
 #[derive(clap::Args, Debug)]
 pub struct Args {
     /// Lightmap sizes of Table 1 to run with synthetic maps (of 256, 384, 512).
-    #[arg(long, value_delimiter = ',', default_values_t = [256u32, 384, 512])]
+    #[arg(long, value_delimiter = ',', num_args = 1.., default_values_t = [256u32, 384, 512])]
     sizes: Vec<u32>,
     /// Only these offset counts (default: all of Table 1 for each size).
-    #[arg(long, value_delimiter = ',')]
+    #[arg(long, value_delimiter = ',', num_args = 1..)]
     offsets: Vec<usize>,
     /// Bench this bake directory instead of synthetic maps (repeatable).
     #[arg(long = "bake")]
