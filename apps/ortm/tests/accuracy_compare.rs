@@ -4,7 +4,8 @@
 //! orders, per-channel energy ratios, the interior mask of the Cornell charts, the worst texels
 //! and the false-colour picture, the first-order edge mask against a brute-force search; then the tool end to end on OpenEXRs written here (its printed
 //! figures are the library's), `ortm solve`'s OpenEXRs, and bad inputs (sizes, missing files,
-//! non-EXR files, non-finite values) refused with the file named.
+//! non-EXR files, non-finite values) refused with the file named; the reference's noise from its
+//! standard error and the share of texels within 3 standard errors.
 
 mod common;
 
@@ -15,8 +16,8 @@ use common::{fails, ok, ortm};
 use glam::{DVec3, Vec3};
 use ortm::Lightmap;
 use ortm::accuracy::compare::{
-    UNCOVERED_GREY, compare, error_image, interior_mask, near_first_order_edges, power_w,
-    reference_rms, viridis,
+    UNCOVERED_GREY, compare, error_image, interior_mask, near_first_order_edges, noise_corrected,
+    power_w, reference_noise, reference_rms, viridis,
 };
 use ortm::bake::lighting::{from_lightmap, to_lightmap};
 use ortm::bake::texels::TexelGrid;
@@ -293,6 +294,100 @@ fn cli_prints_the_library_figures_and_writes_the_error_picture() {
     );
     let png = image::open(dir.path().join("err.png")).unwrap();
     assert_eq!(png.width(), 512);
+}
+
+/// A reference whose standard error is 10 % of its value everywhere is 10 % noisy (total)
+/// and 10 % / 0.6 of its indirect term when its first order is 40 % of it; a test 2σ off on
+/// every texel of one kind and 4σ on the rest is within 3σ on exactly the first kind; noise
+/// comes off an error in quadrature. Then the tool prints the same, finding `std_error.exr`
+/// beside the reference by itself.
+#[test]
+fn reference_noise_and_the_three_sigma_share() {
+    let grid = cornell_grid(32);
+    let reference = reference_values(&grid);
+    let first: Vec<Vec3> = reference.iter().map(|b| *b * 0.4).collect();
+    let se: Vec<Vec3> = reference.iter().map(|b| *b * 0.1).collect();
+    let near = |i: usize| !i.is_multiple_of(3);
+    let test: Vec<Vec3> = (reference.iter().zip(&se).enumerate())
+        .map(|(i, (b, s))| *b + *s * if near(i) { 2.0 } else { 4.0 })
+        .collect();
+    let n = reference_noise(&grid, &reference, &se, &test, Some(&first));
+    let expected_within =
+        (0..grid.texels.len()).filter(|&i| near(i)).count() as f64 / grid.texels.len() as f64;
+    assert!(close(n.total, 0.1, 1e-5), "{n:?}");
+    assert!(close(n.indirect.unwrap(), 0.1 / 0.6, 1e-5), "{n:?}");
+    assert!(close(n.within_three_sigma, expected_within, 1e-12), "{n:?}");
+    assert!(close(noise_corrected(0.5, 0.3), 0.4, 1e-12));
+    assert_eq!(noise_corrected(0.2, 0.3), 0.0);
+
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::create_dir(dir.path().join("r")).unwrap();
+    for (name, v) in [
+        ("r/final.exr", &reference),
+        ("r/first_order.exr", &first),
+        ("r/std_error.exr", &se),
+        ("test.exr", &test),
+    ] {
+        write_exr(dir.path(), name, &grid, v);
+    }
+    let args = [
+        "compare",
+        "r/final.exr",
+        "test.exr",
+        "--first",
+        "r/first_order.exr",
+        "r/first_order.exr",
+        "--scene",
+        "cornell",
+        "--size",
+        "32",
+        "-o",
+        "err.png",
+    ];
+    let text = ok(ortm(&args, dir.path()));
+    assert!(
+        close(figure(&text, "reference noise", "total"), 10.0, 1e-3),
+        "{text}"
+    );
+    assert!(
+        close(
+            figure(&text, "within 3σ", "3σ"),
+            100.0 * expected_within,
+            1e-3
+        ),
+        "{text}"
+    );
+    let c = compare(&grid, &reference, &test, Some((&first, &first)), 1);
+    let corrected = figure(&text, "reference noise", "quadrature: total");
+    assert!(
+        close(corrected, 100.0 * noise_corrected(c.total, 0.1), 1e-3),
+        "{text}"
+    );
+    // `std_error.exr` beside the reference is found whatever the reference's name; without it,
+    // no noise line; `--std-error` names another file.
+    std::fs::rename(dir.path().join("r/final.exr"), dir.path().join("r/b.exr")).unwrap();
+    let text = ok(ortm(
+        &[&["compare", "r/b.exr"][..], &args[2..]].concat(),
+        dir.path(),
+    ));
+    assert!(text.contains("reference noise"), "{text}");
+    std::fs::rename(
+        dir.path().join("r/std_error.exr"),
+        dir.path().join("r/se.exr"),
+    )
+    .unwrap();
+    let text = ok(ortm(
+        &[&["compare", "r/b.exr"][..], &args[2..]].concat(),
+        dir.path(),
+    ));
+    assert!(!text.contains("reference noise"), "{text}");
+    let with = [
+        &["compare", "r/b.exr"][..],
+        &args[2..],
+        &["--std-error", "r/se.exr"],
+    ]
+    .concat();
+    assert!(ok(ortm(&with, dir.path())).contains("reference noise r/se.exr"));
 }
 
 #[test]

@@ -7,13 +7,16 @@
 //! the total and (with `--first REF_FIRST TEST_FIRST`) of the indirect term over interior
 //! covered texels, the same two away from the reference's first-order edges (with `--first`),
 //! energy ratio per channel, worst texels — printed here, and
-//! [`error_image`] the false-colour error PNG (`-o`).
+//! [`error_image`] the false-colour error PNG (`-o`). With the reference's standard error
+//! (`--std-error`, or `std_error.exr` beside REF as `ortm reference` writes it) also the
+//! reference's own noise as a relative RMSE, the figures less it in quadrature, and the share
+//! of covered texels within 3 standard errors ([`reference_noise`]).
 
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 use glam::Vec3;
-use ortm::accuracy::compare::{compare, error_image};
+use ortm::accuracy::compare::{compare, error_image, noise_corrected, reference_noise};
 use ortm::bake::lighting::from_lightmap;
 use ortm::bake::report::save_png;
 use ortm::bake::texels::TexelGrid;
@@ -42,6 +45,10 @@ pub struct Args {
     /// How many of the worst interior texels to list.
     #[arg(long, default_value_t = 10)]
     worst: usize,
+    /// The reference's per-texel standard error (OpenEXR, W/m², as `ortm reference` writes
+    /// it). Default: `std_error.exr` beside REF when there is one.
+    #[arg(long, value_name = "STD_ERROR.exr")]
+    std_error: Option<PathBuf>,
 }
 
 /// Reads `path` as a lightmap of the grid's size and gathers its covered texels; errors name the
@@ -142,6 +149,43 @@ pub fn run(a: Args) -> Result<()> {
         "energy ratio    test / reference power, R G B: {:.6} {:.6} {:.6}",
         r.x, r.y, r.z
     );
+    let std_error = a.std_error.clone().or_else(|| {
+        let beside = a.reference.with_file_name("std_error.exr");
+        (a.std_error.is_none() && beside.is_file() && beside != a.reference).then_some(beside)
+    });
+    if let Some(path) = std_error {
+        let se = read_covered(&path, &grid, &a.scene)?;
+        let n = reference_noise(
+            &grid,
+            &reference,
+            &se,
+            &test,
+            firsts.as_ref().map(|(r, _)| r.as_slice()),
+        );
+        let corrected = match (c.indirect, n.indirect) {
+            (Some(e), Some(noise)) => format!(
+                "; less that noise in quadrature: total {:.2} %, indirect {:.2} %",
+                100.0 * noise_corrected(c.total, n.total),
+                100.0 * noise_corrected(e, noise)
+            ),
+            _ => format!(
+                "; less that noise in quadrature: total {:.2} %",
+                100.0 * noise_corrected(c.total, n.total)
+            ),
+        };
+        let indirect = n
+            .indirect
+            .map_or(String::new(), |i| format!(", indirect {:.2} %", 100.0 * i));
+        println!(
+            "reference noise {}: its standard error as a relative RMSE: total {:.2} %{indirect}{corrected}",
+            path.display(),
+            100.0 * n.total,
+        );
+        println!(
+            "within 3σ       {:.2} % of covered texels (|test − reference| ≤ 3 standard errors in every channel)",
+            100.0 * n.within_three_sigma
+        );
+    }
     print_worst(&c);
     let img = error_image(&grid, &reference, &test, c.reference_rms);
     save_png(&img, &a.output)?;

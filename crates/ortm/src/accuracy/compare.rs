@@ -252,6 +252,76 @@ pub fn compare(
     }
 }
 
+/// How noisy a path-traced reference is, from its per-texel standard error (`ortm reference`'s
+/// `std_error.exr`), and how a test sits within it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ReferenceNoise {
+    /// The standard error as a relative RMSE of the reference's total over interior texels,
+    /// `sqrt(Σ|σ|²) / sqrt(Σ|b|²)`: the error an exact test would measure on average.
+    pub total: f64,
+    /// The same against the reference's indirect term `B − B_o` (its first order carries no
+    /// noise), when the reference's first order is given.
+    pub indirect: Option<f64>,
+    /// Fraction of covered texels where the test is within 3 standard errors of the reference
+    /// in every channel (`|test − b| ≤ 3σ`).
+    pub within_three_sigma: f64,
+}
+
+/// The reference's noise ([`ReferenceNoise`]) from `std_error` (per covered texel of `grid`, as
+/// the values), against `test`; `reference_first` gives the indirect figure.
+///
+/// # Panics
+/// When a slice's length is not the grid's texel count.
+pub fn reference_noise(
+    grid: &TexelGrid,
+    reference: &[Vec3],
+    std_error: &[Vec3],
+    test: &[Vec3],
+    reference_first: Option<&[Vec3]>,
+) -> ReferenceNoise {
+    let n = grid.texels.len();
+    assert!(
+        reference.len() == n && std_error.len() == n && test.len() == n,
+        "one value per covered texel"
+    );
+    let mask = interior_mask(grid);
+    // The standard error as an "error" of a test equal to the reference plus σ.
+    let shifted: Vec<Vec3> = reference
+        .iter()
+        .zip(std_error)
+        .map(|(b, s)| *b + *s)
+        .collect();
+    let total = relative_rmse(&shifted, reference, Some(&mask));
+    let indirect = reference_first.map(|f| {
+        assert_eq!(f.len(), n, "reference first-order length");
+        let ind: Vec<Vec3> = reference.iter().zip(f).map(|(b, f)| *b - *f).collect();
+        let ind_shifted: Vec<Vec3> = ind.iter().zip(std_error).map(|(b, s)| *b + *s).collect();
+        relative_rmse(&ind_shifted, &ind, Some(&mask))
+    });
+    let within = (0..n)
+        .filter(|&i| {
+            let d = (test[i] - reference[i]).abs();
+            d.cmple(std_error[i] * 3.0).all()
+        })
+        .count();
+    ReferenceNoise {
+        total,
+        indirect,
+        within_three_sigma: if n == 0 {
+            1.0
+        } else {
+            within as f64 / n as f64
+        },
+    }
+}
+
+/// A measured relative RMSE `error` less a reference noise `noise` of the same kind, in
+/// quadrature, `sqrt(max(error² − noise², 0))`: the test's own error, since the reference's
+/// noise is independent of it and their squares add on average.
+pub fn noise_corrected(error: f64, noise: f64) -> f64 {
+    (error * error - noise * noise).max(0.0).sqrt()
+}
+
 /// Viridis (perceptually uniform, readable in grey and by colour-blind viewers) at t = 0, 1/8,
 /// …, 1, sRGB 8-bit.
 const VIRIDIS: [[u8; 3]; 9] = [
