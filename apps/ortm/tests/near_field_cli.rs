@@ -68,6 +68,28 @@ fn the_near_field_changes_skin_only() {
         "sum of the final {sum_p} → {sum_n}"
     );
 
+    // Refused before any work when its sub-texels would take more than half the memory limit
+    // (24² head: 534 covered texels, 9 × (534 × 200 + 576 × 4) bytes = 0.98 MB).
+    let mut cmd = common::ortm_command();
+    cmd.args([
+        "solve",
+        "head",
+        "--size",
+        "24",
+        "--near-field",
+        "3",
+        "-o",
+        "small",
+    ])
+    .current_dir(d)
+    .env("ORTM_MEMORY_LIMIT_BYTES", "1000000");
+    let e = fails(cmd.output().unwrap());
+    assert!(
+        e.contains("--near-field 3: its 3×3 sub-texels of 534 covered texels need about 1.0 MB"),
+        "{e}"
+    );
+    assert!(!d.join("small").exists(), "output folder made");
+
     let e = fails(ortm(
         &[
             "solve",

@@ -252,6 +252,21 @@ pub fn run(a: Args) -> Result<()> {
             a.tolerance
         );
     }
+    if let (Some(near), Some(limit)) = (near, ortm::io::limits::memory_limit_bytes()?) {
+        let need = near_field::memory_bytes(&grid, near.subdivision);
+        if need > limit / 2 {
+            let mb = |b: u64| b as f64 / 1e6;
+            bail!(
+                "--near-field {n}: its {n}×{n} sub-texels of {} covered texels need about {:.1} \
+                 MB, more than half the memory limit ({:.1} MB: physical memory or \
+                 ORTM_MEMORY_LIMIT_BYTES); give a smaller N or a smaller --size",
+                grid.texels.len(),
+                mb(need),
+                mb(limit),
+                n = near.subdivision,
+            );
+        }
+    }
     super::ensure_dir(&a.output)?;
     let cancel = Arc::new(AtomicBool::new(false));
     {
