@@ -105,6 +105,10 @@ pub struct Args {
     /// path-traced reference where shadow edges cross skin; the bake's maps do not hold it.
     #[arg(long, default_value_t = 1, value_name = "N")]
     near_field: u32,
+    /// With --near-field: the senders within R texels of each skin texel (in x and in y) are
+    /// resolved at sub-texels.
+    #[arg(long, default_value_t = NearField::new(3).reach, value_name = "R")]
+    near_field_reach: u32,
 }
 
 /// `--method`.
@@ -228,10 +232,17 @@ pub fn run(a: Args) -> Result<()> {
     };
     let near = (a.near_field != 1)
         .then(|| {
-            let near = NearField::new(a.near_field);
-            near.check()
-                .map(|_| near)
-                .map_err(|e| anyhow::anyhow!("--near-field {}: {e}; 1 turns it off", a.near_field))
+            let near = NearField {
+                reach: a.near_field_reach,
+                ..NearField::new(a.near_field)
+            };
+            near.check().map(|_| near).map_err(|e| {
+                if (NearField { reach: 0, ..near }).check().is_ok() {
+                    anyhow::anyhow!("--near-field-reach {}: {e}", a.near_field_reach)
+                } else {
+                    anyhow::anyhow!("--near-field {}: {e}; 1 turns it off", a.near_field)
+                }
+            })
         })
         .transpose()?;
     let dense = match a.method {

@@ -38,13 +38,15 @@
 //!
 //! The sub-texels' weights are not capped: the coarse texels' caps ([`Patch::subsurface_scale`],
 //! which `S_ij` carries) stand for their flat footprints folding over one another in a crease,
-//! which the sub-texels' smaller footprints mostly do not. Measured with trial builds on the
-//! head at 64² (subsurface only, `n = 3`, against the path-traced reference; README, "The
-//! subsurface near field"): the coarse caps applied to the sub-texels put the total 4.86 % off,
-//! the sub-texels' own caps (a normalisation at `n ×` the size,
-//! [`Kernels::normalise_subsurface`]) 2.71 %, no caps 2.64 %. The window's reach, same
-//! measure: the texel itself alone 4.86 %, its 3 × 3 neighbourhood 2.77 %, 5 × 5 (the default)
-//! 2.64 %; at 256² 2.38 %, 1.81 % and 1.76 %.
+//! which the sub-texels' smaller footprints mostly do not (on the head at 64² a trial build
+//! with the coarse caps on the sub-texels was further from the reference than the texels
+//! alone were at 3 × 3 reach, and one with caps normalised at `n ×` the size was no nearer than
+//! none).
+//!
+//! The window's reach (`ortm solve --near-field-reach R`), on the head against the path-traced
+//! reference (subsurface only, `n = 3`, centres' input; README, "The subsurface near field"):
+//! at 64² the texel alone (`R = 0`) 4.86 % (total), its 3 × 3 neighbourhood 2.77 %, 5 × 5 (the
+//! default) 2.64 %; at 256² 2.38 %, 1.81 % and 1.76 %.
 //!
 //! What `δ` leaves out: senders beyond the window or across a UV seam (still at texel
 //! resolution in the transport); the re-scattering of `δ` by later bounces (`δ` is added after
@@ -61,6 +63,9 @@ use crate::bake::raycast::Visibility;
 use crate::bake::texels::{TexelError, TexelGrid};
 use crate::bake::transport::{Cancelled, Kernels, Patch, SetupProgress, texel_patches};
 use crate::scene::{Light, Scene};
+
+/// The largest reach (senders within this many texels in x and in y).
+pub const MAX_REACH: u32 = 8;
 
 /// Sub-texels per texel side at most (the sub-texel grid holds `n²` times the texels).
 pub const MAX_SUBDIVISION: u32 = 7;
@@ -116,13 +121,20 @@ impl NearField {
         }
     }
 
-    /// `Err` with the rule when `subdivision` is even, below 3 or above [`MAX_SUBDIVISION`].
+    /// `Err` with the rule when `subdivision` is even, below 3 or above [`MAX_SUBDIVISION`], or
+    /// `reach` above [`MAX_REACH`].
     pub fn check(&self) -> Result<(), String> {
         let n = self.subdivision;
         if n < 3 || n.is_multiple_of(2) || n > MAX_SUBDIVISION {
             return Err(format!(
                 "{n} sub-texels per side: give an odd number from 3 to {MAX_SUBDIVISION} (the \
                  texel's centre is then its middle sub-texel's)"
+            ));
+        }
+        if self.reach > MAX_REACH {
+            return Err(format!(
+                "a reach of {} texels: give 0 to {MAX_REACH} (the cost grows as (2R + 1)²)",
+                self.reach
             ));
         }
         Ok(())
