@@ -24,7 +24,9 @@
 //! δ_i += Σ_{s ∈ j} S(x_i, P_s) · E_s − S_ij · E_in,j
 //! ```
 //!
-//! with `S(x_i, P_s)` the profile integrated over sub-texel `s`'s footprint
+//! with `s` running over the sub-texels of `j`'s square on `j`'s chart (a sub-texel of another
+//! chart in the square, at a chart's border, stands for other surface and is left out),
+//! `S(x_i, P_s)` the profile integrated over sub-texel `s`'s footprint
 //! ([`Kernels::subsurface_raw`], polar for near pairs), `E_s` the sub-texel's direct
 //! irradiance, `S_ij` the pair's weight in the transport and `E_in,j = input_j / ρ̄_j` the
 //! irradiance the transport was given (the centre's, or the mean over the texel:
@@ -177,7 +179,9 @@ pub fn correction(
     let e_fine = lighting::irradiance(&fine, lights, vis);
     let mut children: Vec<Vec<u32>> = vec![Vec::new(); grid.texels.len()];
     for (s, t) in fine.texels.iter().enumerate() {
-        if let Some(j) = grid.at((t.x / n) as i32, (t.y / n) as i32) {
+        if let Some(j) = grid.at((t.x / n) as i32, (t.y / n) as i32)
+            && grid.texels[j as usize].chart == t.chart
+        {
             children[j as usize].push(s as u32);
         }
     }
