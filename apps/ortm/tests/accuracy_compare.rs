@@ -217,6 +217,13 @@ fn write_exr(dir: &Path, name: &str, grid: &TexelGrid, values: &[Vec3]) {
     write_lightmap_exr(&dir.join(name), &to_lightmap(grid, values)).unwrap();
 }
 
+/// Writes each `(name, values)` as a lightmap OpenEXR in `dir`.
+fn write_exrs(dir: &Path, grid: &TexelGrid, files: &[(&str, &[Vec3])]) {
+    for (name, values) in files {
+        write_exr(dir, name, grid, values);
+    }
+}
+
 /// The number after `key` on the line starting with `label` of `text`.
 fn figure(text: &str, label: &str, key: &str) -> f64 {
     let line = text
@@ -239,14 +246,16 @@ fn cli_prints_the_library_figures_and_writes_the_error_picture() {
         .map(|(i, b)| *b * (1.0 + 0.05 * ((i % 7) as f32 - 3.0)))
         .collect();
     let test_first: Vec<Vec3> = first.iter().map(|b| *b * 1.02).collect();
-    for (name, v) in [
-        ("ref.exr", &reference),
-        ("test.exr", &test),
-        ("ref_first.exr", &first),
-        ("test_first.exr", &test_first),
-    ] {
-        write_exr(dir.path(), name, &grid, v);
-    }
+    write_exrs(
+        dir.path(),
+        &grid,
+        &[
+            ("ref.exr", &reference),
+            ("test.exr", &test),
+            ("ref_first.exr", &first),
+            ("test_first.exr", &test_first),
+        ],
+    );
     let text = ok(ortm(
         &[
             "compare",
@@ -322,28 +331,20 @@ fn reference_noise_and_the_three_sigma_share() {
 
     let dir = tempfile::tempdir().unwrap();
     std::fs::create_dir(dir.path().join("r")).unwrap();
-    for (name, v) in [
-        ("r/final.exr", &reference),
-        ("r/first_order.exr", &first),
-        ("r/std_error.exr", &se),
-        ("test.exr", &test),
-    ] {
-        write_exr(dir.path(), name, &grid, v);
-    }
-    let args = [
-        "compare",
-        "r/final.exr",
-        "test.exr",
-        "--first",
-        "r/first_order.exr",
-        "r/first_order.exr",
-        "--scene",
-        "cornell",
-        "--size",
-        "32",
-        "-o",
-        "err.png",
-    ];
+    write_exrs(
+        dir.path(),
+        &grid,
+        &[
+            ("r/final.exr", &reference),
+            ("r/first_order.exr", &first),
+            ("r/std_error.exr", &se),
+            ("test.exr", &test),
+        ],
+    );
+    let args: Vec<&str> = "compare r/final.exr test.exr --first r/first_order.exr \
+                           r/first_order.exr --scene cornell --size 32 -o err.png"
+        .split_whitespace()
+        .collect();
     let text = ok(ortm(&args, dir.path()));
     assert!(
         close(figure(&text, "reference noise", "total"), 10.0, 1e-3),

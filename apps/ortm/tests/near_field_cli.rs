@@ -90,38 +90,16 @@ fn the_near_field_changes_skin_only() {
     );
     assert!(!d.join("small").exists(), "output folder made");
 
-    let e = fails(ortm(
-        &[
-            "solve",
-            "head",
-            "--size",
-            "24",
-            "--near-field",
-            "4",
-            "-o",
-            "x",
-        ],
-        d,
-    ));
+    let refused = |extra: &[&str]| {
+        let args = [&["solve", "head", "--size", "24"][..], extra, &["-o", "x"]].concat();
+        fails(ortm(&args, d))
+    };
+    let e = refused(&["--near-field", "4"]);
     assert!(
         e.contains("--near-field 4: 4 sub-texels per side: give an odd number from 3 to 7"),
         "{e}"
     );
-    let e = fails(ortm(
-        &[
-            "solve",
-            "head",
-            "--size",
-            "24",
-            "--near-field",
-            "3",
-            "--near-field-reach",
-            "9",
-            "-o",
-            "x",
-        ],
-        d,
-    ));
+    let e = refused(&["--near-field", "3", "--near-field-reach", "9"]);
     assert!(
         e.contains("--near-field-reach 9: a reach of 9 texels: give 0 to 8"),
         "{e}"
