@@ -99,6 +99,11 @@ fn the_near_field_changes_skin_only() {
         e.contains("--near-field 4: 4 sub-texels per side: give an odd number from 3 to 7"),
         "{e}"
     );
+    let e = refused(&["--near-field-reach", "1"]);
+    assert!(
+        e.contains("--near-field-reach 1: applies to --near-field N (odd, 3–7), which is off"),
+        "{e}"
+    );
     let e = refused(&["--near-field", "3", "--near-field-reach", "9"]);
     assert!(
         e.contains("--near-field-reach 9: a reach of 9 texels: give 0 to 8"),

@@ -99,16 +99,17 @@ pub struct Args {
     #[arg(long, default_value_t = 1, value_name = "K")]
     supersample: u32,
     /// Resolve the subsurface near field at N×N sub-texels (odd N, 3–7; 1 = off): each
-    /// translucent texel's senders within 2 texels scatter the direct light as it falls across
-    /// their footprint, lit at N× the lightmap's size, instead of its value at their centre
+    /// translucent texel's senders within --near-field-reach texels scatter the direct light
+    /// as it falls across their footprint, lit at N× the lightmap's size, instead of its value
+    /// at their centre
     /// (a correction added after the solve; README, *The subsurface near field*). Nearer the
     /// path-traced reference where shadow edges cross skin; the bake's maps do not hold it.
     #[arg(long, default_value_t = 1, value_name = "N")]
     near_field: u32,
     /// With --near-field: the senders within R texels of each skin texel (in x and in y) are
-    /// resolved at sub-texels.
-    #[arg(long, default_value_t = NearField::new(3).reach, value_name = "R")]
-    near_field_reach: u32,
+    /// resolved at sub-texels, 0 to 8 [default: 2].
+    #[arg(long, value_name = "R")]
+    near_field_reach: Option<u32>,
 }
 
 /// `--method`.
@@ -230,15 +231,19 @@ pub fn run(a: Args) -> Result<()> {
             u32::MAX,
         )?
     };
+    if let (1, Some(r)) = (a.near_field, a.near_field_reach) {
+        bail!("--near-field-reach {r}: applies to --near-field N (odd, 3–7), which is off");
+    }
     let near = (a.near_field != 1)
         .then(|| {
+            let defaults = NearField::new(a.near_field);
             let near = NearField {
-                reach: a.near_field_reach,
-                ..NearField::new(a.near_field)
+                reach: a.near_field_reach.unwrap_or(defaults.reach),
+                ..defaults
             };
             near.check().map(|_| near).map_err(|e| {
                 if (NearField { reach: 0, ..near }).check().is_ok() {
-                    anyhow::anyhow!("--near-field-reach {}: {e}", a.near_field_reach)
+                    anyhow::anyhow!("--near-field-reach {}: {e}", near.reach)
                 } else {
                     anyhow::anyhow!("--near-field {}: {e}; 1 turns it off", a.near_field)
                 }
