@@ -151,7 +151,7 @@ pub fn run(a: Args) -> Result<()> {
     );
     let std_error = a.std_error.clone().or_else(|| {
         let beside = a.reference.with_file_name("std_error.exr");
-        (a.std_error.is_none() && beside.is_file() && beside != a.reference).then_some(beside)
+        (beside.is_file() && beside != a.reference).then_some(beside)
     });
     if let Some(path) = std_error {
         let se = read_covered(&path, &grid, &a.scene)?;
@@ -162,24 +162,18 @@ pub fn run(a: Args) -> Result<()> {
             &test,
             firsts.as_ref().map(|(r, _)| r.as_slice()),
         );
-        let corrected = match (c.indirect, n.indirect) {
-            (Some(e), Some(noise)) => format!(
-                "; less that noise in quadrature: total {:.2} %, indirect {:.2} %",
-                100.0 * noise_corrected(c.total, n.total),
-                100.0 * noise_corrected(e, noise)
-            ),
-            _ => format!(
-                "; less that noise in quadrature: total {:.2} %",
-                100.0 * noise_corrected(c.total, n.total)
-            ),
-        };
         let indirect = n
             .indirect
             .map_or(String::new(), |i| format!(", indirect {:.2} %", 100.0 * i));
+        let indirect_corrected = (c.indirect.zip(n.indirect)).map_or(String::new(), |(e, i)| {
+            format!(", indirect {:.2} %", 100.0 * noise_corrected(e, i))
+        });
         println!(
-            "reference noise {}: its standard error as a relative RMSE: total {:.2} %{indirect}{corrected}",
+            "reference noise {}: its standard error as a relative RMSE: total {:.2} %{indirect}; \
+             less that noise in quadrature: total {:.2} %{indirect_corrected}",
             path.display(),
             100.0 * n.total,
+            100.0 * noise_corrected(c.total, n.total),
         );
         println!(
             "within 3σ       {:.2} % of covered texels (|test − reference| ≤ 3 standard errors in every channel)",
