@@ -24,10 +24,11 @@
 //! centre sub-texel ([`at_centres`]): the same points, a finer discretisation (README,
 //! *Resolution*).
 //!
-//! `--near-field N` (odd, 3–7) adds [`near_field::correction`] after the solve: the first
-//! scattering of the direct light under the skin from each translucent texel's nearby senders,
-//! resolved at N×N sub-texels (README, *The subsurface near field*). A bake's maps do not hold
-//! it, so `ortm render` of a bake equals the solve without it.
+//! `--near-field N` (odd, 3–7) adds [`near_field::correction`] to the solve's source: the
+//! first scattering of the direct light under the skin from each translucent texel's nearby
+//! senders, resolved at N×N sub-texels (README, *The subsurface near field*), emitted beside the
+//! texels' own first scattering so that its later bounces are solved as well. A bake's maps do
+//! not hold it, so `ortm render` of a bake equals the solve without it.
 
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -102,7 +103,7 @@ pub struct Args {
     /// translucent texel's senders within --near-field-reach texels scatter the direct light
     /// as it falls across their footprint, lit at N× the lightmap's size, instead of its value
     /// at their centre
-    /// (a correction added after the solve; README, *The subsurface near field*). Nearer the
+    /// (a source the solve transports; README, *The subsurface near field*). Nearer the
     /// path-traced reference where shadow edges cross skin; the bake's maps do not hold it.
     #[arg(long, default_value_t = 1, value_name = "N")]
     near_field: u32,
@@ -318,12 +319,46 @@ pub fn run(a: Args) -> Result<()> {
     };
     let progress = SetupProgress::new(&events, &cancel);
     let interrupted = || anyhow::anyhow!("interrupted: nothing was written");
+    // Skin's near field: a radiosity source beside the first scattering, so the solve carries
+    // its bounces too (across a crease, light scattered under one side lights the other).
+    let delta = match near {
+        None => None,
+        Some(near) => {
+            let t_near = Instant::now();
+            let delta = near_field::correction(
+                &scene,
+                &grid,
+                &kernels,
+                &scene.lights,
+                &vis,
+                &b_in,
+                near,
+                &progress,
+            )
+            .map_err(|e| match e {
+                NearFieldError::Cancelled => interrupted(),
+                NearFieldError::Texels(e) => anyhow::Error::new(e).context(format!(
+                    "rasterizing the lightmap UVs of '{}' for --near-field {}",
+                    a.scene, near.subdivision
+                )),
+            })?;
+            bar.lock().expect("progress lock").finish_and_clear();
+            eprintln!(
+                "near field: {}×{} sub-texels per texel, senders within {} texels, in {:.2} s",
+                near.subdivision,
+                near.subdivision,
+                near.reach,
+                t_near.elapsed().as_secs_f64()
+            );
+            Some(delta)
+        }
+    };
     let (b, t_assemble, how) = if dense {
         let dense =
             DenseTransport::build(&patches, &kernels, &progress).map_err(|_| interrupted())?;
         let t_assemble = t0.elapsed();
         (
-            dense.solve(&b_in),
+            dense.factor().solve_with_source(&b_in, delta.as_deref()),
             t_assemble,
             "exact dense solve".to_string(),
         )
@@ -349,7 +384,7 @@ pub fn run(a: Args) -> Result<()> {
         };
         let t_assemble = t0.elapsed();
         let sol = op
-            .solve(&b_in, &settings, &progress)
+            .solve_with_source(&b_in, delta.as_deref(), &settings, &progress)
             .map_err(|_| interrupted())?;
         let how = format!(
             "hierarchical solve, ε = {:e}: {} links ({:.1} MB), {} sweeps (last change {:.1e})",
@@ -365,37 +400,6 @@ pub fn run(a: Args) -> Result<()> {
     let t_total = t0.elapsed();
     let mut b = b;
     lighting::with_first_order(&mut b, &first, &b_in);
-    if let Some(near) = near {
-        let t_near = Instant::now();
-        let delta = near_field::correction(
-            &scene,
-            &grid,
-            &kernels,
-            &scene.lights,
-            &vis,
-            &b_in,
-            near,
-            &progress,
-        )
-        .map_err(|e| match e {
-            NearFieldError::Cancelled => interrupted(),
-            NearFieldError::Texels(e) => anyhow::Error::new(e).context(format!(
-                "rasterizing the lightmap UVs of '{}' for --near-field {}",
-                a.scene, near.subdivision
-            )),
-        })?;
-        bar.lock().expect("progress lock").finish_and_clear();
-        for (x, d) in b.iter_mut().zip(&delta) {
-            *x += *d;
-        }
-        eprintln!(
-            "near field: {}×{} sub-texels per texel, senders within {} texels, in {:.2} s",
-            near.subdivision,
-            near.subdivision,
-            near.reach,
-            t_near.elapsed().as_secs_f64()
-        );
-    }
     // Supersampled: each texel takes its centre sub-texel's values.
     let (b, b_o) = if k > 1 {
         (

@@ -558,15 +558,10 @@ impl Worker {
             translucent,
         )
         .unwrap_or_else(|_| (first_order.clone(), first_order.clone()));
-        let mut final_b = self
-            .dense
-            .as_ref()
-            .map_or_else(|| input.clone(), |d| d.solve(&input));
-        lighting::with_first_order(&mut final_b, &first, &input);
-        // Skin's near field at the input's sub-texels (nothing to do without skin; should the
-        // sub-texel grid fail, the solve stands as it is).
-        if let Some(kernels) = &self.kernels
-            && let Ok(delta) = near_field::correction(
+        // Skin's near field at the input's sub-texels, a source the solve transports (nothing
+        // to do without skin; should the sub-texel grid fail, the solve goes without it).
+        let delta = self.kernels.as_ref().and_then(|kernels| {
+            near_field::correction(
                 &self.scene,
                 &self.grid,
                 kernels,
@@ -576,11 +571,13 @@ impl Worker {
                 NearField::new(lighting::DEFAULT_FIRST_ORDER_SAMPLES),
                 &SetupProgress::none(),
             )
-        {
-            for (b, d) in final_b.iter_mut().zip(&delta) {
-                *b += *d;
-            }
-        }
+            .ok()
+        });
+        let mut final_b = self.dense.as_ref().map_or_else(
+            || input.clone(),
+            |d| d.solve_with_source(&input, delta.as_deref()),
+        );
+        lighting::with_first_order(&mut final_b, &first, &input);
         RefMaps {
             solver: Solver::Exact,
             first_order,

@@ -275,11 +275,27 @@ impl FactoredTransport {
     /// Exact final radiosity `B` (W/m²) for the first-order radiosity `b_o` (W/m², one per
     /// patch), as [`DenseTransport::solve`].
     pub fn solve(&self, b_o: &[Vec3]) -> Vec<Vec3> {
+        self.solve_with_source(b_o, None)
+    }
+
+    /// [`FactoredTransport::solve`] with radiosity `source` (W/m², one per patch) emitted by
+    /// the patches beside their first scattering of `b_o`: `B = M⁻¹ (X ρ̄⁻¹ B_o + source)`, so
+    /// the source is in `B` and so are all its bounces (`B = X (E_d + F B) + source`). The
+    /// subsurface near field ([`crate::bake::near_field`]) is such a source.
+    pub fn solve_with_source(&self, b_o: &[Vec3], source: Option<&[Vec3]>) -> Vec<Vec3> {
         assert_eq!(b_o.len(), self.n, "one first-order value per patch");
+        if let Some(s) = source {
+            assert_eq!(s.len(), self.n, "one source value per patch");
+        }
         let mut out = vec![Vec3::ZERO; self.n];
         for (ch, (x, lu)) in self.channels.iter().enumerate() {
             let e = Mat::from_fn(self.n, 1, |j, _| b_o[j][ch] as f64 * self.inv_rho[j][ch]);
-            let rhs = x * &e;
+            let mut rhs = x * &e;
+            if let Some(s) = source {
+                for (i, v) in s.iter().enumerate() {
+                    rhs[(i, 0)] += v[ch] as f64;
+                }
+            }
             let b = lu.solve(&rhs);
             for (i, o) in out.iter_mut().enumerate() {
                 o[ch] = b[(i, 0)] as f32;

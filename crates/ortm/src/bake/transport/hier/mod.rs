@@ -469,11 +469,36 @@ impl Operator {
         settings: &Settings,
         progress: &SetupProgress,
     ) -> Result<Solution, Cancelled> {
+        self.solve_with_source(b_o, None, settings, progress)
+    }
+
+    /// [`Operator::solve`] with radiosity `source` (W/m², one per patch) emitted by the
+    /// patches beside their first scattering of `b_o`: sweeps `B ← X (E_d + F B) + source`,
+    /// so the source and all its bounces are in `B` (as
+    /// [`super::dense::FactoredTransport::solve_with_source`]).
+    pub fn solve_with_source(
+        &self,
+        b_o: &[Vec3],
+        source: Option<&[Vec3]>,
+        settings: &Settings,
+        progress: &SetupProgress,
+    ) -> Result<Solution, Cancelled> {
         assert_eq!(
             b_o.len(),
             self.patches.len(),
             "one first-order value per patch"
         );
+        if let Some(s) = source {
+            assert_eq!(s.len(), self.patches.len(), "one source value per patch");
+        }
+        let with_source = |mut b: Vec<Vec3>| {
+            if let Some(s) = source {
+                for (x, v) in b.iter_mut().zip(s) {
+                    *x += *v;
+                }
+            }
+            b
+        };
         assert!(
             !self.links_only,
             "an operator built by build_links_only has no subsurface operator to solve with"
@@ -499,13 +524,13 @@ impl Operator {
             s
         };
         progress.phase("transport: solve", settings.max_iterations as u64);
-        let mut b = b_o.to_vec();
+        let mut b = with_source(b_o.to_vec());
         let mut last = power(&b);
         let (mut iterations, mut change) = (0u32, f64::INFINITY);
         while iterations < settings.max_iterations {
             progress.check()?;
             let e = self.gather(&b);
-            b = self.exitance(b_o, &e_d, &e);
+            b = with_source(self.exitance(b_o, &e_d, &e));
             iterations += 1;
             progress.advance(1);
             let now = power(&b);
