@@ -12,6 +12,7 @@ use ortm::bake::offsets::ImportanceMetric;
 use ortm::bake::shard::{self, ShardId};
 use ortm::bake::transport::Effects;
 use ortm::bake::transport::coarse::{AUTO_EXACT_TEXELS, AUTO_MAX_CLUSTERS};
+use ortm::bake::transport::hier::DEFAULT_SUBSURFACE_TOLERANCE;
 use ortm::bake::{BakeEvent, BakeSettings, CellRule, Selector, bake};
 use ortm::io::limits::{MAX_COARSE_BLOCK, MAX_REFINEMENT_ITERATIONS};
 
@@ -74,6 +75,13 @@ pub struct Args {
         help = format!("Hierarchical first bounce: the light between surfaces from links refined to this tolerance (a form factor; smaller is more accurate and takes more memory and time) instead of from the coarse clusters; makes large lightmaps (1024² and up) bakeable. --tolerance alone: {DEFAULT_TOLERANCE_ARG}, the largest tolerance whose evaluator is within 2 % (indirect) of the exact solve on the Cornell box, the maze and the head at 64² (README, \"Transport model\")")
     )]
     pub tolerance: Option<f32>,
+    /// With --tolerance: the subsurface walk's own tolerance.
+    #[arg(
+        long,
+        value_name = "ε_S",
+        help = format!("With --tolerance: the tolerance of the subsurface term's walk over the cluster tree (the profile's mean over a node may err by this fraction of a sender's power per unit area); on the head at 512² the default is 0.52 % of the subsurface term's RMS off its exact sum and visits 306 nodes per receiver (1e-4: 0.18 %, 487 nodes; README, \"Transport model\") [default: {DEFAULT_SUBSURFACE_TOLERANCE:e}]")
+    )]
+    pub subsurface_tolerance: Option<f32>,
     /// Multi-resolution maps at this tolerance instead of importance-sampled offsets.
     #[arg(
         long,
@@ -161,6 +169,16 @@ pub fn settings(a: &Args, size: (u32, u32)) -> Result<BakeSettings> {
     {
         bail!("--tolerance {t}: give a positive number, e.g. 1e-3");
     }
+    match (a.subsurface_tolerance, a.tolerance) {
+        (Some(_), None) => bail!(
+            "--subsurface-tolerance applies to the hierarchical transport: give --tolerance too \
+             (e.g. --tolerance --subsurface-tolerance 1e-3), or drop --subsurface-tolerance"
+        ),
+        (Some(t), Some(_)) if !(t.is_finite() && t > 0.0) => {
+            bail!("--subsurface-tolerance {t}: give a positive number, e.g. 1e-3")
+        }
+        _ => {}
+    }
     if let Some(e) = a.levels
         && !(e.is_finite() && e >= 0.0)
     {
@@ -184,6 +202,10 @@ pub fn settings(a: &Args, size: (u32, u32)) -> Result<BakeSettings> {
     Ok(BakeSettings {
         size,
         tolerance: a.tolerance,
+        subsurface_tolerance: a.tolerance.map(|_| {
+            a.subsurface_tolerance
+                .unwrap_or(DEFAULT_SUBSURFACE_TOLERANCE)
+        }),
         levels: a.levels,
         receiver_blocks,
         cell_rule,
@@ -507,5 +529,34 @@ mod tests {
             super::DEFAULT_TOLERANCE_ARG.parse::<f32>().ok(),
             Some(ortm::bake::transport::hier::DEFAULT_TOLERANCE)
         );
+    }
+
+    fn parse(args: &[&str]) -> anyhow::Result<ortm::bake::BakeSettings> {
+        #[derive(clap::Parser)]
+        struct Cli {
+            #[command(flatten)]
+            bake: super::Args,
+        }
+        let cli = <Cli as clap::Parser>::try_parse_from(
+            ["bake", "head", "-o", "out"].iter().chain(args),
+        )?;
+        super::settings(&cli.bake, (64, 64))
+    }
+
+    /// The subsurface walk's tolerance: the default with `--tolerance`, as given with
+    /// `--subsurface-tolerance`, none without the hierarchical transport, and refused alone
+    /// or when not a positive number.
+    #[test]
+    fn subsurface_tolerance_goes_with_the_hierarchical_transport() {
+        use ortm::bake::transport::hier::DEFAULT_SUBSURFACE_TOLERANCE;
+        let s = parse(&["--tolerance"]).unwrap();
+        assert_eq!(s.subsurface_tolerance, Some(DEFAULT_SUBSURFACE_TOLERANCE));
+        let s = parse(&["--tolerance", "1e-3", "--subsurface-tolerance", "3e-4"]).unwrap();
+        assert_eq!(s.subsurface_tolerance, Some(3e-4));
+        assert_eq!(parse(&[]).unwrap().subsurface_tolerance, None);
+        let e = parse(&["--subsurface-tolerance", "1e-3"]).unwrap_err();
+        assert!(e.to_string().contains("give --tolerance too"), "{e}");
+        let e = parse(&["--tolerance", "--subsurface-tolerance", "0"]).unwrap_err();
+        assert!(e.to_string().contains("positive number"), "{e}");
     }
 }

@@ -36,6 +36,7 @@ use ortm::bake::pipeline::CellRule;
 use ortm::bake::raycast::Visibility;
 use ortm::bake::texels::TexelGrid;
 use ortm::bake::transport::dense::{self, DenseTransport};
+use ortm::bake::transport::hier::DEFAULT_SUBSURFACE_TOLERANCE;
 use ortm::bake::transport::{Effects, Kernels, Transport, texel_patches};
 use ortm::bake::{self, BakeSettings, lighting};
 use ortm::io::limits::MAX_SAMPLES_PER_TEXEL;
@@ -98,6 +99,10 @@ pub struct Args {
     /// `--levels` painted from it and one bake per offset budget and cell rule on it.
     #[arg(long, value_delimiter = ',', num_args = 1..)]
     tolerances: Vec<f32>,
+    /// With `--tolerances`: the subsurface walk's own tolerance in every hierarchical row, as
+    /// `ortm bake --subsurface-tolerance`.
+    #[arg(long, value_name = "ε_S", default_value_t = DEFAULT_SUBSURFACE_TOLERANCE)]
+    subsurface_tolerance: f32,
     /// Sub-texels per texel side (odd, 1–7) over which the transfer's input is averaged, as
     /// `ortm render --first-order-samples`: every row (and the exact solve) multiplies the
     /// averaged first order; 1 takes the centres.
@@ -140,6 +145,12 @@ impl Case {
 pub fn run(a: Args) -> Result<()> {
     if a.offsets.contains(&0) {
         bail!("--offsets: every budget must be at least 1 map");
+    }
+    if !(a.subsurface_tolerance.is_finite() && a.subsurface_tolerance > 0.0) {
+        bail!(
+            "--subsurface-tolerance {}: give a number > 0, e.g. 1e-3",
+            a.subsurface_tolerance
+        );
     }
     if let Some(t) = a.tolerances.iter().find(|t| !(t.is_finite() && **t > 0.0)) {
         bail!("--tolerances: {t} is not a tolerance; give numbers > 0, e.g. 1e-3,1e-4");
@@ -272,6 +283,7 @@ fn hierarchical_rows(case: &Case, tolerance: f32, a: &Args) -> Result<Vec<Row>> 
     let t = Instant::now();
     let settings = hier::Settings {
         tolerance,
+        subsurface_tolerance: Some(a.subsurface_tolerance),
         ..hier::Settings::default()
     };
     let tr = Transport::build_hierarchical(
@@ -418,6 +430,7 @@ fn bake_row(
             a.coarse_block
         },
         tolerance,
+        subsurface_tolerance: tolerance.map(|_| a.subsurface_tolerance),
         ..BakeSettings::default()
     };
     let cancel = AtomicBool::new(false);

@@ -74,6 +74,11 @@ pub struct BakeSettings {
     /// pairs.
     #[serde(default)]
     pub tolerance: Option<f32>,
+    /// With [`Self::tolerance`]: the subsurface walk's own tolerance
+    /// ([`crate::bake::transport::hier::Settings::subsurface_tolerance`]); `None`: the same
+    /// as `tolerance`. Recorded (and so in the bake's key) only when set.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub subsurface_tolerance: Option<f32>,
     /// Receivers sampled per offset when estimating its transference.
     pub selection_receivers: usize,
     /// How map values cover their Voronoi cells.
@@ -112,6 +117,7 @@ impl Default for BakeSettings {
             rebuild_every: 20,
             coarse_block: 8,
             tolerance: None,
+            subsurface_tolerance: None,
             selection_receivers: 4096,
             cell_rule: CellRule::Integrated,
             levels: None,
@@ -705,6 +711,7 @@ impl Setup {
                     .map(|l| l.saturating_sub(rest));
                 let hs = hier::Settings {
                     tolerance,
+                    subsurface_tolerance: settings.subsurface_tolerance,
                     max_bytes,
                     ..hier::Settings::default()
                 };

@@ -520,8 +520,11 @@ pub fn integrate(
             }
             (out.values, out.stats)
         });
+        // One job per cluster: rayon otherwise runs ranges of about a quarter of the
+        // clusters whole once split, and the last such range can hold one core busy alone.
         (0..run.cluster_count())
             .into_par_iter()
+            .with_max_len(1)
             .for_each_with(send, |send, ci| {
                 let (values, stats) = run.0.receiving_cluster(ci);
                 progress(receivers[ci].len() as u64);
@@ -676,6 +679,7 @@ impl<'a> Integrator<'a> {
     ) -> Vec<ClusterValues> {
         range
             .into_par_iter()
+            .with_max_len(1)
             .map(|ci| {
                 let (values, st) = self.0.receiving_cluster(ci);
                 progress(self.0.clusters.texels[ci].len() as u64);
