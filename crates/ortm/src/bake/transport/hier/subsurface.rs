@@ -23,8 +23,10 @@
 //! and the third-order remainder of its mean times its area is within the tolerance `ε` in
 //! every channel ([`RdTable::cluster_mean`]: `⅙ D₃(d − r_s) r_s tr M_s`, `D₃` bounding the
 //! profile's third derivative by the rate at which the dipole's tail falls). `ε` is the
-//! operator's tolerance ([`super::Settings::tolerance`]): a fraction of a sender's power per
-//! unit area at the receiver, like a form factor. Against the centroid's value `R_d(d)` with
+//! walk's tolerance ([`super::Settings::subsurface_tolerance`], else the operator's
+//! [`super::Settings::tolerance`]; `ortm bake --tolerance` walks at
+//! [`super::DEFAULT_SUBSURFACE_TOLERANCE`] unless told otherwise): a fraction of a sender's
+//! power per unit area at the receiver, like a form factor. Against the centroid's value `R_d(d)` with
 //! the first-order test `(|R_d(d − r_s) − R_d(d)| + |R_d(d) − R_d(d + r_s)|)·A_s ≤ ε` (what a
 //! walk saved without moments still uses, [`RdTable::cluster_value`]), the head at 512² visits
 //! 487 nodes per receiver instead of 757 at ε = 10⁻⁴, and its subsurface term under its lamps
