@@ -520,8 +520,9 @@ pub fn integrate(
             }
             (out.values, out.stats)
         });
-        // One job per cluster: rayon otherwise runs ranges of about a quarter of the
-        // clusters whole once split, and the last such range can hold one core busy alone.
+        // One job per cluster: rayon otherwise splits the clusters into about two ranges per
+        // thread and runs each range whole once split, so the last one can hold one core busy
+        // alone (the head's 512² cells ran their last ~6 s on one of two cores).
         (0..run.cluster_count())
             .into_par_iter()
             .with_max_len(1)
