@@ -92,9 +92,8 @@ pub struct Settings {
     pub tolerance: f32,
     /// The subsurface walk's tolerance ([`subsurface`], "Error control"; the bake's cell
     /// integration and its normalisation); `None`: [`Settings::tolerance`]. A separate knob
-    /// since the two errors differ in kind: on the head at 512² the walk at 10⁻³ is 0.52 % of
-    /// the subsurface term's RMS off its exact sum (0.18 % at 10⁻⁴) and visits 306 nodes per
-    /// receiver instead of 487 (`apps/ortm/tests/subsurface_walk.rs`).
+    /// since the two errors differ in kind (what each costs and gives on the head:
+    /// [`DEFAULT_SUBSURFACE_TOLERANCE`]).
     pub subsurface_tolerance: Option<f32>,
     /// Rays that estimate a block link's visibility.
     pub visibility_rays: u32,
