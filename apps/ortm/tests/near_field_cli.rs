@@ -109,4 +109,27 @@ fn the_near_field_changes_skin_only() {
         e.contains("--near-field-reach 9: a reach of 9 texels: give 0 to 8"),
         "{e}"
     );
+    // The interreflection's gathered near field.
+    let e = refused(&["--near-gather", "1"]);
+    assert!(
+        e.contains(
+            "--near-gather 1: 1 rays per side: give 2 to 64 (G × G rays per texel); 0 turns it off"
+        ),
+        "{e}"
+    );
+    let e = refused(&["--near-gather-reach", "4"]);
+    assert!(
+        e.contains(
+            "--near-gather-reach 4: applies to --near-gather G (2–64 rays per side), which is off"
+        ),
+        "{e}"
+    );
+    let e = refused(&["--near-gather", "8", "--near-gather-reach", "0"]);
+    assert!(
+        e.contains(
+            "--near-gather-reach 0: a reach of 0 texel sizes: give a number above 0, at most 64"
+        ),
+        "{e}"
+    );
+    assert!(!d.join("x").exists(), "output folder made");
 }

@@ -39,6 +39,7 @@ pub mod eval;
 pub mod lighting;
 pub mod multires;
 pub mod near_field;
+pub mod near_gather;
 pub mod offsets;
 pub mod pipeline;
 pub mod raycast;

@@ -498,6 +498,25 @@ impl Operator {
         settings: &Settings,
         progress: &SetupProgress,
     ) -> Result<Solution, Cancelled> {
+        self.solve_corrected(b_o, source, None, settings, progress)
+    }
+
+    /// [`Operator::solve_with_source`] with `correction` adding to every gather's irradiance
+    /// (W/m², one per patch) what a sparse operator gives for the current `B` — the near
+    /// field gathered by rays ([`crate::bake::near_gather::Correction::gather`]): sweeps
+    /// `B ← X (E_d + F B + correction(B)) + source`.
+    #[expect(
+        clippy::type_complexity,
+        reason = "a borrowed closure, spelled where it is taken"
+    )]
+    pub fn solve_corrected(
+        &self,
+        b_o: &[Vec3],
+        source: Option<&[Vec3]>,
+        correction: Option<&(dyn Fn(&[Vec3], &mut [Vec3]) + Sync)>,
+        settings: &Settings,
+        progress: &SetupProgress,
+    ) -> Result<Solution, Cancelled> {
         assert_eq!(
             b_o.len(),
             self.patches.len(),
@@ -544,7 +563,10 @@ impl Operator {
         let (mut iterations, mut change) = (0u32, f64::INFINITY);
         while iterations < settings.max_iterations {
             progress.check()?;
-            let e = self.gather(&b);
+            let mut e = self.gather(&b);
+            if let Some(c) = correction {
+                c(&b, &mut e);
+            }
             b = with_source(self.exitance(b_o, &e_d, &e));
             iterations += 1;
             progress.advance(1);
