@@ -379,7 +379,7 @@ fn closed_sphere_transports_a_radiosity_source() {
 /// row's sum at 1 and the solves — dense with `ΔF` added to `F`, hierarchical with `ΔF·B`
 /// added to every gather — must keep `B = ρI/r²/(1−ρ)` and the sphere's law, up to the rays'
 /// quadrature (1,024 stratified rays per texel; the near set within 4 texel sizes holds ~50
-/// texels). The rows' sums must stay within 1.6 % of 1: a `ΔF` of the wrong sign moves them
+/// texels). The rows' sums must stay within 1.24 % of 1: a `ΔF` of the wrong sign moves them
 /// by twice the near set's share.
 #[test]
 fn closed_sphere_with_the_gathered_near_field_matches_the_analytic_radiosity() {
