@@ -132,4 +132,31 @@ fn the_near_field_changes_skin_only() {
         "{e}"
     );
     assert!(!d.join("x").exists(), "output folder made");
+    // Its rows may take a quarter of the memory limit, checked as they are gathered.
+    let mut cmd = common::ortm_command();
+    cmd.args([
+        "solve",
+        "head",
+        "--size",
+        "24",
+        "--effects",
+        "radiosity",
+        "--near-gather",
+        "8",
+        "-o",
+        "tight",
+    ])
+    .current_dir(d)
+    .env("ORTM_MEMORY_LIMIT_BYTES", "100000");
+    let e = fails(cmd.output().unwrap());
+    assert!(
+        e.contains("--near-gather 8: the gathered near field outgrew its memory budget")
+            && e.contains("limit 25.0 kB")
+            && e.contains("give a smaller --near-gather-reach"),
+        "{e}"
+    );
+    assert!(
+        !d.join("tight").join("final.exr").exists(),
+        "an output written"
+    );
 }

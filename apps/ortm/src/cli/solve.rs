@@ -47,7 +47,7 @@ use ortm::accuracy::compare::power_w;
 use ortm::bake::BakeEvent;
 use ortm::bake::lighting;
 use ortm::bake::near_field::{self, NearField, NearFieldError};
-use ortm::bake::near_gather::{self, NearGather};
+use ortm::bake::near_gather::{self, GatherError, NearGather};
 use ortm::bake::raycast::Visibility;
 use ortm::bake::report::save_solution_pngs;
 use ortm::bake::texels::TexelGrid;
@@ -397,6 +397,11 @@ pub fn run(a: Args) -> Result<()> {
     let gathered = match gather {
         None => None,
         Some(g) => {
+            // Its rows may take a quarter of the memory limit (the links take half).
+            let g = NearGather {
+                max_bytes: ortm::io::limits::memory_limit_bytes()?.map(|l| l / 4),
+                ..g
+            };
             let t_gather = Instant::now();
             let c = near_gather::correction(
                 &scene,
@@ -409,7 +414,15 @@ pub fn run(a: Args) -> Result<()> {
                 g,
                 &progress,
             )
-            .map_err(|_| interrupted())?;
+            .map_err(|e| match e {
+                GatherError::Cancelled => interrupted(),
+                e @ GatherError::TooLarge { .. } => anyhow::anyhow!(
+                    "--near-gather {}: {e} (a quarter of the memory limit: physical memory or \
+                     ORTM_MEMORY_LIMIT_BYTES); give a smaller --near-gather-reach, --size or \
+                     --supersample",
+                    g.rays_per_side
+                ),
+            })?;
             bar.lock().expect("progress lock").finish_and_clear();
             eprintln!(
                 "near gather: {}×{} rays per texel, near set within {} texel sizes, {} form-factor \

@@ -60,9 +60,11 @@
 //! Units: `ΔF` dimensionless, `ΔE` W/m² (irradiance), `B` W/m².
 
 use std::collections::HashMap;
+use std::sync::atomic::{AtomicU64, Ordering};
 
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
+use thiserror::Error;
 
 use crate::bake::lighting::{irradiance_unshadowed_at, light_visible_from};
 use crate::bake::raycast::Visibility;
@@ -88,6 +90,10 @@ pub struct NearGather {
     pub rays_per_side: u32,
     /// The near set's radius in texel sizes (`√A` of the receiver).
     pub reach: f32,
+    /// Most bytes the rows may hold (`None`: no limit); [`correction`] stops with
+    /// [`GatherError::TooLarge`] once they pass it. On the head at 256² the default settings
+    /// hold 7.0 M entries, about 58 MB.
+    pub max_bytes: Option<u64>,
 }
 
 impl NearGather {
@@ -96,6 +102,7 @@ impl NearGather {
         Self {
             rays_per_side,
             reach: DEFAULT_REACH,
+            max_bytes: None,
         }
     }
 
@@ -158,6 +165,39 @@ impl Correction {
     /// Number of stored `ΔF` entries.
     pub fn entries(&self) -> usize {
         self.rows.iter().map(Vec::len).sum()
+    }
+}
+
+/// Bytes one receiver's row holds with `entries` `ΔF` entries (its vector, entries and `ΔE`).
+fn row_bytes(entries: usize) -> u64 {
+    (std::mem::size_of::<Vec<(u32, f32)>>()
+        + entries * std::mem::size_of::<(u32, f32)>()
+        + std::mem::size_of::<Vec3>()) as u64
+}
+
+/// Why [`correction`] stopped.
+#[derive(Debug, Error)]
+pub enum GatherError {
+    /// The progress' cancel flag was raised.
+    #[error("cancelled")]
+    Cancelled,
+    /// The rows outgrew [`NearGather::max_bytes`] (checked as they are gathered).
+    #[error(
+        "the gathered near field outgrew its memory budget: {:.1} kB so far, limit {:.1} kB",
+        *bytes as f64 / 1e3,
+        *limit as f64 / 1e3
+    )]
+    TooLarge {
+        /// Bytes held when the budget was passed.
+        bytes: u64,
+        /// The budget, bytes.
+        limit: u64,
+    },
+}
+
+impl From<Cancelled> for GatherError {
+    fn from(_: Cancelled) -> Self {
+        Self::Cancelled
     }
 }
 
@@ -243,7 +283,7 @@ pub fn correction(
     b_in: &[Vec3],
     settings: NearGather,
     progress: &SetupProgress,
-) -> Result<Correction, Cancelled> {
+) -> Result<Correction, GatherError> {
     let n = patches.len();
     let mut sizes: Vec<f32> = patches.iter().map(|p| p.area_m2.sqrt()).collect();
     let mid = sizes.len() / 2;
@@ -274,24 +314,33 @@ pub fn correction(
     };
     progress.phase("near gather: receivers", n as u64);
     const CHUNK: usize = 256;
-    let chunks: Vec<Result<Vec<Row>, Cancelled>> = (0..n.div_ceil(CHUNK))
+    let bytes = AtomicU64::new(0);
+    let chunks: Vec<Vec<Row>> = (0..n.div_ceil(CHUNK))
         .into_par_iter()
         .map(|c| {
             progress.check()?;
             let range = c * CHUNK..((c + 1) * CHUNK).min(n);
             let len = range.len();
-            let out = range.map(|i| receiver(&ctx, i)).collect();
+            let out: Vec<Row> = range.map(|i| receiver(&ctx, i)).collect();
+            let size: u64 = out.iter().map(|r| row_bytes(r.0.len())).sum();
+            let total = bytes.fetch_add(size, Ordering::Relaxed) + size;
+            if let Some(limit) = settings.max_bytes
+                && total > limit
+            {
+                return Err(GatherError::TooLarge {
+                    bytes: total,
+                    limit,
+                });
+            }
             progress.advance(len as u64);
             Ok(out)
         })
-        .collect();
+        .collect::<Result<_, _>>()?;
     let mut rows = Vec::with_capacity(n);
     let mut irradiance = Vec::with_capacity(n);
-    for chunk in chunks {
-        for (row, e) in chunk? {
-            rows.push(row);
-            irradiance.push(e);
-        }
+    for (row, e) in chunks.into_iter().flatten() {
+        rows.push(row);
+        irradiance.push(e);
     }
     Ok(Correction { rows, irradiance })
 }
