@@ -49,13 +49,16 @@
 //! form factors' quadrature error: with `G = 32`, 1,024 rays per texel. Spreading each ray
 //! bilinearly rather than crediting the texel that holds the hit took the head at 256²
 //! (radiosity alone) from 9.31 % to 8.80 % indirect against the path-traced reference, at 64²
-//! from 15.2 % to 13.3 %.
+//! from 15.2 % to 13.3 % (README, *The interreflection's near field*).
 //!
-//! Where a texel is coarser than a slit it faces (the head at 64², skin: 7–9 mm texels on lips
-//! closed on each other), the rays find the slit's far side filling the hemisphere, but the
-//! light the texels there hold is that of their centres, near the slit's mouth; with skin the
-//! two sides then relight each other too much (the head at 64² with both effects: 27.2 % →
-//! 28.6 % indirect, red energy 1.015). Off by default for that reason.
+//! Where the transport's kernel is exact (flat walls: the Cornell box) the correction only adds
+//! that noise, largest where a sender's light peaks within a texel (the ceiling beside a
+//! lamp): at 64² 1.23 % → 5.62 % indirect with `G = 32`, 1.77 % with `G = 64`. Where a texel is
+//! coarser than a slit it faces (the head at 64², skin: 7–9 mm texels on lips closed on each
+//! other), the rays find the slit's far side filling the hemisphere, but the light the texels
+//! there hold is that of their centres, near the slit's mouth; with skin the two sides then
+//! relight each other too much (the head at 64² with both effects: 27.2 % → 28.6 %). Off by
+//! default for both reasons.
 //!
 //! Units: `ΔF` dimensionless, `ΔE` W/m² (irradiance), `B` W/m².
 
@@ -345,17 +348,18 @@ pub fn correction(
     Ok(Correction { rows, irradiance })
 }
 
-/// The texels sharing a ray's hit at lightmap UV `uv` (held by texel `j`) and their weights:
-/// the bilinear weights of the four texel centres around it, those covered and of `j`'s chart
-/// kept and renormalised; `j` alone when none is kept.
-fn bilinear(grid: &TexelGrid, uv: Vec2, j: u32) -> Vec<(u32, f32)> {
-    let chart = grid.texels[j as usize].chart;
+/// The texels sharing a ray's hit at lightmap UV `uv` on chart `chart`, and their weights:
+/// the bilinear weights of the four texel centres around it, those covered by `chart` kept
+/// and renormalised; else the chart's texel among those four whose centre is nearest, or none
+/// (a hit on a triangle too small to hold a texel's centre nearby).
+fn bilinear(grid: &TexelGrid, uv: Vec2, chart: u32) -> Vec<(u32, f32)> {
     let px = uv.x * grid.width as f32 - 0.5;
     let py = (1.0 - uv.y) * grid.height as f32 - 0.5;
     let (x0, y0) = (px.floor(), py.floor());
     let (fx, fy) = (px - x0, py - y0);
     let mut out = Vec::with_capacity(4);
     let mut sum = 0.0;
+    let mut nearest: Option<(u32, f32)> = None;
     for (dx, dy, w) in [
         (0, 0, (1.0 - fx) * (1.0 - fy)),
         (1, 0, fx * (1.0 - fy)),
@@ -364,14 +368,18 @@ fn bilinear(grid: &TexelGrid, uv: Vec2, j: u32) -> Vec<(u32, f32)> {
     ] {
         if let Some(s) = grid.at(x0 as i32 + dx, y0 as i32 + dy)
             && grid.texels[s as usize].chart == chart
-            && w > 0.0
         {
-            out.push((s, w));
-            sum += w;
+            if w > 0.0 {
+                out.push((s, w));
+                sum += w;
+            }
+            if nearest.is_none_or(|(_, best)| w > best) {
+                nearest = Some((s, w));
+            }
         }
     }
     if sum <= 0.0 {
-        return vec![(j, 1.0)];
+        return nearest.map(|(s, _)| vec![(s, 1.0)]).unwrap_or_default();
     }
     out.iter_mut().for_each(|e| e.1 /= sum);
     out
@@ -441,17 +449,20 @@ fn receiver(c: &Ctx<'_>, i: usize) -> Row {
         if normal.dot(dir) >= 0.0 {
             continue;
         }
-        let Some(j) = grid.at(
-            (uv.x * grid.width as f32).floor() as i32,
-            ((1.0 - uv.y) * grid.height as f32).floor() as i32,
-        ) else {
+        // The hit's chart (a ray may land in the strip along a chart's edge whose texel
+        // centres lie outside it: it reads the chart's nearest centres).
+        let Some(&chart) = grid.triangle_chart.get(hit.triangle as usize) else {
             continue;
         };
         // The ray's share goes to the texel centres around the hit, bilinearly (the
         // lightmap's own interpolation), within the chart of the texel that holds it.
         let mut credited = 0.0f32;
         let mut input = Vec3::ZERO;
-        for (s, w) in bilinear(grid, uv, j) {
+        let shares = bilinear(grid, uv, chart);
+        let Some(&(j, _)) = shares.first() else {
+            continue;
+        };
+        for (s, w) in shares {
             if let Ok(k) = row.binary_search_by_key(&s, |e| e.0) {
                 row[k].1 += w / rays;
                 credited += w;
