@@ -94,17 +94,27 @@ fn sphere_scene(n_lat: u32, n_lon: u32, size: (u32, u32)) -> Scene {
     }
 }
 
-#[test]
-fn closed_sphere_with_a_central_point_light_matches_the_analytic_radiosity() {
+/// Radiosity alone (the sphere's law is for interreflection).
+const RADIOSITY: Effects = Effects {
+    radiosity: true,
+    subsurface: false,
+};
+
+/// The tests' sphere (24 × 48 facets, a 96 × 48 lightmap), its texels, its ray caster and the
+/// first order of its central light.
+fn lit_sphere() -> (Scene, TexelGrid, std::sync::Arc<Visibility>, Vec<Vec3>) {
     let scene = sphere_scene(24, 48, (96, 48));
     let grid = TexelGrid::build(&scene).unwrap();
-    let vis = Visibility::new(&scene.mesh);
+    let vis = std::sync::Arc::new(Visibility::new(&scene.mesh));
     let e = lighting::irradiance(&grid, &scene.lights, &vis);
     let b_o = common::exitance(&grid, &e);
-    let effects = Effects {
-        radiosity: true,
-        subsurface: false,
-    };
+    (scene, grid, vis, b_o)
+}
+
+#[test]
+fn closed_sphere_with_a_central_point_light_matches_the_analytic_radiosity() {
+    let (scene, grid, _, b_o) = lit_sphere();
+    let effects = RADIOSITY;
     let transport = Transport::new(&scene, &grid, effects, 1);
     let dense = DenseTransport::new(&texel_patches(&grid), &transport.kernels);
     let b = dense.solve(&b_o);
@@ -156,15 +166,8 @@ fn closed_sphere_with_a_central_point_light_matches_the_analytic_radiosity() {
 fn closed_sphere_hierarchical_solve_matches_the_analytic_radiosity() {
     use ortm::bake::transport::hier::{Operator, Settings};
     use ortm::bake::transport::{Kernels, SetupProgress};
-    let scene = sphere_scene(24, 48, (96, 48));
-    let grid = TexelGrid::build(&scene).unwrap();
-    let vis = std::sync::Arc::new(Visibility::new(&scene.mesh));
-    let e = lighting::irradiance(&grid, &scene.lights, &vis);
-    let b_o = common::exitance(&grid, &e);
-    let effects = Effects {
-        radiosity: true,
-        subsurface: false,
-    };
+    let (scene, grid, vis, b_o) = lit_sphere();
+    let effects = RADIOSITY;
     let kernels = Kernels::new(&scene, effects, vis);
     let settings = Settings {
         tolerance: 1e-4,
@@ -305,11 +308,7 @@ fn closed_sphere_transports_a_radiosity_source() {
     let scene = sphere_scene(24, 48, (96, 48));
     let grid = TexelGrid::build(&scene).unwrap();
     let vis = std::sync::Arc::new(Visibility::new(&scene.mesh));
-    let effects = Effects {
-        radiosity: true,
-        subsurface: false,
-    };
-    let kernels = Kernels::new(&scene, effects, vis);
+    let kernels = Kernels::new(&scene, RADIOSITY, vis);
     let patches = texel_patches(&grid);
     let source: Vec<Vec3> = patches
         .iter()
@@ -386,15 +385,8 @@ fn closed_sphere_with_the_gathered_near_field_matches_the_analytic_radiosity() {
     use ortm::bake::near_gather::{self, NearGather};
     use ortm::bake::transport::hier::{Operator, Settings};
     use ortm::bake::transport::{Kernels, SetupProgress};
-    let scene = sphere_scene(24, 48, (96, 48));
-    let grid = TexelGrid::build(&scene).unwrap();
-    let vis = std::sync::Arc::new(Visibility::new(&scene.mesh));
-    let e = lighting::irradiance(&grid, &scene.lights, &vis);
-    let b_o = common::exitance(&grid, &e);
-    let effects = Effects {
-        radiosity: true,
-        subsurface: false,
-    };
+    let (scene, grid, vis, b_o) = lit_sphere();
+    let effects = RADIOSITY;
     let kernels = Kernels::new(&scene, effects, vis.clone());
     let patches = texel_patches(&grid);
     let c = near_gather::correction(

@@ -248,27 +248,6 @@ impl CentreGrid {
     }
 }
 
-/// The texel of `grid` whose square holds the surface point of `hit`, with that point's
-/// position, shading normal and lightmap UV.
-fn hit_point(scene: &Scene, hit: &crate::bake::raycast::RayHit) -> (Vec3, Vec3, Vec2, u32) {
-    let mesh = &scene.mesh;
-    let tri = &mesh.triangles[hit.triangle as usize];
-    let b = hit.barycentrics;
-    let pos: [Vec3; 3] = std::array::from_fn(|k| mesh.positions_m[tri.position[k] as usize]);
-    let nrm: [Vec3; 3] = std::array::from_fn(|k| mesh.normals[tri.normal[k] as usize]);
-    let uvs: [Vec2; 3] = std::array::from_fn(|k| mesh.uvs[tri.uv[k] as usize]);
-    let face = (pos[1] - pos[0]).cross(pos[2] - pos[0]).normalize_or_zero();
-    let normal = (nrm[0] * b[0] + nrm[1] * b[1] + nrm[2] * b[2])
-        .try_normalize()
-        .unwrap_or(face);
-    (
-        pos[0] * b[0] + pos[1] * b[1] + pos[2] * b[2],
-        normal,
-        uvs[0] * b[0] + uvs[1] * b[1] + uvs[2] * b[2],
-        tri.material,
-    )
-}
-
 /// The gathered near field of every covered texel of `grid` (rasterised from `scene`;
 /// `patches` its [`crate::bake::transport::texel_patches`], `b_in` the transfer input the
 /// solve is given, W/m²). Reports "near gather: receivers" to `progress`.
@@ -445,7 +424,9 @@ fn receiver(c: &Ctx<'_>, i: usize) -> Row {
         let Some(hit) = vis.closest_triangle_hit(origin, dir, (eps, far), t.triangle) else {
             continue;
         };
-        let (p, normal, uv, material) = hit_point(scene, &hit);
+        let at = scene.mesh.surface_at(hit.triangle, hit.barycentrics);
+        let (p, normal, uv) = (at.position_m, at.normal, at.uv);
+        let material = scene.mesh.triangles[hit.triangle as usize].material;
         if normal.dot(dir) >= 0.0 {
             continue;
         }
@@ -476,12 +457,7 @@ fn receiver(c: &Ctx<'_>, i: usize) -> Row {
                 None => scene.materials[material as usize].albedo.at(uv),
             };
             let lift = 1e-3 * patches[j as usize].area_m2.sqrt().max(1e-6);
-            let face = {
-                let tri = &scene.mesh.triangles[hit.triangle as usize];
-                let q: [Vec3; 3] =
-                    std::array::from_fn(|k| scene.mesh.positions_m[tri.position[k] as usize]);
-                (q[1] - q[0]).cross(q[2] - q[0]).normalize_or_zero()
-            };
+            let face = at.face_normal;
             let mut e_d = Vec3::ZERO;
             for l in lights.iter() {
                 let el = irradiance_unshadowed_at(p, normal, l);

@@ -70,6 +70,39 @@ impl Mesh {
         let (lo, hi) = self.bounds();
         (lo.is_finite() && hi.is_finite()).then(|| ((lo + hi) * 0.5, (hi - lo).length() * 0.5))
     }
+
+    /// The surface of triangle `triangle` at barycentric weights `b` (of its corners 0, 1, 2):
+    /// the interpolated position (metres), unit shading normal (the face normal where the
+    /// corners' normals cancel), unit face normal (`(p1 − p0) × (p2 − p0)`, unoriented) and
+    /// lightmap UV.
+    pub fn surface_at(&self, triangle: u32, b: [f32; 3]) -> SurfaceAt {
+        let tri = &self.triangles[triangle as usize];
+        let pos: [Vec3; 3] = std::array::from_fn(|k| self.positions_m[tri.position[k] as usize]);
+        let nrm: [Vec3; 3] = std::array::from_fn(|k| self.normals[tri.normal[k] as usize]);
+        let uvs: [Vec2; 3] = std::array::from_fn(|k| self.uvs[tri.uv[k] as usize]);
+        let face_normal = (pos[1] - pos[0]).cross(pos[2] - pos[0]).normalize_or_zero();
+        SurfaceAt {
+            position_m: pos[0] * b[0] + pos[1] * b[1] + pos[2] * b[2],
+            normal: (nrm[0] * b[0] + nrm[1] * b[1] + nrm[2] * b[2])
+                .try_normalize()
+                .unwrap_or(face_normal),
+            face_normal,
+            uv: uvs[0] * b[0] + uvs[1] * b[1] + uvs[2] * b[2],
+        }
+    }
+}
+
+/// A point on a mesh's surface ([`Mesh::surface_at`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SurfaceAt {
+    /// Position, metres.
+    pub position_m: Vec3,
+    /// Unit shading normal.
+    pub normal: Vec3,
+    /// Unit face normal (unoriented: the triangle's winding).
+    pub face_normal: Vec3,
+    /// Lightmap UV.
+    pub uv: Vec2,
 }
 
 /// Axis-aligned bounding box `(lo, hi)` of `points` (`(+∞, −∞)` when empty).

@@ -25,7 +25,7 @@
 //! keeps it unbiased. Positions in metres, `B` and
 //! `E` in W/m², linear RGB.
 
-use glam::{Vec2, Vec3};
+use glam::Vec3;
 
 use super::emitters::FirstOrderLight;
 use super::sampler::{PathSampler, Slot};
@@ -429,26 +429,16 @@ impl<'a> SceneView<'a> {
     /// The surface point of a ray hit: interpolated position, shading normal and UV, the
     /// albedo as [`crate::bake::texels`] computes a texel's.
     pub fn point_of_hit(&self, hit: &RayHit) -> SurfacePoint {
-        let mesh = &self.scene.mesh;
-        let tri = &mesh.triangles[hit.triangle as usize];
-        let b = hit.barycentrics;
-        let pos: [Vec3; 3] = std::array::from_fn(|k| mesh.positions_m[tri.position[k] as usize]);
-        let nrm: [Vec3; 3] = std::array::from_fn(|k| mesh.normals[tri.normal[k] as usize]);
-        let uvs: [Vec2; 3] = std::array::from_fn(|k| mesh.uvs[tri.uv[k] as usize]);
-        let face_normal = (pos[1] - pos[0]).cross(pos[2] - pos[0]).normalize_or_zero();
-        let normal = (nrm[0] * b[0] + nrm[1] * b[1] + nrm[2] * b[2])
-            .try_normalize()
-            .unwrap_or(face_normal);
-        let uv = uvs[0] * b[0] + uvs[1] * b[1] + uvs[2] * b[2];
-        let material = tri.material;
+        let at = self.scene.mesh.surface_at(hit.triangle, hit.barycentrics);
+        let material = self.scene.mesh.triangles[hit.triangle as usize].material;
         let albedo = match self.rho_bar[material as usize] {
             Some(rho) => rho,
-            None => self.scene.materials[material as usize].albedo.at(uv),
+            None => self.scene.materials[material as usize].albedo.at(at.uv),
         };
         SurfacePoint {
-            position_m: pos[0] * b[0] + pos[1] * b[1] + pos[2] * b[2],
-            normal,
-            face_normal,
+            position_m: at.position_m,
+            normal: at.normal,
+            face_normal: at.face_normal,
             eps_m: self.hit_eps_m,
             albedo,
             material,
