@@ -391,7 +391,6 @@ fn receiver(c: &Ctx<'_>, i: usize) -> Row {
         centres,
         rho_bar,
         settings,
-        ..
     } = c;
     let g = settings.rays_per_side as usize;
     let rays = (g * g) as f32;
@@ -435,7 +434,7 @@ fn receiver(c: &Ctx<'_>, i: usize) -> Row {
             continue;
         };
         // The ray's share goes to the texel centres around the hit, bilinearly (the
-        // lightmap's own interpolation), within the chart of the texel that holds it.
+        // lightmap's own interpolation), within the hit's chart.
         let mut credited = 0.0f32;
         let mut input = Vec3::ZERO;
         let shares = bilinear(grid, uv, chart);
