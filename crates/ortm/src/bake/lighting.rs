@@ -110,22 +110,41 @@ pub fn light_visible_from(lifted_m: Vec3, eps_m: f32, light: &Light, vis: &Visib
     }
 }
 
+/// Direct irradiance (W/m², RGB) at a surface point from all `lights`, with shadows: the
+/// unshadowed irradiance at `position_m` (metres) with unit shading normal `normal`
+/// ([`irradiance_unshadowed_at`]) of every light that reaches `lifted_m`, the point lifted off
+/// its surface by `eps_m` metres ([`light_visible_from`]). Also returns the number of shadow
+/// rays cast (one per light that would light the point unshadowed).
+pub fn direct_at(
+    position_m: Vec3,
+    normal: Vec3,
+    (lifted_m, eps_m): (Vec3, f32),
+    lights: &[Light],
+    vis: &Visibility,
+) -> (Vec3, u64) {
+    let mut e = Vec3::ZERO;
+    let mut rays = 0;
+    for l in lights {
+        let el = irradiance_unshadowed_at(position_m, normal, l);
+        if el == Vec3::ZERO {
+            continue;
+        }
+        rays += 1;
+        if light_visible_from(lifted_m, eps_m, l, vis) {
+            e += el;
+        }
+    }
+    (e, rays)
+}
+
 /// Irradiance (W/m², RGB) at every covered texel from all `lights`, with shadows.
 pub fn irradiance(grid: &TexelGrid, lights: &[Light], vis: &Visibility) -> Vec<Vec3> {
     grid.texels
         .par_iter()
         .map(|t| {
-            lights
-                .iter()
-                .map(|l| {
-                    let e = irradiance_unshadowed(t, l);
-                    if e == Vec3::ZERO || !light_visible(t, l, vis) {
-                        Vec3::ZERO
-                    } else {
-                        e
-                    }
-                })
-                .sum()
+            let eps = 1e-3 * t.area_m2.sqrt().max(1e-6);
+            let lifted = t.position_m + t.face_normal * eps;
+            direct_at(t.position_m, t.normal, (lifted, eps), lights, vis).0
         })
         .collect()
 }

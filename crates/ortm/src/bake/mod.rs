@@ -32,7 +32,8 @@
 //! [`texels`] (covered texels) → [`raycast`] (visibility) → [`transport`] (`R(t, t')`) →
 //! [`offsets`] (Appendix A) → [`cells`] (each map's value over its Voronoi cell) →
 //! [`pipeline`] (the orchestrator, re-exported here) → [`report`] (pictures). [`lighting`] is
-//! the CPU first-order lighting and [`eval`] the accuracy of a bake against the exact solve.
+//! the CPU first-order lighting, [`point_grid`] the texels' neighbour queries in 3D and [`eval`]
+//! the accuracy of a bake against the exact solve.
 
 pub mod cells;
 pub mod eval;
@@ -42,6 +43,7 @@ pub mod near_field;
 pub mod near_gather;
 pub mod offsets;
 pub mod pipeline;
+pub mod point_grid;
 pub mod raycast;
 pub mod report;
 pub mod shard;

@@ -61,20 +61,19 @@
 //!
 //! Units: `ΔF` dimensionless, `ΔE` W/m² (irradiance), `B` W/m².
 
-use std::collections::HashMap;
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 use thiserror::Error;
 
-use crate::bake::lighting::{irradiance_unshadowed_at, light_visible_from};
+use crate::bake::lighting::direct_at;
+use crate::bake::point_grid::PointGrid;
 use crate::bake::raycast::Visibility;
 use crate::bake::texels::TexelGrid;
 use crate::bake::transport::form_factor::tangent_frame;
 use crate::bake::transport::{Cancelled, Kernels, Patch, SetupProgress};
-use crate::scene::subsurface::Profile;
-use crate::scene::{Light, Scene};
+use crate::scene::{Light, Scene, SurfaceAlbedo};
 
 /// Default reach of the near set, in texel sizes (`√A_i`). On the head at 256² (radiosity
 /// alone, against the path-traced reference, `G = 32`, at 9dcd2a9) 4, 8, 16 and 32 sizes took
@@ -206,47 +205,6 @@ impl From<Cancelled> for GatherError {
 /// One receiver's `ΔF` entries and `ΔE`.
 type Row = (Vec<(u32, f32)>, Vec3);
 
-/// Texel centres in a uniform grid of cubes `cell_m` wide.
-struct CentreGrid {
-    cell_m: f32,
-    cells: HashMap<(i32, i32, i32), Vec<u32>>,
-}
-
-impl CentreGrid {
-    fn new(patches: &[Patch], cell_m: f32) -> Self {
-        let mut g = Self {
-            cell_m,
-            cells: HashMap::new(),
-        };
-        for (i, p) in patches.iter().enumerate() {
-            g.cells
-                .entry(g.key(p.position_m))
-                .or_default()
-                .push(i as u32);
-        }
-        g
-    }
-
-    fn key(&self, p: Vec3) -> (i32, i32, i32) {
-        let q = (p / self.cell_m).floor();
-        (q.x as i32, q.y as i32, q.z as i32)
-    }
-
-    /// Calls `f` with every texel whose centre lies within `r` of `p` (and a few more).
-    fn for_each_within(&self, p: Vec3, r: f32, mut f: impl FnMut(u32)) {
-        let (lo, hi) = (self.key(p - Vec3::splat(r)), self.key(p + Vec3::splat(r)));
-        for z in lo.2..=hi.2 {
-            for y in lo.1..=hi.1 {
-                for x in lo.0..=hi.0 {
-                    if let Some(list) = self.cells.get(&(x, y, z)) {
-                        list.iter().for_each(|&i| f(i));
-                    }
-                }
-            }
-        }
-    }
-}
-
 /// The gathered near field of every covered texel of `grid` (rasterised from `scene`;
 /// `patches` its [`crate::bake::transport::texel_patches`], `b_in` the transfer input the
 /// solve is given, W/m²). Reports "near gather: receivers" to `progress`.
@@ -281,16 +239,11 @@ pub fn correction(
         lights,
         vis,
         b_in,
-        centres: CentreGrid::new(patches, (settings.reach * median).max(1e-9)),
-        rho_bar: scene
-            .materials
-            .iter()
-            .map(|m| {
-                m.subsurface
-                    .as_ref()
-                    .map(|s| Profile::new(s).total_reflectance())
-            })
-            .collect(),
+        centres: PointGrid::new(
+            f64::from((settings.reach * median).max(1e-9)),
+            (patches.iter().enumerate()).map(|(i, p)| (i as u32, p.position_m)),
+        ),
+        albedo: scene.surface_albedo(),
         settings,
     };
     progress.phase("near gather: receivers", n as u64);
@@ -330,12 +283,12 @@ pub fn correction(
 /// the bilinear weights of the four texel centres around it, those covered by `chart` kept
 /// and renormalised; else the chart's texel among those four whose centre is nearest, or none
 /// (a hit on a triangle too small to hold a texel's centre nearby).
-fn bilinear(grid: &TexelGrid, uv: Vec2, chart: u32) -> Vec<(u32, f32)> {
+fn bilinear(grid: &TexelGrid, uv: Vec2, chart: u32) -> Shares {
     let px = uv.x * grid.width as f32 - 0.5;
     let py = (1.0 - uv.y) * grid.height as f32 - 0.5;
     let (x0, y0) = (px.floor(), py.floor());
     let (fx, fy) = (px - x0, py - y0);
-    let mut out = Vec::with_capacity(4);
+    let mut out = Shares::default();
     let mut sum = 0.0;
     let mut nearest: Option<(u32, f32)> = None;
     for (dx, dy, w) in [
@@ -357,10 +310,32 @@ fn bilinear(grid: &TexelGrid, uv: Vec2, chart: u32) -> Vec<(u32, f32)> {
         }
     }
     if sum <= 0.0 {
-        return nearest.map(|(s, _)| vec![(s, 1.0)]).unwrap_or_default();
+        let mut one = Shares::default();
+        if let Some((s, _)) = nearest {
+            one.push((s, 1.0));
+        }
+        return one;
     }
-    out.iter_mut().for_each(|e| e.1 /= sum);
+    out.entries[..out.len].iter_mut().for_each(|e| e.1 /= sum);
     out
+}
+
+/// At most four texels and their weights ([`bilinear`]), in order.
+#[derive(Default)]
+struct Shares {
+    entries: [(u32, f32); 4],
+    len: usize,
+}
+
+impl Shares {
+    fn push(&mut self, e: (u32, f32)) {
+        self.entries[self.len] = e;
+        self.len += 1;
+    }
+
+    fn as_slice(&self) -> &[(u32, f32)] {
+        &self.entries[..self.len]
+    }
 }
 
 /// What every receiver reads.
@@ -372,9 +347,10 @@ struct Ctx<'a> {
     lights: &'a [Light],
     vis: &'a Visibility,
     b_in: &'a [Vec3],
-    centres: CentreGrid,
-    /// Per material, a profile's total diffuse reflectance (translucent materials).
-    rho_bar: Vec<Option<Vec3>>,
+    /// The texel centres, in cubes the default near set's radius wide.
+    centres: PointGrid,
+    /// The texels' albedo rule.
+    albedo: SurfaceAlbedo<'a>,
     settings: NearGather,
 }
 
@@ -389,7 +365,7 @@ fn receiver(c: &Ctx<'_>, i: usize) -> Row {
         vis,
         b_in,
         centres,
-        rho_bar,
+        albedo,
         settings,
     } = c;
     let g = settings.rays_per_side as usize;
@@ -438,10 +414,10 @@ fn receiver(c: &Ctx<'_>, i: usize) -> Row {
         let mut credited = 0.0f32;
         let mut input = Vec3::ZERO;
         let shares = bilinear(grid, uv, chart);
-        let Some(&(j, _)) = shares.first() else {
+        let Some(&(j, _)) = shares.as_slice().first() else {
             continue;
         };
-        for (s, w) in shares {
+        for &(s, w) in shares.as_slice() {
             if let Ok(k) = row.binary_search_by_key(&s, |e| e.0) {
                 row[k].1 += w / rays;
                 credited += w;
@@ -449,20 +425,10 @@ fn receiver(c: &Ctx<'_>, i: usize) -> Row {
             }
         }
         if credited > 0.0 && !kernels.is_translucent(material) {
-            // The texels' albedo rule: a profile's total diffuse reflectance, else the material's.
-            let rho = match &rho_bar[material as usize] {
-                Some(r) => *r,
-                None => scene.materials[material as usize].albedo.at(uv),
-            };
+            let rho = albedo.at(material, uv);
             let lift = 1e-3 * patches[j as usize].area_m2.sqrt().max(1e-6);
-            let face = at.face_normal;
-            let mut e_d = Vec3::ZERO;
-            for l in lights.iter() {
-                let el = irradiance_unshadowed_at(p, normal, l);
-                if el != Vec3::ZERO && light_visible_from(p + face * lift, lift, l, vis) {
-                    e_d += el;
-                }
-            }
+            let lifted = p + at.face_normal * lift;
+            let (e_d, _) = direct_at(p, normal, (lifted, lift), lights, vis);
             e += (rho * e_d * credited - input) / rays;
         }
     }

@@ -36,8 +36,7 @@ use glam::{DVec2, DVec3, Vec2, Vec3};
 use thiserror::Error;
 
 use crate::lightmap::uv_to_texel_space;
-use crate::scene::Scene;
-use crate::scene::subsurface::Profile;
+use crate::scene::{Scene, SurfaceAlbedo};
 
 /// Marker for an uncovered lightmap slot.
 pub const NO_TEXEL: u32 = u32::MAX;
@@ -321,11 +320,11 @@ pub fn overlapping_slots(scene: &Scene, width: u32, height: u32) -> Vec<bool> {
 }
 
 /// The patch of texel `(x, y)` of a `width × height` lightmap whose centre lies in triangle
-/// `ti` at barycentrics `b` (the attributes of the module docs); `profiles` holds each
-/// material's subsurface profile, `chart` the triangle's chart.
+/// `ti` at barycentrics `b` (the attributes of the module docs); `surface_albedo` is the scene's
+/// albedo rule, `chart` the triangle's chart.
 fn texel_patch(
     scene: &Scene,
-    profiles: &[Option<Profile>],
+    surface_albedo: &SurfaceAlbedo<'_>,
     (x, y): (u32, u32),
     (width, height): (u32, u32),
     (ti, b): (u32, [f32; 3]),
@@ -353,10 +352,7 @@ fn texel_patch(
     let footprint_m = [(e1 * d2.y - e2 * d1.y) / det, (e2 * d1.x - e1 * d2.x) / det];
     let uv = uvs[0] * b[0] + uvs[1] * b[1] + uvs[2] * b[2];
     let material = tri.material;
-    let albedo = match &profiles[material as usize] {
-        Some(p) => p.total_reflectance(),
-        None => scene.materials[material as usize].albedo.at(uv),
-    };
+    let albedo = surface_albedo.at(material, uv);
     Texel {
         x,
         y,
@@ -592,11 +588,7 @@ impl TexelGrid {
         let n_slots = width as usize * height as usize;
         let cov = rasterize(scene, width, height);
         let (triangle_chart, n_charts) = charts(scene);
-        let profiles: Vec<Option<Profile>> = scene
-            .materials
-            .iter()
-            .map(|m| m.subsurface.as_ref().map(Profile::new))
-            .collect();
+        let surface_albedo = scene.surface_albedo();
 
         let mut texels = Vec::new();
         let mut slot = vec![NO_TEXEL; n_slots];
@@ -613,7 +605,7 @@ impl TexelGrid {
                 }
                 let texel = texel_patch(
                     scene,
-                    &profiles,
+                    &surface_albedo,
                     (x, y),
                     (width, height),
                     (ti, b),

@@ -236,6 +236,39 @@ impl Scene {
     pub fn is_translucent(&self, m: u32) -> bool {
         (self.materials.get(m as usize)).is_some_and(|m| m.subsurface.is_some())
     }
+
+    /// The diffuse albedo of the scene's surface points ([`SurfaceAlbedo`]).
+    pub fn surface_albedo(&self) -> SurfaceAlbedo<'_> {
+        SurfaceAlbedo {
+            scene: self,
+            total: (self.materials.iter())
+                .map(|m| {
+                    (m.subsurface.as_ref()).map(|s| subsurface::Profile::new(s).total_reflectance())
+                })
+                .collect(),
+        }
+    }
+}
+
+/// The diffuse albedo `ρ` (RGB, dimensionless) that every stage gives a surface point — the
+/// texels ([`crate::bake::texels`]), the path-traced reference ([`crate::accuracy`]) and the
+/// near gather ([`crate::bake::near_gather`]): a translucent material's total diffuse
+/// reflectance (its profile's integral, the light it re-emits in all, whatever the effects
+/// computed), else the material's albedo at the point's UV.
+pub struct SurfaceAlbedo<'a> {
+    scene: &'a Scene,
+    /// Per material, the profile's total diffuse reflectance (translucent materials).
+    total: Vec<Option<Vec3>>,
+}
+
+impl SurfaceAlbedo<'_> {
+    /// The albedo of a point of material `material` at lightmap UV `uv`.
+    pub fn at(&self, material: u32, uv: Vec2) -> Vec3 {
+        match self.total[material as usize] {
+            Some(rho) => rho,
+            None => self.scene.materials[material as usize].albedo.at(uv),
+        }
+    }
 }
 
 /// A stable hash (SHA-256, 64 lower-case hex digits) of everything in the scene that a bake

@@ -30,13 +30,13 @@ use glam::Vec3;
 use super::emitters::FirstOrderLight;
 use super::sampler::{PathSampler, Slot};
 use super::subsurface::{ProfileSampler, WeighedHit};
-use crate::bake::lighting::{irradiance_unshadowed_at, light_visible_from};
+use crate::bake::lighting::direct_at;
 use crate::bake::raycast::{RayHit, Visibility};
 use crate::bake::texels::Texel;
 use crate::bake::transport::Effects;
 use crate::bake::transport::form_factor::tangent_frame;
 use crate::scene::subsurface::Profile;
-use crate::scene::{Light, Scene};
+use crate::scene::{Light, Scene, SurfaceAlbedo};
 
 /// Bounces before Russian roulette starts.
 pub const ROULETTE_AFTER: u32 = 3;
@@ -98,9 +98,9 @@ pub struct SceneView<'a> {
     effects: Effects,
     /// Per material: the profile sampler when the material is translucent and subsurface is on.
     samplers: Vec<Option<ProfileSampler>>,
-    /// Per material: the profile's total diffuse reflectance (translucent materials, whatever
-    /// the effects: the texels' albedo).
-    rho_bar: Vec<Option<Vec3>>,
+    /// The albedo of a hit point, the texels' rule (translucent materials: the profile's total
+    /// diffuse reflectance, whatever the effects).
+    albedo: SurfaceAlbedo<'a>,
     /// Lift of rays leaving a hit point, metres (10⁻⁵ of the scene's bounding radius).
     hit_eps_m: f32,
     /// The first order as a light, sampled at the first [`SceneView::light_vertices`] path
@@ -142,10 +142,7 @@ impl<'a> SceneView<'a> {
                 .iter()
                 .map(|p| p.filter(|_| effects.subsurface).map(ProfileSampler::new))
                 .collect(),
-            rho_bar: profiles
-                .iter()
-                .map(|p| p.map(|p| p.total_reflectance()))
-                .collect(),
+            albedo: scene.surface_albedo(),
             hit_eps_m: (1e-5 * radius).max(1e-7),
             light: None,
             light_vertices: 0,
@@ -338,17 +335,14 @@ impl<'a> SceneView<'a> {
     /// Direct irradiance `E_direct` (W/m²) at `p` from every light, with lifted shadow rays.
     pub fn direct(&self, p: &SurfacePoint, s: &mut Scratch) -> Vec3 {
         let lifted = p.position_m + p.face_normal * p.eps_m;
-        let mut e = Vec3::ZERO;
-        for l in self.lights {
-            let el = irradiance_unshadowed_at(p.position_m, p.normal, l);
-            if el == Vec3::ZERO {
-                continue;
-            }
-            s.rays += 1;
-            if light_visible_from(lifted, p.eps_m, l, self.vis) {
-                e += el;
-            }
-        }
+        let (e, rays) = direct_at(
+            p.position_m,
+            p.normal,
+            (lifted, p.eps_m),
+            self.lights,
+            self.vis,
+        );
+        s.rays += rays;
         e
     }
 
@@ -431,10 +425,7 @@ impl<'a> SceneView<'a> {
     pub fn point_of_hit(&self, hit: &RayHit) -> SurfacePoint {
         let at = self.scene.mesh.surface_at(hit.triangle, hit.barycentrics);
         let material = self.scene.mesh.triangles[hit.triangle as usize].material;
-        let albedo = match self.rho_bar[material as usize] {
-            Some(rho) => rho,
-            None => self.scene.materials[material as usize].albedo.at(at.uv),
-        };
+        let albedo = self.albedo.at(material, at.uv);
         SurfacePoint {
             position_m: at.position_m,
             normal: at.normal,

@@ -72,7 +72,6 @@ pub mod form_factor;
 pub mod hier;
 pub mod surface;
 
-use std::collections::HashMap;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 
@@ -81,6 +80,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::bake::BakeEvent;
+use crate::bake::point_grid::PointGrid;
 use crate::bake::raycast::Visibility;
 use crate::bake::texels::TexelGrid;
 use crate::scene::Scene;
@@ -684,53 +684,22 @@ impl NearWeights {
 
 /// The translucent patches in a uniform grid of cells one support radius wide (the largest
 /// of the materials' supports): every pair within the support lies in neighbouring cells.
-pub struct SupportGrid {
-    cell_m: f64,
-    cells: HashMap<(i64, i64, i64), Vec<u32>>,
-}
+pub struct SupportGrid(PointGrid);
 
 impl SupportGrid {
     /// The grid of the translucent patches of `patches` (empty when no material scatters).
     pub fn new(patches: &[Patch], kernels: &Kernels) -> Self {
         let cell_m = kernels.support_m.iter().copied().fold(0.0f64, f64::max);
-        let mut grid = Self {
-            cell_m,
-            cells: HashMap::new(),
-        };
-        if cell_m > 0.0 {
-            for (i, p) in patches.iter().enumerate() {
-                if kernels.is_translucent(p.material) {
-                    grid.cells
-                        .entry(grid.key(p.position_m))
-                        .or_default()
-                        .push(i as u32);
-                }
-            }
-        }
-        grid
-    }
-
-    fn key(&self, p: Vec3) -> (i64, i64, i64) {
-        let q = (p.as_dvec3() / self.cell_m).floor();
-        (q.x as i64, q.y as i64, q.z as i64)
+        let translucent = (patches.iter().enumerate())
+            .filter(|(_, p)| cell_m > 0.0 && kernels.is_translucent(p.material))
+            .map(|(i, p)| (i as u32, p.position_m));
+        Self(PointGrid::new(cell_m, translucent))
     }
 
     /// Calls `f` with every translucent patch in the 27 cells around `p` (a superset of those
     /// within the support).
-    pub fn for_each_near(&self, p: Vec3, mut f: impl FnMut(u32)) {
-        if self.cells.is_empty() {
-            return;
-        }
-        let (x, y, z) = self.key(p);
-        for dz in -1..=1 {
-            for dy in -1..=1 {
-                for dx in -1..=1 {
-                    if let Some(list) = self.cells.get(&(x + dx, y + dy, z + dz)) {
-                        list.iter().for_each(|&i| f(i));
-                    }
-                }
-            }
-        }
+    pub fn for_each_near(&self, p: Vec3, f: impl FnMut(u32)) {
+        self.0.for_each_around(p, 1, f);
     }
 }
 
