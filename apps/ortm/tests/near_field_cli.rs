@@ -160,3 +160,100 @@ fn the_near_field_changes_skin_only() {
         "an output written"
     );
 }
+
+/// `ortm bake --levels ε --tolerance --near-gather G`: the bake records the gather in its
+/// settings (so in its key) and its maps hold it — at full budget (ε = 0) each map value is a
+/// row entry, and the gathered rows change the entries of near pairs (the rows' values are
+/// checked against `ρΔF` in `sphere_analytic.rs`); without multi-resolution
+/// maps on the hierarchical transport, sharded, or with bad values it is refused before
+/// anything is written.
+#[test]
+fn the_bake_takes_the_gathered_near_field() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let base = [
+        "bake",
+        "head",
+        "--size",
+        "24",
+        "--effects",
+        "radiosity",
+        "--levels",
+        "0",
+        "--tolerance",
+    ];
+    ok(ortm(&[&base[..], &["-o", "plain"]].concat(), d));
+    let text = ok(ortm(
+        &[&base[..], &["--near-gather", "8", "-o", "gathered"]].concat(),
+        d,
+    ));
+    assert!(text.contains("near gather: 8×8 rays per texel"), "{text}");
+    let index = |name: &str| ortm::bake_dir::BakeIndex::read(&d.join(name)).unwrap();
+    let (plain, gathered) = (index("plain"), index("gathered"));
+    assert_eq!(
+        gathered.settings["near_gather"], 8,
+        "{:?}",
+        gathered.settings
+    );
+    assert!(plain.settings.get("near_gather").is_none());
+    assert_ne!(plain.bake_key, gathered.bake_key);
+    let maps = |name: &str, i: &ortm::bake_dir::BakeIndex| i.load_maps(&d.join(name)).unwrap();
+    let (a, b) = (maps("plain", &plain), maps("gathered", &gathered));
+    // Level-0 maps of the same offsets: the nearest offsets' values change.
+    let mut near_changed = 0usize;
+    for m in &b {
+        let Some(p) = a
+            .iter()
+            .find(|p| p.offset == m.offset && p.level() == m.level())
+        else {
+            continue;
+        };
+        let (pa, pb) = (p.to_full(), m.to_full());
+        let differs = pa.data.iter().zip(&pb.data).any(|(x, y)| {
+            (0..3).any(|c| (x[c] - y[c]).abs() > 1e-6 * x[c].abs().max(y[c].abs()).max(1e-9))
+        });
+        if m.offset.abs().max_element() <= 2 {
+            near_changed += usize::from(differs);
+        }
+    }
+    assert!(
+        near_changed >= 20,
+        "{near_changed} of the 25 nearest offsets' maps changed"
+    );
+
+    let refused = |extra: &[&str]| {
+        let args: Vec<&str> = ["bake", "head", "--size", "24", "-o", "x"]
+            .iter()
+            .chain(extra)
+            .copied()
+            .collect();
+        fails(ortm(&args, d))
+    };
+    let e = refused(&["--near-gather", "8"]);
+    assert!(
+        e.contains("--near-gather 8 needs --levels ε and --tolerance"),
+        "{e}"
+    );
+    let e = refused(&["--levels", "0", "--tolerance", "--near-gather", "1"]);
+    assert!(
+        e.contains("--near-gather 1: 1 rays per side: give 2 to 64"),
+        "{e}"
+    );
+    let e = refused(&["--near-gather-reach", "4"]);
+    assert!(
+        e.contains("--near-gather-reach 4: applies to --near-gather G"),
+        "{e}"
+    );
+    let e = refused(&[
+        "--levels",
+        "0",
+        "--tolerance",
+        "--near-gather",
+        "8",
+        "--plan",
+        "--shards",
+        "2",
+    ]);
+    assert!(e.contains("--near-gather 8 is not sharded yet"), "{e}");
+    assert!(!d.join("x").join("index.json").exists(), "an index written");
+}

@@ -96,6 +96,18 @@ pub struct Args {
         help = "With --levels: share each kept block between the receivers of a 2^r×2^r receiver block when every receiver's own value is within the tolerance / 2 of their mean, stored once per block (on: for any lighting the same error bound per block, but the maps' crops keep most of the zeros between shared blocks, so the GPU work falls little: head 256² at 3e-3, 14.9 M stored texels and 148 k pieces instead of 15.9 M and 94 k), or keep one value per receiver (off, the default)"
     )]
     pub receiver_blocks: Option<String>,
+    /// With --levels and --tolerance: gather the interreflection's near field by G×G rays per
+    /// texel (2–64; 0 = off): the form factors to the texels within --near-gather-reach texel
+    /// sizes in 3D are taken from what the rays hit on the mesh itself and added to every
+    /// receiver's first bounce (README, *The interreflection's near field*). Nearer the
+    /// path-traced reference in creases and slits of scanned surfaces; costs a gather of
+    /// G² rays per texel and larger rows.
+    #[arg(long, default_value_t = 0, value_name = "G")]
+    pub near_gather: u32,
+    /// With --near-gather: the radius of the near set in texel sizes (the receiver's √area),
+    /// above 0, at most 64 [default: 16].
+    #[arg(long, value_name = "R")]
+    pub near_gather_reach: Option<f32>,
     /// Sharded bake, step 1: the plan (transport, offsets, work split) for `--shards N`.
     #[arg(
         long,
@@ -208,6 +220,8 @@ pub fn settings(a: &Args, size: (u32, u32)) -> Result<BakeSettings> {
         }),
         levels: a.levels,
         receiver_blocks,
+        near_gather: (a.near_gather != 0).then_some(a.near_gather),
+        near_gather_reach: a.near_gather_reach,
         cell_rule,
         offsets: a.offsets,
         effects: parse_effects(&a.effects)?,

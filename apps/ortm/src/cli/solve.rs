@@ -35,7 +35,8 @@
 //! (added to the operator: the dense `F`, or every hierarchical gather) and the first bounce
 //! of the direct light from opaque surface at the rays' hit points (added beside the direct
 //! light in the solve's input; the final is made from the original input). Off by default;
-//! a bake's maps do not hold it either.
+//! a bake's multi-resolution maps take its form factors in their first bounce (`ortm bake
+//! --levels ε --tolerance --near-gather G`), not `ΔE` (lights move).
 
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -123,8 +124,8 @@ pub struct Args {
     /// factors to the texels within --near-gather-reach texel sizes in 3D are taken from what
     /// the rays hit on the mesh itself, and the first bounce of the direct light from opaque
     /// surface there from its value at the hit points (README, *The interreflection's near
-    /// field*). Nearer the path-traced reference in creases and slits; the bake's maps do not
-    /// hold it.
+    /// field*). Nearer the path-traced reference in creases and slits; `ortm bake --levels
+    /// --tolerance --near-gather G` takes its form factors into the maps' first bounce.
     #[arg(long, default_value_t = 0, value_name = "G")]
     near_gather: u32,
     /// With --near-gather: the radius of the near set in texel sizes (the receiver's √area),

@@ -330,6 +330,26 @@ pub fn hierarchical_row(tr: &Transport) -> Option<impl Fn(u32, &mut [[f32; 3]]) 
     })
 }
 
+/// `row` with the gathered near field's first bounce added ([`crate::bake::near_gather`],
+/// `ortm bake --near-gather G`): `ρ_i ΔF_ij` at every sender `j` of receiver `i`'s row of
+/// `gathered` (`ΔF`, one row per covered texel), the form factors the rays found on the mesh
+/// less the transport's to the same texels. The higher bounces stay the transport's.
+pub fn with_gathered_rows<'a>(
+    tr: &'a Transport,
+    row: impl Fn(u32, &mut [[f32; 3]]) + Sync + 'a,
+    gathered: &'a [Vec<(u32, f32)>],
+) -> impl Fn(u32, &mut [[f32; 3]]) + Sync + 'a {
+    move |i, out| {
+        row(i, out);
+        let rho = tr.patches[i as usize].rho;
+        for &(j, d) in &gathered[i as usize] {
+            for (c, v) in out[j as usize].iter_mut().enumerate() {
+                *v += rho[c] * d;
+            }
+        }
+    }
+}
+
 /// Groups the receivers' entries into maps, one per `(level, offset)`, ordered by level then
 /// offset (row-major).
 ///

@@ -1,6 +1,10 @@
 //! The interreflection's near field, gathered by rays: a correction to the transport's form
 //! factors between nearby texels, and to the first bounce of the direct light from nearby
-//! opaque surface, for each receiver texel (`ortm solve --near-gather G`).
+//! opaque surface, for each receiver texel (`ortm solve --near-gather G`). A bake of
+//! multi-resolution maps on the hierarchical transport takes the form factors alone
+//! ([`form_factor_rows`]) into every receiver's first bounce (`ortm bake --levels ε --tolerance
+//! --near-gather G`, [`crate::bake::multires::with_gathered_rows`]): `ΔE` depends on the
+//! lights, which a bake does not know, and the higher bounces stay the transport's.
 //!
 //! # Why
 //! The transport ([`crate::bake::transport`]) takes the surface a texel sees as the other
@@ -204,6 +208,38 @@ impl From<Cancelled> for GatherError {
 
 /// One receiver's `ΔF` entries and `ΔE`.
 type Row = (Vec<(u32, f32)>, Vec3);
+
+/// The gathered form factors `ΔF` of every covered texel: per receiver, its near senders and
+/// `ΔF_ij` (non-zero ones only).
+pub type FormFactorRows = Vec<Vec<(u32, f32)>>;
+
+/// The gathered form factors `ΔF` alone (no light): every covered texel's row, as
+/// [`correction`] finds it. A bake's transfer rows take them as a first-bounce correction
+/// ([`crate::bake::multires::with_gathered_rows`]); `ΔE` needs the lights, which a bake does not
+/// know. Reports "near gather: receivers" to `progress`.
+pub fn form_factor_rows(
+    scene: &Scene,
+    grid: &TexelGrid,
+    patches: &[Patch],
+    kernels: &Kernels,
+    vis: &Visibility,
+    settings: NearGather,
+    progress: &SetupProgress,
+) -> Result<FormFactorRows, GatherError> {
+    let dark = vec![Vec3::ZERO; patches.len()];
+    let c = correction(
+        scene,
+        grid,
+        patches,
+        kernels,
+        &[],
+        vis,
+        &dark,
+        settings,
+        progress,
+    )?;
+    Ok(c.rows)
+}
 
 /// The gathered near field of every covered texel of `grid` (rasterised from `scene`;
 /// `patches` its [`crate::bake::transport::texel_patches`], `b_in` the transfer input the

@@ -9,6 +9,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::Lightmap;
+use crate::bake::near_gather::NearGather;
 use crate::bake::offsets::{self, ImportanceMetric, OffsetError, SelectionSettings};
 use crate::bake::texels::{TexelError, TexelGrid};
 use crate::bake::transport::{Effects, SetupProgress, Transport, hier};
@@ -98,6 +99,16 @@ pub struct BakeSettings {
     /// only when `levels` is set ([`Self::to_json`]).
     #[serde(default)]
     pub receiver_blocks: bool,
+    /// With [`Self::levels`] and [`Self::tolerance`]: the interreflection's near field gathered
+    /// by `G × G` rays per texel ([`crate::bake::near_gather`]), its form factors `ΔF` added to
+    /// every receiver's first bounce ([`crate::bake::multires::with_gathered_rows`]); `None`:
+    /// off. Recorded (and so in the bake's key) only when set.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub near_gather: Option<u32>,
+    /// With [`Self::near_gather`]: the near set's radius in texel sizes; `None`:
+    /// [`crate::bake::near_gather::DEFAULT_REACH`]. Recorded only when set.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub near_gather_reach: Option<f32>,
     /// How the scene was named when baking (a built-in name or a scene-file path, as given), so
     /// that `ortm render DIR` can find it again; informational (the scene hash identifies it).
     pub scene: Option<String>,
@@ -122,12 +133,56 @@ impl Default for BakeSettings {
             cell_rule: CellRule::Integrated,
             levels: None,
             receiver_blocks: false,
+            near_gather: None,
+            near_gather_reach: None,
             scene: None,
         }
     }
 }
 
 impl BakeSettings {
+    /// The near gather these settings ask for (`None`: off), checked: it needs multi-resolution
+    /// maps on the hierarchical transport (their rows take `ΔF` per texel pair; the offsets'
+    /// cells do not), and `G` and the reach in range ([`NearGather::check`]). The rows may hold
+    /// a quarter of the memory limit.
+    pub fn near_gather(&self) -> Result<Option<NearGather>, BakeError> {
+        let Some(g) = self.near_gather else {
+            if let Some(r) = self.near_gather_reach {
+                return Err(BakeError::Settings(format!(
+                    "--near-gather-reach {r}: applies to --near-gather G (2–64 rays per side), \
+                     which is off"
+                )));
+            }
+            return Ok(None);
+        };
+        if self.levels.is_none() || self.tolerance.is_none() {
+            return Err(BakeError::Settings(format!(
+                "--near-gather {g} needs --levels ε and --tolerance: the gathered form factors go \
+                 into the multi-resolution maps' rows of the hierarchical transport (the \
+                 offsets' cells do not take them)"
+            )));
+        }
+        let max_bytes = crate::io::limits::memory_limit_bytes()
+            .map_err(|e| BakeError::Settings(e.to_string()))?
+            .map(|l| l / 4);
+        let gather = NearGather {
+            reach: self
+                .near_gather_reach
+                .unwrap_or(crate::bake::near_gather::DEFAULT_REACH),
+            max_bytes,
+            ..NearGather::new(g)
+        };
+        gather.check().map_err(|e| {
+            BakeError::Settings(match self.near_gather_reach {
+                Some(r) if NearGather::new(g).check().is_ok() => {
+                    format!("--near-gather-reach {r}: {e}")
+                }
+                _ => format!("--near-gather {g}: {e}; 0 turns it off"),
+            })
+        })?;
+        Ok(Some(gather))
+    }
+
     /// The settings as the bake records them in `index.json` (and hashes into its
     /// [`BakeKey`]): every field, except `receiver_blocks` when `levels` is unset (it changes
     /// nothing there, so the paper's bakes keep their keys); with `levels` it is always written,
@@ -636,6 +691,7 @@ impl Setup {
         if settings.offsets == 0 {
             return Err(BakeError::Settings("--offsets must be at least 1".into()));
         }
+        settings.near_gather()?;
         let (w, h) = settings.size;
         crate::io::limits::check_bake_request(w, h, settings.offsets)
             .map_err(|e| BakeError::Settings(e.to_string()))?;
@@ -753,7 +809,17 @@ pub fn bake(
 
     if let Some(tolerance) = settings.levels {
         let t = std::time::Instant::now();
-        let entries = level_rows(&transport, &grid, tolerance, events, cancel)?;
+        let gathered = gathered_rows(scene, &transport, &grid, settings, events, cancel)?;
+        let entries = level_rows_in(
+            &transport,
+            &grid,
+            tolerance,
+            gathered.as_deref(),
+            0..grid.texels.len() as u32,
+            events,
+            cancel,
+        )?;
+        drop(gathered);
         drop(transport);
         let written = write_level_entries(
             dir,
@@ -1010,6 +1076,7 @@ pub(crate) fn level_rows_in(
     transport: &Transport,
     grid: &TexelGrid,
     tolerance: f64,
+    gathered: Option<&[Vec<(u32, f32)>]>,
     receivers: std::ops::Range<u32>,
     events: &(dyn Fn(BakeEvent) + Sync),
     cancel: &AtomicBool,
@@ -1021,9 +1088,15 @@ pub(crate) fn level_rows_in(
         tolerance,
         ..MultiresSettings::default()
     };
-    Ok(match multires::hierarchical_row(transport) {
-        Some(row) => multires::partition_rows_in(grid, row, &[settings], receivers, &progress),
-        None => multires::partition_rows_in(
+    Ok(match (multires::hierarchical_row(transport), gathered) {
+        (Some(row), Some(g)) => {
+            let row = multires::with_gathered_rows(transport, row, g);
+            multires::partition_rows_in(grid, row, &[settings], receivers, &progress)
+        }
+        (Some(row), None) => {
+            multires::partition_rows_in(grid, row, &[settings], receivers, &progress)
+        }
+        (None, _) => multires::partition_rows_in(
             grid,
             multires::transport_row(transport),
             &[settings],
@@ -1035,16 +1108,49 @@ pub(crate) fn level_rows_in(
     .remove(0))
 }
 
-/// [`level_rows_in`] of every receiver.
-fn level_rows(
+/// The gathered form factors `ΔF` the settings ask for ([`BakeSettings::near_gather`],
+/// [`crate::bake::near_gather::form_factor_rows`]), `None` when off.
+pub(crate) fn gathered_rows(
+    scene: &Scene,
     transport: &Transport,
     grid: &TexelGrid,
-    tolerance: f64,
+    settings: &BakeSettings,
     events: &(dyn Fn(BakeEvent) + Sync),
     cancel: &AtomicBool,
-) -> Result<Vec<Vec<crate::bake::multires::Entry>>, BakeError> {
-    let n = grid.texels.len() as u32;
-    level_rows_in(transport, grid, tolerance, 0..n, events, cancel)
+) -> Result<Option<crate::bake::near_gather::FormFactorRows>, BakeError> {
+    use crate::bake::near_gather::{self, GatherError};
+    let Some(gather) = settings.near_gather()? else {
+        return Ok(None);
+    };
+    let progress = SetupProgress::new(events, cancel);
+    let t = std::time::Instant::now();
+    let rows = near_gather::form_factor_rows(
+        scene,
+        grid,
+        &transport.patches,
+        &transport.kernels,
+        &transport.kernels.visibility,
+        gather,
+        &progress,
+    )
+    .map_err(|e| match e {
+        GatherError::Cancelled => BakeError::Interrupted { done: 0, total: 0 },
+        e @ GatherError::TooLarge { .. } => BakeError::Settings(format!(
+            "--near-gather {}: {e} (a quarter of the memory limit: physical memory or \
+             ORTM_MEMORY_LIMIT_BYTES); give a smaller --near-gather-reach",
+            gather.rays_per_side
+        )),
+    })?;
+    events(BakeEvent::Message(format!(
+        "near gather: {}×{} rays per texel, near set within {} texel sizes, {} form-factor \
+         corrections, in {:.2} s",
+        gather.rays_per_side,
+        gather.rays_per_side,
+        gather.reach,
+        rows.iter().map(Vec::len).sum::<usize>(),
+        t.elapsed().as_secs_f64()
+    )));
+    Ok(Some(rows))
 }
 
 /// Refuses a `--levels` tolerance that is not a number ≥ 0.

@@ -355,6 +355,11 @@ pub fn plan(
     if let Some(t) = settings.levels {
         pipeline::check_level_tolerance(t)?;
     }
+    if let Some(g) = settings.near_gather {
+        return Err(BakeError::Settings(format!(
+            "--near-gather {g} is not sharded yet: bake it in one process (without --plan)"
+        )));
+    }
     let t0 = std::time::Instant::now();
     let _lock = crate::io::DirLock::acquire(dir)?;
     let setup = Setup::new(scene, settings)?;
@@ -727,6 +732,7 @@ pub fn run_shard(
                     &transport,
                     grid,
                     tolerance,
+                    None,
                     a..b,
                     &quiet,
                     cancel,
