@@ -61,7 +61,7 @@ fn assert_same_files(a: &Path, b: &Path, what: &str) {
 fn sharded_bakes_are_byte_identical_to_one_process() {
     let tmp = tempfile::tempdir().unwrap();
     let cwd = tmp.path();
-    let cases: [(&str, &[u32]); 5] = [
+    let cases: [(&str, &[u32]); 6] = [
         // Offset maps, integrated cells over the coarse clusters.
         ("maze --size 128 --offsets 40", &[1, 2, 3, 5]),
         // The hierarchical transport: its links travel in transport.bin.
@@ -74,6 +74,11 @@ fn sharded_bakes_are_byte_identical_to_one_process() {
         (
             "cornell --size 48 --levels 1e-2 --receiver-blocks on",
             &[3, 5],
+        ),
+        // With the gathered near field: each shard gathers its own receivers' rows.
+        (
+            "head --size 48 --effects radiosity --levels 1e-2 --tolerance 1e-3 --near-gather 4",
+            &[3],
         ),
     ];
     for (c, (bake, counts)) in cases.iter().enumerate() {

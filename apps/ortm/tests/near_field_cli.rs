@@ -165,7 +165,7 @@ fn the_near_field_changes_skin_only() {
 /// settings (so in its key) and its maps hold it — at full budget (ε = 0) each map value is a
 /// row entry, and the gathered rows change the entries of near pairs (the rows' values are
 /// checked against `ρΔF` in `sphere_analytic.rs`); without multi-resolution
-/// maps on the hierarchical transport, sharded, or with bad values it is refused before
+/// maps on the hierarchical transport or with bad values it is refused before
 /// anything is written.
 #[test]
 fn the_bake_takes_the_gathered_near_field() {
@@ -244,16 +244,5 @@ fn the_bake_takes_the_gathered_near_field() {
         e.contains("--near-gather-reach 4: applies to --near-gather G"),
         "{e}"
     );
-    let e = refused(&[
-        "--levels",
-        "0",
-        "--tolerance",
-        "--near-gather",
-        "8",
-        "--plan",
-        "--shards",
-        "2",
-    ]);
-    assert!(e.contains("--near-gather 8 is not sharded yet"), "{e}");
     assert!(!d.join("x").join("index.json").exists(), "an index written");
 }

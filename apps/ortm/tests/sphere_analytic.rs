@@ -524,6 +524,7 @@ fn closed_sphere_bake_rows_with_the_gathered_near_field_match_the_analytic_radio
             reach: 4.0,
             ..NearGather::new(32)
         },
+        0..grid.texels.len() as u32,
         &SetupProgress::none(),
     )
     .unwrap();

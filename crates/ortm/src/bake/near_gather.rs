@@ -213,10 +213,16 @@ type Row = (Vec<(u32, f32)>, Vec3);
 /// `ΔF_ij` (non-zero ones only).
 pub type FormFactorRows = Vec<Vec<(u32, f32)>>;
 
-/// The gathered form factors `ΔF` alone (no light): every covered texel's row, as
-/// [`correction`] finds it. A bake's transfer rows take them as a first-bounce correction
-/// ([`crate::bake::multires::with_gathered_rows`]); `ΔE` needs the lights, which a bake does not
-/// know. Reports "near gather: receivers" to `progress`.
+/// The gathered form factors `ΔF` alone (no light) of the receivers `receivers` (texel
+/// indices; the other rows are left empty), each as [`correction`] finds it: a row depends on
+/// its receiver alone, so a shard's rows equal the whole bake's. A bake's transfer rows take
+/// them as a first-bounce correction ([`crate::bake::multires::with_gathered_rows`]); `ΔE`
+/// needs the lights, which a bake does not know. Reports "near gather: receivers" to
+/// `progress`.
+#[expect(
+    clippy::too_many_arguments,
+    reason = "the scene, its grid, patches, kernels and rays, and which receivers"
+)]
 pub fn form_factor_rows(
     scene: &Scene,
     grid: &TexelGrid,
@@ -224,21 +230,17 @@ pub fn form_factor_rows(
     kernels: &Kernels,
     vis: &Visibility,
     settings: NearGather,
+    receivers: std::ops::Range<u32>,
     progress: &SetupProgress,
 ) -> Result<FormFactorRows, GatherError> {
     let dark = vec![Vec3::ZERO; patches.len()];
-    let c = correction(
-        scene,
-        grid,
-        patches,
-        kernels,
-        &[],
-        vis,
-        &dark,
-        settings,
-        progress,
-    )?;
-    Ok(c.rows)
+    let ctx = Ctx::new(scene, grid, patches, kernels, &[], vis, &dark, settings);
+    let range = receivers.start as usize..(receivers.end as usize).min(patches.len());
+    let mut rows = vec![Vec::new(); patches.len()];
+    for (i, (row, _)) in range.clone().zip(rows_of(&ctx, range, progress)?) {
+        rows[i] = row;
+    }
+    Ok(rows)
 }
 
 /// The gathered near field of every covered texel of `grid` (rasterised from `scene`;
@@ -259,42 +261,37 @@ pub fn correction(
     settings: NearGather,
     progress: &SetupProgress,
 ) -> Result<Correction, GatherError> {
-    let n = patches.len();
-    let mut sizes: Vec<f32> = patches.iter().map(|p| p.area_m2.sqrt()).collect();
-    let mid = sizes.len() / 2;
-    let median = if sizes.is_empty() {
-        1.0
-    } else {
-        *sizes.select_nth_unstable_by(mid, f32::total_cmp).1
-    };
-    let ctx = Ctx {
-        scene,
-        grid,
-        patches,
-        kernels,
-        lights,
-        vis,
-        b_in,
-        centres: PointGrid::new(
-            f64::from((settings.reach * median).max(1e-9)),
-            (patches.iter().enumerate()).map(|(i, p)| (i as u32, p.position_m)),
-        ),
-        albedo: scene.surface_albedo(),
-        settings,
-    };
-    progress.phase("near gather: receivers", n as u64);
+    let ctx = Ctx::new(scene, grid, patches, kernels, lights, vis, b_in, settings);
+    let mut rows = Vec::with_capacity(patches.len());
+    let mut irradiance = Vec::with_capacity(patches.len());
+    for (row, e) in rows_of(&ctx, 0..patches.len(), progress)? {
+        rows.push(row);
+        irradiance.push(e);
+    }
+    Ok(Correction { rows, irradiance })
+}
+
+/// The rows of the receivers `receivers` (texel indices), in order, with the memory budget
+/// checked as they are gathered; reports "near gather: receivers" to `progress`.
+fn rows_of(
+    ctx: &Ctx<'_>,
+    receivers: std::ops::Range<usize>,
+    progress: &SetupProgress,
+) -> Result<Vec<Row>, GatherError> {
     const CHUNK: usize = 256;
+    progress.phase("near gather: receivers", receivers.len() as u64);
     let bytes = AtomicU64::new(0);
-    let chunks: Vec<Vec<Row>> = (0..n.div_ceil(CHUNK))
+    let (start, end) = (receivers.start, receivers.end);
+    let chunks: Vec<Vec<Row>> = (0..(end - start).div_ceil(CHUNK))
         .into_par_iter()
         .map(|c| {
             progress.check()?;
-            let range = c * CHUNK..((c + 1) * CHUNK).min(n);
+            let range = start + c * CHUNK..(start + (c + 1) * CHUNK).min(end);
             let len = range.len();
-            let out: Vec<Row> = range.map(|i| receiver(&ctx, i)).collect();
+            let out: Vec<Row> = range.map(|i| receiver(ctx, i)).collect();
             let size: u64 = out.iter().map(|r| row_bytes(r.0.len())).sum();
             let total = bytes.fetch_add(size, Ordering::Relaxed) + size;
-            if let Some(limit) = settings.max_bytes
+            if let Some(limit) = ctx.settings.max_bytes
                 && total > limit
             {
                 return Err(GatherError::TooLarge {
@@ -306,13 +303,7 @@ pub fn correction(
             Ok(out)
         })
         .collect::<Result<_, _>>()?;
-    let mut rows = Vec::with_capacity(n);
-    let mut irradiance = Vec::with_capacity(n);
-    for (row, e) in chunks.into_iter().flatten() {
-        rows.push(row);
-        irradiance.push(e);
-    }
-    Ok(Correction { rows, irradiance })
+    Ok(chunks.into_iter().flatten().collect())
 }
 
 /// The texels sharing a ray's hit at lightmap UV `uv` on chart `chart`, and their weights:
@@ -388,6 +379,46 @@ struct Ctx<'a> {
     /// The texels' albedo rule.
     albedo: SurfaceAlbedo<'a>,
     settings: NearGather,
+}
+
+impl<'a> Ctx<'a> {
+    #[expect(
+        clippy::too_many_arguments,
+        reason = "what every receiver reads, as the callers hold it"
+    )]
+    fn new(
+        scene: &'a Scene,
+        grid: &'a TexelGrid,
+        patches: &'a [Patch],
+        kernels: &'a Kernels,
+        lights: &'a [Light],
+        vis: &'a Visibility,
+        b_in: &'a [Vec3],
+        settings: NearGather,
+    ) -> Self {
+        let mut sizes: Vec<f32> = patches.iter().map(|p| p.area_m2.sqrt()).collect();
+        let mid = sizes.len() / 2;
+        let median = if sizes.is_empty() {
+            1.0
+        } else {
+            *sizes.select_nth_unstable_by(mid, f32::total_cmp).1
+        };
+        Self {
+            scene,
+            grid,
+            patches,
+            kernels,
+            lights,
+            vis,
+            b_in,
+            centres: PointGrid::new(
+                f64::from((settings.reach * median).max(1e-9)),
+                (patches.iter().enumerate()).map(|(i, p)| (i as u32, p.position_m)),
+            ),
+            albedo: scene.surface_albedo(),
+            settings,
+        }
+    }
 }
 
 /// One receiver's `ΔF` row and `ΔE`.

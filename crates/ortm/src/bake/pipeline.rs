@@ -809,7 +809,8 @@ pub fn bake(
 
     if let Some(tolerance) = settings.levels {
         let t = std::time::Instant::now();
-        let gathered = gathered_rows(scene, &transport, &grid, settings, events, cancel)?;
+        let all = 0..grid.texels.len() as u32;
+        let gathered = gathered_rows(scene, &transport, &grid, settings, all, events, cancel)?;
         let entries = level_rows_in(
             &transport,
             &grid,
@@ -1109,12 +1110,14 @@ pub(crate) fn level_rows_in(
 }
 
 /// The gathered form factors `ΔF` the settings ask for ([`BakeSettings::near_gather`],
-/// [`crate::bake::near_gather::form_factor_rows`]), `None` when off.
+/// [`crate::bake::near_gather::form_factor_rows`]) of the receivers `receivers` (texel
+/// indices; the other rows empty), `None` when off.
 pub(crate) fn gathered_rows(
     scene: &Scene,
     transport: &Transport,
     grid: &TexelGrid,
     settings: &BakeSettings,
+    receivers: std::ops::Range<u32>,
     events: &(dyn Fn(BakeEvent) + Sync),
     cancel: &AtomicBool,
 ) -> Result<Option<crate::bake::near_gather::FormFactorRows>, BakeError> {
@@ -1131,6 +1134,7 @@ pub(crate) fn gathered_rows(
         &transport.kernels,
         &transport.kernels.visibility,
         gather,
+        receivers,
         &progress,
     )
     .map_err(|e| match e {

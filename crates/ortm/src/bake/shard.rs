@@ -355,11 +355,6 @@ pub fn plan(
     if let Some(t) = settings.levels {
         pipeline::check_level_tolerance(t)?;
     }
-    if let Some(g) = settings.near_gather {
-        return Err(BakeError::Settings(format!(
-            "--near-gather {g} is not sharded yet: bake it in one process (without --plan)"
-        )));
-    }
     let t0 = std::time::Instant::now();
     let _lock = crate::io::DirLock::acquire(dir)?;
     let setup = Setup::new(scene, settings)?;
@@ -680,6 +675,14 @@ pub fn run_shard(
         .as_ref()
         .map(|c| Integrator::new(&transport, grid, &offsets, c));
     let receivers = integrator.as_ref().map(Integrator::receivers_by_cluster);
+    // The gathered near field (rows of multi-resolution maps) of this shard's receivers: the
+    // chunks are contiguous ranges of texel indices, in order.
+    let gathered = match (&plan.work, mine.chunks.first(), mine.chunks.last()) {
+        (WorkKind::Rows, Some(&[a, _]), Some(&[_, b])) => {
+            pipeline::gathered_rows(scene, &transport, grid, settings, a..b, events, cancel)?
+        }
+        _ => None,
+    };
     let todo: u64 = (mine.chunks.iter().zip(&existing))
         .filter(|(_, e)| e.is_none())
         .map(|(&[a, b], _)| match &receivers {
@@ -732,7 +735,7 @@ pub fn run_shard(
                     &transport,
                     grid,
                     tolerance,
-                    None,
+                    gathered.as_deref(),
                     a..b,
                     &quiet,
                     cancel,
