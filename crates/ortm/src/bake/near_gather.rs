@@ -374,7 +374,7 @@ struct Ctx<'a> {
     lights: &'a [Light],
     vis: &'a Visibility,
     b_in: &'a [Vec3],
-    /// The texel centres, in cubes the default near set's radius wide.
+    /// The texel centres, in cubes as wide as the near set's radius at the median texel size.
     centres: PointGrid,
     /// The texels' albedo rule.
     albedo: SurfaceAlbedo<'a>,

@@ -810,13 +810,21 @@ pub fn bake(
     if let Some(tolerance) = settings.levels {
         let t = std::time::Instant::now();
         let all = 0..grid.texels.len() as u32;
-        let gathered = gathered_rows(scene, &transport, &grid, settings, all, events, cancel)?;
+        let gathered = gathered_rows(
+            scene,
+            &transport,
+            &grid,
+            settings,
+            all.clone(),
+            events,
+            cancel,
+        )?;
         let entries = level_rows_in(
             &transport,
             &grid,
             tolerance,
             gathered.as_deref(),
-            0..grid.texels.len() as u32,
+            all,
             events,
             cancel,
         )?;
@@ -1070,8 +1078,9 @@ fn write_each<'a>(
 
 /// Every receiver's kept blocks at `tolerance` ([`crate::bake::multires`]): its row from the
 /// hierarchical transport when the bake has one ([`crate::bake::multires::hierarchical_row`],
-/// `--tolerance`), else from the pair evaluator ([`Transport::r`], `n²` evaluations with a
-/// visibility ray each), partitioned; `receivers` (texel indices), all of them for a
+/// `--tolerance`), with the gathered near field's first bounce when `gathered` holds its rows
+/// ([`gathered_rows`]), else from the pair evaluator ([`Transport::r`], `n²` evaluations with
+/// a visibility ray each), partitioned; `receivers` (texel indices), all of them for a
 /// single-process bake, a shard's share for a sharded one ([`crate::bake::shard`]).
 pub(crate) fn level_rows_in(
     transport: &Transport,
