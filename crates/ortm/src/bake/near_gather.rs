@@ -235,7 +235,8 @@ pub fn form_factor_rows(
 ) -> Result<FormFactorRows, GatherError> {
     let dark = vec![Vec3::ZERO; patches.len()];
     let ctx = Ctx::new(scene, grid, patches, kernels, &[], vis, &dark, settings);
-    let range = receivers.start as usize..(receivers.end as usize).min(patches.len());
+    let end = (receivers.end as usize).min(patches.len());
+    let range = (receivers.start as usize).min(end)..end;
     let mut rows = vec![Vec::new(); patches.len()];
     for (i, (row, _)) in range.clone().zip(rows_of(&ctx, range, progress)?) {
         rows[i] = row;
