@@ -90,9 +90,15 @@ pub fn irradiance_unshadowed_at(position_m: Vec3, normal: Vec3, light: &Light) -
     }
 }
 
+/// How far a ray leaving a texel of area `area_m2` (m²) starts off its surface, metres: 10⁻³
+/// of the texel's size (at least 10⁻⁹ m), so that the texel does not occlude itself.
+pub fn lift_m(area_m2: f32) -> f32 {
+    1e-3 * area_m2.sqrt().max(1e-6)
+}
+
 /// True when `light` reaches texel `t` unobstructed.
 pub fn light_visible(t: &Texel, light: &Light, vis: &Visibility) -> bool {
-    let eps = 1e-3 * t.area_m2.sqrt().max(1e-6);
+    let eps = lift_m(t.area_m2);
     light_visible_from(t.position_m + t.face_normal * eps, eps, light, vis)
 }
 
@@ -142,7 +148,7 @@ pub fn irradiance(grid: &TexelGrid, lights: &[Light], vis: &Visibility) -> Vec<V
     grid.texels
         .par_iter()
         .map(|t| {
-            let eps = 1e-3 * t.area_m2.sqrt().max(1e-6);
+            let eps = lift_m(t.area_m2);
             let lifted = t.position_m + t.face_normal * eps;
             direct_at(t.position_m, t.normal, (lifted, eps), lights, vis).0
         })

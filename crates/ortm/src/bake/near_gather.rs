@@ -71,7 +71,7 @@ use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 use thiserror::Error;
 
-use crate::bake::lighting::direct_at;
+use crate::bake::lighting::{direct_at, lift_m};
 use crate::bake::point_grid::PointGrid;
 use crate::bake::raycast::Visibility;
 use crate::bake::texels::TexelGrid;
@@ -452,7 +452,7 @@ fn receiver(c: &Ctx<'_>, i: usize) -> Row {
     });
     row.sort_unstable_by_key(|e| e.0);
     // The rays.
-    let eps = 1e-3 * a.area_m2.sqrt().max(1e-6);
+    let eps = lift_m(a.area_m2);
     let origin = t.position_m + t.face_normal * eps;
     let (t1, t2) = tangent_frame(t.normal);
     let far = 2.0 * r + 4.0 * a.area_m2.sqrt();
@@ -494,7 +494,7 @@ fn receiver(c: &Ctx<'_>, i: usize) -> Row {
         }
         if credited > 0.0 && !kernels.is_translucent(material) {
             let rho = albedo.at(material, uv);
-            let lift = 1e-3 * patches[j as usize].area_m2.sqrt().max(1e-6);
+            let lift = lift_m(patches[j as usize].area_m2);
             let lifted = p + at.face_normal * lift;
             let (e_d, _) = direct_at(p, normal, (lifted, lift), lights, vis);
             e += (rho * e_d * credited - input) / rays;

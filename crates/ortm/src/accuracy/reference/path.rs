@@ -30,7 +30,7 @@ use glam::Vec3;
 use super::emitters::FirstOrderLight;
 use super::sampler::{PathSampler, Slot};
 use super::subsurface::{ProfileSampler, WeighedHit};
-use crate::bake::lighting::direct_at;
+use crate::bake::lighting::{direct_at, lift_m};
 use crate::bake::raycast::{RayHit, Visibility};
 use crate::bake::texels::Texel;
 use crate::bake::transport::Effects;
@@ -82,7 +82,7 @@ impl SurfacePoint {
             position_m: t.position_m,
             normal: t.normal,
             face_normal: t.face_normal,
-            eps_m: 1e-3 * t.area_m2.sqrt().max(1e-6),
+            eps_m: lift_m(t.area_m2),
             albedo: t.albedo,
             material: t.material,
             triangle: t.triangle,
