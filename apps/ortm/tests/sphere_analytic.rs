@@ -111,6 +111,30 @@ fn lit_sphere() -> (Scene, TexelGrid, std::sync::Arc<Visibility>, Vec<Vec3>) {
     (scene, grid, vis, b_o)
 }
 
+/// The indirect term the sphere's law gives every texel for the first order `b_o`,
+/// `ρ/(1−ρ)·mean_A(B_o)` (area-weighted over the covered texels of `grid`).
+fn law_indirect(grid: &TexelGrid, b_o: &[Vec3]) -> Vec3 {
+    let area: Vec<f32> = grid.texels.iter().map(|t| t.area_m2).collect();
+    let total_area: f32 = area.iter().sum();
+    let mean_b_o: Vec3 = b_o.iter().zip(&area).map(|(v, a)| *v * *a).sum::<Vec3>() / total_area;
+    RHO / (Vec3::ONE - RHO) * mean_b_o
+}
+
+/// Worst relative errors of the radiosity `b` per channel: (1) of its indirect term against the
+/// sphere's law for the discrete first order `b_o`, `B = B_o + ρ/(1−ρ)·mean(B_o)` texel by
+/// texel, relative to the indirect term (the part the transport computes); (2) of its total
+/// against the true sphere's `ρ·I/r² / (1−ρ)`.
+fn worst_errors(grid: &TexelGrid, b_o: &[Vec3], b: &[Vec3]) -> (Vec3, Vec3) {
+    let indirect = law_indirect(grid, b_o);
+    let sphere_b = RHO * INTENSITY_W_SR / (RADIUS_M * RADIUS_M) / (Vec3::ONE - RHO);
+    let (mut law, mut sphere) = (Vec3::ZERO, Vec3::ZERO);
+    for (bi, boi) in b.iter().zip(b_o) {
+        law = law.max((*bi - *boi - indirect).abs() / indirect);
+        sphere = sphere.max((*bi - sphere_b).abs() / sphere_b);
+    }
+    (law, sphere)
+}
+
 #[test]
 fn closed_sphere_with_a_central_point_light_matches_the_analytic_radiosity() {
     let (scene, grid, _, b_o) = lit_sphere();
@@ -119,22 +143,8 @@ fn closed_sphere_with_a_central_point_light_matches_the_analytic_radiosity() {
     let dense = DenseTransport::new(&texel_patches(&grid), &transport.kernels);
     let b = dense.solve(&b_o);
 
-    let area: Vec<f32> = grid.texels.iter().map(|t| t.area_m2).collect();
-    let total_area: f32 = area.iter().sum();
-    let mean_b_o: Vec3 = b_o.iter().zip(&area).map(|(v, a)| *v * *a).sum::<Vec3>() / total_area;
-    let gain = RHO / (Vec3::ONE - RHO);
-    let sphere_b_o = RHO * INTENSITY_W_SR / (RADIUS_M * RADIUS_M);
-
-    // (1) The sphere's law for the discrete first order: B = B_o + ρ/(1−ρ)·mean(B_o), texel by
-    // texel, relative to the indirect term (the part the transport computes).
-    // (2) Against the true sphere: B = ρ·I/r² / (1−ρ), relative to the total.
-    let (mut worst_law, mut worst_sphere) = (Vec3::ZERO, Vec3::ZERO);
-    for (bi, boi) in b.iter().zip(&b_o) {
-        let indirect = gain * mean_b_o;
-        worst_law = worst_law.max((*bi - *boi - indirect).abs() / indirect);
-        let exact = sphere_b_o / (Vec3::ONE - RHO);
-        worst_sphere = worst_sphere.max((*bi - exact).abs() / exact);
-    }
+    let total_area: f32 = grid.texels.iter().map(|t| t.area_m2).sum();
+    let (worst_law, worst_sphere) = worst_errors(&grid, &b_o, &b);
     let area_ratio = total_area / (4.0 * PI * RADIUS_M * RADIUS_M);
     println!(
         "sphere 24×48 facets, {} texels ({area_ratio:.4} of the true sphere's area): worst \
@@ -181,17 +191,7 @@ fn closed_sphere_hierarchical_solve_matches_the_analytic_radiosity() {
     )
     .unwrap();
     let sol = op.solve(&b_o, &settings, &SetupProgress::none()).unwrap();
-    let area: Vec<f32> = grid.texels.iter().map(|t| t.area_m2).collect();
-    let total_area: f32 = area.iter().sum();
-    let mean_b_o: Vec3 = b_o.iter().zip(&area).map(|(v, a)| *v * *a).sum::<Vec3>() / total_area;
-    let gain = RHO / (Vec3::ONE - RHO);
-    let sphere_b = RHO * INTENSITY_W_SR / (RADIUS_M * RADIUS_M) / (Vec3::ONE - RHO);
-    let (mut worst_law, mut worst_sphere) = (Vec3::ZERO, Vec3::ZERO);
-    for (bi, boi) in sol.b.iter().zip(&b_o) {
-        let indirect = gain * mean_b_o;
-        worst_law = worst_law.max((*bi - *boi - indirect).abs() / indirect);
-        worst_sphere = worst_sphere.max((*bi - sphere_b).abs() / sphere_b);
-    }
+    let (worst_law, worst_sphere) = worst_errors(&grid, &b_o, &sol.b);
     println!(
         "hierarchical, {} texels, {} links, {} sweeps: worst relative error of the indirect term \
          vs the sphere's law {worst_law:.4}, of the total vs ρI/r²/(1−ρ) {worst_sphere:.4}",
@@ -410,20 +410,7 @@ fn closed_sphere_with_the_gathered_near_field_matches_the_analytic_radiosity() {
         c.entries()
     );
     let input = c.input(&b_o, &patches);
-    let area: Vec<f32> = grid.texels.iter().map(|t| t.area_m2).collect();
-    let total_area: f32 = area.iter().sum();
-    let mean_b_o: Vec3 = b_o.iter().zip(&area).map(|(v, a)| *v * *a).sum::<Vec3>() / total_area;
-    let gain = RHO / (Vec3::ONE - RHO);
-    let sphere_b = RHO * INTENSITY_W_SR / (RADIUS_M * RADIUS_M) / (Vec3::ONE - RHO);
-    let worst = |b: &[Vec3]| {
-        let (mut law, mut sphere) = (Vec3::ZERO, Vec3::ZERO);
-        for (bi, boi) in b.iter().zip(&b_o) {
-            let indirect = gain * mean_b_o;
-            law = law.max((*bi - *boi - indirect).abs() / indirect);
-            sphere = sphere.max((*bi - sphere_b).abs() / sphere_b);
-        }
-        (law, sphere)
-    };
+    let worst = |b: &[Vec3]| worst_errors(&grid, &b_o, b);
     // Dense: the rows of F + ΔF.
     let mut dense = DenseTransport::new(&patches, &kernels);
     c.add_to(&mut dense.form_factors);
@@ -550,21 +537,9 @@ fn closed_sphere_bake_rows_with_the_gathered_near_field_match_the_analytic_radio
         hierarchical_row(&tr).unwrap(),
         &gathered,
     ));
-    let area: Vec<f32> = grid.texels.iter().map(|t| t.area_m2).collect();
-    let total_area: f32 = area.iter().sum();
-    let mean_b_o: Vec3 = b_o.iter().zip(&area).map(|(v, a)| *v * *a).sum::<Vec3>() / total_area;
-    let indirect = RHO / (Vec3::ONE - RHO) * mean_b_o;
-    let sphere_b = RHO * INTENSITY_W_SR / (RADIUS_M * RADIUS_M) / (Vec3::ONE - RHO);
-    let worst = |b: &[Vec3]| {
-        let (mut law, mut sphere) = (Vec3::ZERO, Vec3::ZERO);
-        for (bi, boi) in b.iter().zip(&b_o) {
-            law = law.max((*bi - *boi - indirect).abs() / indirect);
-            sphere = sphere.max((*bi - sphere_b).abs() / sphere_b);
-        }
-        (law, sphere)
-    };
-    let (law_p, sphere_p) = worst(&plain);
-    let (law_g, sphere_g) = worst(&with);
+    let indirect = law_indirect(&grid, &b_o);
+    let (law_p, sphere_p) = worst_errors(&grid, &b_o, &plain);
+    let (law_g, sphere_g) = worst_errors(&grid, &b_o, &with);
     // The change is the gathered first bounce, to f32 rounding of the rows' sums.
     let mut change_err = 0.0f32;
     for i in 0..n {
