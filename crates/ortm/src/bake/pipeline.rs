@@ -702,7 +702,13 @@ impl Setup {
             0 => crate::bake::transport::coarse::auto_block(&grid),
             b => b,
         };
-        let clusters = crate::bake::transport::coarse::cluster_count(&grid, block);
+        // With the hierarchical operator the coarse solve also keeps slit texels alone.
+        let slits = if settings.tolerance.is_some() && settings.effects.radiosity && block > 1 {
+            crate::bake::transport::coarse::MAX_SLIT_TEXELS.min(grid.texels.len())
+        } else {
+            0
+        };
+        let clusters = crate::bake::transport::coarse::cluster_count(&grid, block) + slits;
         let cell_values = match settings.cell_rule {
             CellRule::Integrated => grid.texels.len() as u64 * settings.offsets as u64,
             CellRule::Sampled => 0,
@@ -742,9 +748,14 @@ impl Setup {
             Some(t) => format!("; hierarchical first bounce at tolerance {t:e}"),
             None => String::new(),
         };
+        let tiles = crate::bake::transport::coarse::cluster_count(grid, block);
+        let alone = match clusters - tiles {
+            0 => String::new(),
+            n => format!(" and up to {n} slit texels alone"),
+        };
         events(BakeEvent::Message(format!(
-            "{} covered texels at {w}x{h}; building the transport (BVH, coarse solve, {clusters} \
-             clusters of {block}² texels{links})",
+            "{} covered texels at {w}x{h}; building the transport (BVH, coarse solve, {tiles} \
+             clusters of {block}² texels{alone}{links})",
             grid.texels.len(),
         )));
         let interrupted = || BakeError::Interrupted {
@@ -771,14 +782,30 @@ impl Setup {
                     max_bytes,
                     ..hier::Settings::default()
                 };
-                Transport::build_hierarchical(scene, grid, settings.effects, block, &hs, &progress)
-                    .map_err(|e| match e {
-                        hier::BuildError::Cancelled => interrupted(),
-                        e @ hier::BuildError::TooLarge { .. } => BakeError::Settings(format!(
-                            "{e} (--tolerance {tolerance:e}; the links may use the memory limit \
+                let t = Transport::build_hierarchical(
+                    scene,
+                    grid,
+                    settings.effects,
+                    block,
+                    &hs,
+                    &progress,
+                )
+                .map_err(|e| match e {
+                    hier::BuildError::Cancelled => interrupted(),
+                    e @ hier::BuildError::TooLarge { .. } => BakeError::Settings(format!(
+                        "{e} (--tolerance {tolerance:e}; the links may use the memory limit \
                              less the rest of the bake: physical memory or ORTM_MEMORY_LIMIT_BYTES)"
-                        )),
-                    })?
+                    )),
+                })?;
+                let rem = &t.remainder;
+                if rem.alone > 0 {
+                    events(BakeEvent::Message(format!(
+                        "coarse solve: {} clusters, {} of them slit texels alone",
+                        rem.clusters.len(),
+                        rem.alone
+                    )));
+                }
+                t
             }
         })
     }

@@ -12,7 +12,9 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use super::dense::DenseTransport;
+use super::form_factor::{self, FfPatch};
 use super::{Cancelled, Kernels, Patch, SetupProgress};
+use crate::bake::point_grid::PointGrid;
 use crate::bake::texels::{Texel, TexelGrid};
 
 /// The higher-order remainder at the coarse level.
@@ -29,11 +31,18 @@ pub struct Remainder {
     pub full: [Vec<f32>; 3],
     /// Block size in texels.
     pub block: u32,
+    /// Texels that are clusters of their own besides the tiles ([`slit_texels`]).
+    pub alone: u32,
 }
 
 /// The cluster a texel belongs to: its `block × block` tile, chart and material.
 fn cluster_key(t: &Texel, block: u32) -> (u32, u32, u32, u32) {
     (t.x / block, t.y / block, t.chart, t.material)
+}
+
+/// The cluster key of a texel that stays a cluster of its own ([`slit_texels`]).
+fn single_key(t: &Texel) -> (u32, u32, u32, u32) {
+    (t.x, t.y, t.chart, u32::MAX - t.material)
 }
 
 /// The number of clusters [`cluster_texels`] makes of `grid` (the bake's memory check sizes the
@@ -71,8 +80,85 @@ pub fn auto_block(grid: &TexelGrid) -> u32 {
     block
 }
 
-/// Groups texels into clusters: one per (tile of `block × block` texels, chart, material).
-pub fn cluster_texels(grid: &TexelGrid, patches: &[Patch], block: u32) -> (Vec<u32>, Vec<Patch>) {
+/// At most this many texels are clusters of their own ([`slit_texels`]): with
+/// [`AUTO_MAX_CLUSTERS`] the coarse solve stays within the size of the exact one
+/// ([`AUTO_EXACT_TEXELS`]).
+pub const MAX_SLIT_TEXELS: usize = AUTO_EXACT_TEXELS - AUTO_MAX_CLUSTERS;
+
+/// A texel whose unoccluded form factor to the surface within its cluster's reach is above
+/// this is a slit texel ([`slit_texels`]).
+pub const SLIT_COUPLING: f32 = 0.05;
+
+/// The texels that stay clusters of their own in the coarse solve: those that see the surface
+/// beside them — the two sides of a slit (lips, eyelids), the folds of an ear, a room's
+/// corners — where the higher bounces are as local as the first. A tile's centroid and mean
+/// normal would average them away (where a tile folds, its centroid lies off the surface and
+/// its normal faces neither side), and the remainder would then spread what is left over the
+/// whole tile. A texel's coupling is its unoccluded form factor to the surface within `block`
+/// texel sizes of it, sampled at every `s`-th texel in x and y (`s = ⌈block / 4⌉`, each sample
+/// standing for `s²` texels); the [`MAX_SLIT_TEXELS`] most coupled above [`SLIT_COUPLING`] are
+/// kept (ties by index). Nothing at `block` ≤ 1 (every texel is its own cluster already).
+pub fn slit_texels(grid: &TexelGrid, patches: &[Patch], block: u32) -> Vec<bool> {
+    let n = patches.len();
+    let mut slit = vec![false; n];
+    if block <= 1 || n == 0 || n != grid.texels.len() {
+        return slit;
+    }
+    let stride = block.div_ceil(4);
+    let reach = |p: &Patch| block as f32 * p.area_m2.max(0.0).sqrt();
+    let cell = (patches.iter()).map(reach).fold(0.0f32, f32::max).max(1e-6);
+    // The samples: every `stride`-th texel in x and y, as a patch of `stride²` its area.
+    let samples = PointGrid::new(
+        f64::from(cell),
+        (grid.texels.iter().zip(patches).enumerate())
+            .filter(|(_, (t, _))| t.x % stride == 0 && t.y % stride == 0)
+            .map(|(i, (_, p))| (i as u32, p.position_m)),
+    );
+    let weight = (stride * stride) as f32;
+    let coupling: Vec<f32> = (0..n)
+        .into_par_iter()
+        .map(|i| {
+            let p = &patches[i];
+            let r = reach(p);
+            let fp = FfPatch {
+                texel: false,
+                ..p.ff()
+            };
+            let mut k = 0.0f32;
+            samples.for_each_within(p.position_m, r, |j| {
+                let q = &patches[j as usize];
+                if j as usize != i && (q.position_m - p.position_m).length() < r {
+                    let fq = FfPatch {
+                        area_m2: q.area_m2 * weight,
+                        texel: false,
+                        ..q.ff()
+                    };
+                    k += form_factor::unoccluded_form_factor(&fp, &fq).max(0.0) * fq.area_m2;
+                }
+            });
+            k
+        })
+        .collect();
+    let mut order: Vec<u32> = (0..n as u32)
+        .filter(|&i| coupling[i as usize] > SLIT_COUPLING)
+        .collect();
+    order.sort_unstable_by(|&a, &b| {
+        (coupling[b as usize].total_cmp(&coupling[a as usize])).then(a.cmp(&b))
+    });
+    for &i in order.iter().take(MAX_SLIT_TEXELS) {
+        slit[i as usize] = true;
+    }
+    slit
+}
+
+/// Groups texels into clusters: one per (tile of `block × block` texels, chart, material), and
+/// one per texel where `alone` says so (empty: none; else one flag per texel, [`slit_texels`]).
+pub fn cluster_texels(
+    grid: &TexelGrid,
+    patches: &[Patch],
+    block: u32,
+    alone: &[bool],
+) -> (Vec<u32>, Vec<Patch>) {
     let block = block.max(1);
     let mut ids: HashMap<(u32, u32, u32, u32), u32> = HashMap::new();
     let mut cluster_of = Vec::with_capacity(grid.texels.len());
@@ -80,8 +166,12 @@ pub fn cluster_texels(grid: &TexelGrid, patches: &[Patch], block: u32) -> (Vec<u
     // Per cluster: its members' count and the first member's footprint (a cluster of one
     // texel keeps it, so that at `block` = 1 the clusters' weights are the texels').
     let mut single: Vec<(u32, Option<[Vec3; 2]>)> = Vec::new();
-    for (t, p) in grid.texels.iter().zip(patches) {
-        let key = cluster_key(t, block);
+    for (i, (t, p)) in grid.texels.iter().zip(patches).enumerate() {
+        let key = if alone.get(i) == Some(&true) {
+            single_key(t)
+        } else {
+            cluster_key(t, block)
+        };
         let n = ids.len() as u32;
         let id = *ids.entry(key).or_insert_with(|| {
             acc.push((
@@ -127,35 +217,179 @@ pub fn cluster_texels(grid: &TexelGrid, patches: &[Patch], block: u32) -> (Vec<u
     (cluster_of, clusters)
 }
 
+/// Cluster pairs whose centroids are closer than this many times the sum of their radii (and
+/// every cluster with itself) take their form factor from their members' ([`near_form_factors`]).
+pub const NEAR_CLUSTER_FACTOR: f32 = 1.5;
+
+/// At most this many members per side of a near cluster pair are sampled (evenly strided in
+/// texel order) for its form factor: at most `NEAR_SAMPLES²` rays per pair.
+pub const NEAR_SAMPLES: usize = 16;
+
+/// Replaces the form factors of near cluster pairs in `dense` (built over `clusters`) by their
+/// members' area-weighted mean, `F_IJ = Σ_{i∈I} (A_i/A_I) Σ_{j∈J} F_ij`: the Galerkin projection
+/// of the texels' operator onto the clusters. A cluster's centroid and mean normal stand for it
+/// only far away: where a tile of the lightmap folds (a lip, an eyelid, the rim of an ear) the
+/// centroid lies off the surface and the mean normal faces neither side, so the centroids'
+/// form factor between the two sides of a slit — and a cluster's light onto itself — were
+/// lost, and with them the higher bounces there. Members are subsampled to at most
+/// [`NEAR_SAMPLES`] per side.
+fn near_form_factors(
+    dense: &mut DenseTransport,
+    cluster_of: &[u32],
+    clusters: &[Patch],
+    patches: &[Patch],
+    kernels: &Kernels,
+    progress: &SetupProgress,
+) -> Result<(), Cancelled> {
+    if !kernels.effects.radiosity {
+        return Ok(());
+    }
+    let n = clusters.len();
+    let mut members: Vec<Vec<u32>> = vec![Vec::new(); n];
+    for (i, &c) in cluster_of.iter().enumerate() {
+        members[c as usize].push(i as u32);
+    }
+    let radius: Vec<f32> = (0..n)
+        .map(|c| {
+            (members[c].iter())
+                .map(|&i| {
+                    let p = &patches[i as usize];
+                    (p.position_m - clusters[c].position_m).length() + 0.5 * p.area_m2.sqrt()
+                })
+                .fold(0.0, f32::max)
+        })
+        .collect();
+    let sampled: Vec<Vec<u32>> = members
+        .iter()
+        .map(|m| {
+            let step = m.len().div_ceil(NEAR_SAMPLES).max(1);
+            m.iter().step_by(step).copied().collect()
+        })
+        .collect();
+    // Near pairs I ≤ J, found through a grid of the centroids.
+    let reach = radius.iter().copied().fold(0.0, f32::max) * 2.0 * NEAR_CLUSTER_FACTOR;
+    let grid = PointGrid::new(
+        f64::from(reach.max(1e-6)),
+        (clusters.iter().enumerate()).map(|(c, p)| (c as u32, p.position_m)),
+    );
+    let pairs: Vec<(u32, u32)> = (0..n)
+        .into_par_iter()
+        .flat_map_iter(|a| {
+            let mut out = Vec::new();
+            grid.for_each_within(clusters[a].position_m, reach, |b| {
+                let b = b as usize;
+                let d = (clusters[a].position_m - clusters[b].position_m).length();
+                if b >= a && d < NEAR_CLUSTER_FACTOR * (radius[a] + radius[b]) {
+                    out.push((a as u32, b as u32));
+                }
+            });
+            out
+        })
+        .collect();
+    progress.phase("transport: near cluster form factors", pairs.len() as u64);
+    let values: Vec<(f64, f64)> = pairs
+        .par_iter()
+        .map(|&(a, b)| {
+            if progress.check().is_err() {
+                return (0.0, 0.0);
+            }
+            progress.advance(1);
+            let (a, b) = (a as usize, b as usize);
+            let area =
+                |s: &[u32]| -> f64 { s.iter().map(|&i| patches[i as usize].area_m2 as f64).sum() };
+            let (sa, sb) = (&sampled[a], &sampled[b]);
+            let (wa, wb) = (area(sa), area(sb));
+            // Σ_i A_i Σ_j c_ij A_j and the reverse, over the sampled members.
+            let (mut ab, mut ba) = (0.0f64, 0.0f64);
+            for &i in sa {
+                for &j in sb {
+                    if i == j {
+                        continue;
+                    }
+                    let (p, q) = (&patches[i as usize], &patches[j as usize]);
+                    let (c_pq, c_qp) = kernels.form_factor_pair(p, q);
+                    let (ap, aq) = (p.area_m2 as f64, q.area_m2 as f64);
+                    ab += ap * c_pq as f64 * aq;
+                    ba += aq * c_qp as f64 * ap;
+                }
+            }
+            if wa <= 0.0 || wb <= 0.0 {
+                return (0.0, 0.0);
+            }
+            // Scaled from the samples' areas to the clusters' (the sender's total area).
+            let (area_a, area_b) = (clusters[a].area_m2 as f64, clusters[b].area_m2 as f64);
+            (ab / wa * area_b / wb, ba / wb * area_a / wa)
+        })
+        .collect();
+    progress.check()?;
+    for (&(a, b), &(ab, ba)) in pairs.iter().zip(&values) {
+        let (a, b) = (a as usize, b as usize);
+        dense.form_factors[(a, b)] = ab;
+        if a != b {
+            dense.form_factors[(b, a)] = ba;
+        }
+    }
+    Ok(())
+}
+
 impl Remainder {
     /// Clusters the texels, solves the cluster system densely and keeps `R − R_fine`. The
     /// clusters' subsurface weights are normalised over the clusters
     /// ([`Kernels::normalise_subsurface`]) for both, as the dense solve does.
     pub fn new(grid: &TexelGrid, patches: &[Patch], kernels: &Kernels, block: u32) -> Self {
-        Self::build(grid, patches, kernels, block, &SetupProgress::none())
+        Self::build(grid, patches, kernels, block, false, &SetupProgress::none())
             .unwrap_or_else(|_| unreachable!("never cancelled"))
     }
 
     /// [`Remainder::new`] with progress and cancellation: the clusters' form factors
-    /// ([`DenseTransport::build`]) and the solve ([`DenseTransport::transfer_with`]).
+    /// ([`DenseTransport::build`]) and the solve ([`DenseTransport::transfer_with`]). With
+    /// `slits` (the hierarchical operator's bakes, whose first bounce is the links' texel by
+    /// texel, never the clusters'), the slit texels are clusters of their own
+    /// ([`slit_texels`]) and near cluster pairs take their members' form factor
+    /// ([`near_form_factors`]).
     pub fn build(
         grid: &TexelGrid,
         patches: &[Patch],
         kernels: &Kernels,
         block: u32,
+        slits: bool,
         progress: &SetupProgress,
     ) -> Result<Self, Cancelled> {
-        let (cluster_of, mut clusters) = cluster_texels(grid, patches, block);
+        let single = if slits && kernels.effects.radiosity {
+            slit_texels(grid, patches, block)
+        } else {
+            Vec::new()
+        };
+        let (cluster_of, mut clusters) = cluster_texels(grid, patches, block, &single);
         kernels.normalise_subsurface_with(&mut clusters, progress)?;
         let n = clusters.len();
-        let dense = DenseTransport::build(&clusters, kernels, progress)?;
+        let mut dense = DenseTransport::build(&clusters, kernels, progress)?;
+        if slits && block > 1 {
+            near_form_factors(
+                &mut dense,
+                &cluster_of,
+                &clusters,
+                patches,
+                kernels,
+                progress,
+            )?;
+        }
         let full = dense.transfer_with(progress)?;
-        // R_fine per cluster pair (one visibility ray each), rows in parallel.
+        // R_fine per cluster pair (one visibility ray each; with `slits`, the system's own form
+        // factors, so the remainder holds no first bounce), rows in parallel.
+        let ff = &dense.form_factors;
         let fine: Vec<Vec<[f64; 3]>> = (0..n)
             .into_par_iter()
             .map(|i| {
                 (0..n)
-                    .map(|j| kernels.r_fine(&clusters[i], &clusters[j], i == j))
+                    .map(|j| {
+                        let (a, b) = (&clusters[i], &clusters[j]);
+                        if !slits {
+                            return kernels.r_fine(a, b, i == j);
+                        }
+                        let s = kernels.r_subsurface(a, b, i == j);
+                        [0, 1, 2].map(|c| s[c] + a.rho[c] as f64 * ff[(i, j)])
+                    })
                     .collect()
             })
             .collect();
@@ -190,6 +424,7 @@ impl Remainder {
             rem,
             full,
             block,
+            alone: single.iter().filter(|&&a| a).count() as u32,
         })
     }
 

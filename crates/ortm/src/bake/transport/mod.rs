@@ -706,7 +706,7 @@ impl SupportGrid {
 /// First bytes of [`Transport::to_bytes`].
 const TRANSPORT_MAGIC: &[u8; 8] = b"ORTMTRNS";
 /// Version of [`Transport::to_bytes`]'s layout (the serde form of its parts, postcard-encoded).
-const TRANSPORT_VERSION: u32 = 1;
+const TRANSPORT_VERSION: u32 = 2;
 
 /// Evaluates `R(t, t')` for any pair of covered texels of a lightmap (see the module docs).
 pub struct Transport {
@@ -767,7 +767,8 @@ impl Transport {
         } else {
             block
         };
-        let remainder = coarse::Remainder::build(grid, &patches, &kernels, block, progress)?;
+        let slits = links.is_some();
+        let remainder = coarse::Remainder::build(grid, &patches, &kernels, block, slits, progress)?;
         Ok(Self {
             patches,
             kernels,
