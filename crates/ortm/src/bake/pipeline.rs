@@ -702,8 +702,13 @@ impl Setup {
             0 => crate::bake::transport::coarse::auto_block(&grid),
             b => b,
         };
-        // With the hierarchical operator the coarse solve also keeps slit texels alone.
-        let slits = if settings.tolerance.is_some() && settings.effects.radiosity && block > 1 {
+        // With the hierarchical operator the multi-resolution rows' coarse solve also keeps
+        // slit texels alone (`Transport::build_hierarchical_with_slits`).
+        let slits = if settings.tolerance.is_some()
+            && settings.levels.is_some()
+            && settings.effects.radiosity
+            && block > 1
+        {
             crate::bake::transport::coarse::MAX_SLIT_TEXELS.min(grid.texels.len())
         } else {
             0
@@ -782,11 +787,14 @@ impl Setup {
                     max_bytes,
                     ..hier::Settings::default()
                 };
-                let t = Transport::build_hierarchical(
+                // The slit texels for the multi-resolution rows; the offsets' cells take the
+                // tiles alone (`Transport::build_hierarchical_with_slits`).
+                let t = Transport::build_hierarchical_with_slits(
                     scene,
                     grid,
                     settings.effects,
                     block,
+                    settings.levels.is_some(),
                     &hs,
                     &progress,
                 )
