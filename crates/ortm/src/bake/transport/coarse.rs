@@ -5,6 +5,18 @@
 //! A cluster's centroid and normal are the area-weighted means of its texels; its area is their
 //! sum; its albedo the area-weighted mean. `R_rem(i, j) ≈ R_rem(I, J)·A_j / A_J` for texels `i ∈ I`,
 //! `j ∈ J` (piecewise constant per cluster pair, proportional to the sender's area share).
+//!
+//! # Slits
+//! The remainder is smooth only where the surface does not face itself at close range. Between
+//! the two sides of a slit (lips, eyelids, the folds of an ear, a room's corners) the higher
+//! bounces are as local as the first, and a tile that folds has its centroid off the surface
+//! and a mean normal facing neither side, so the centroids' form factor loses the light the
+//! sides trade. With `slits` ([`Remainder::build`]; the hierarchical operator's rows, `ortm bake
+//! --levels ε --tolerance τ`) the texels most coupled to the surface beside them are clusters of
+//! their own ([`slit_texels`], at most [`MAX_SLIT_TEXELS`]) and near cluster pairs take their
+//! members' mean form factor ([`near_form_factors`]). Measured against each scene's own
+//! hierarchical solve (maps at `ε` = 3·10⁻³, `τ` = 10⁻³; README, *Slits in the remainder*),
+//! indirect: head 256² 28.6 % → 9.5 %, maze 128² 14.9 % → 3.8 %, Cornell 128² 7.8 % → 4.4 %.
 
 use std::collections::HashMap;
 
@@ -233,7 +245,7 @@ pub const NEAR_SAMPLES: usize = 16;
 /// form factor between the two sides of a slit — and a cluster's light onto itself — were
 /// lost, and with them the higher bounces there. Members are subsampled to at most
 /// [`NEAR_SAMPLES`] per side.
-fn near_form_factors(
+pub fn near_form_factors(
     dense: &mut DenseTransport,
     cluster_of: &[u32],
     clusters: &[Patch],

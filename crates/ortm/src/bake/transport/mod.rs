@@ -57,7 +57,9 @@
 //!   diffuse bounce, evaluated exactly per pair (one visibility ray);
 //! - `R_rem` — every higher-order term (bounce² and up, subsurface-then-bounce, …), which is smooth,
 //!   solved densely ([`dense`]) at a coarse level where each patch is a cluster of texels
-//!   ([`coarse`]), and spread to texel pairs by area: `R_rem(i, j) ≈ R_rem(I, J)·A_j/A_J`.
+//!   ([`coarse`]), and spread to texel pairs by area: `R_rem(i, j) ≈ R_rem(I, J)·A_j/A_J`
+//!   (smooth except where the surface faces itself at close range: the hierarchical rows keep
+//!   the texels of such slits as clusters of their own, [`coarse`], "Slits").
 //!   The error of this approximation is measured against the exact solve in the tests and by
 //!   `ortm bench transport`.
 //!
