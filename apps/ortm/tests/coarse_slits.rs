@@ -35,7 +35,8 @@ fn rows_indirect(tr: &Transport, b_o: &[Vec3]) -> Vec<Vec3> {
 
 /// Measured (head 64², its lamp, radiosity + subsurface, ε = 10⁻⁴, 4×4 tiles; 680 clusters of
 /// which 426 slit texels): indirect relative RMSE against the exact solve 0.0503 with the slit
-/// texels, 0.2530 without them (rendered maps of `ortm bake head --size 64 --levels 0
+/// texels and the near tiles' member form factors (0.0580 with the slit texels alone), 0.2530
+/// without either (rendered maps of `ortm bake head --size 64 --levels 0
 /// --tolerance 1e-4 --coarse-block 4` against `ortm solve head --size 64 --method dense
 /// --first-order-samples 1`: 0.0612 and 0.244). Bounds: measured + 25 %, and the slit texels
 /// must take at least half of the error away.
