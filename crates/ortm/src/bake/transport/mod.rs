@@ -781,10 +781,12 @@ impl Transport {
     }
 
     /// [`Transport::build`] with the hierarchical operator at `settings`
-    /// ([`hier::Operator::build_links_only`] over the texel patches), for the cell integration:
-    /// its links carry the first bounce and its walk the subsurface term, whose normalisation
-    /// it also does (the walk's, to `settings.tolerance`, instead of every pair within the
-    /// support).
+    /// ([`hier::Operator::build_links_only`] over the texel patches), for the multi-resolution
+    /// rows ([`crate::bake::multires::hierarchical_row`]) and the cell integration: its links
+    /// carry the first bounce and its walk the subsurface term, whose normalisation it also
+    /// does (the walk's, to `settings.tolerance`, instead of every pair within the support).
+    /// The coarse remainder keeps the slit texels alone ([`coarse::slit_texels`]); the offsets'
+    /// bakes take [`Transport::build_hierarchical_with_slits`] without them.
     ///
     /// # Errors
     /// [`hier::BuildError`] when cancelled or when the links outgrow `settings.max_bytes`.
