@@ -245,7 +245,7 @@ pub fn check_bake_memory(
             limit: format!("{limit} bytes ({:.2} GiB)", gib(limit)),
             fix: "; use the hierarchical first bounce (--tolerance, at its default 1e-4, or \
                   --tolerance 1e-3 for a faster bake; it keeps at most 1,024 clusters, and with \
-                  --levels up to 3,072 slit texels besides), a smaller \
+                  --levels up to 4,096 slit texels besides), a smaller \
                   lightmap (--size), larger clusters (--coarse-block) or fewer offsets (--offsets)"
                 .into(),
         }),

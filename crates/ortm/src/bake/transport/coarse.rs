@@ -14,7 +14,8 @@
 //! sides trade. With `slits` ([`Remainder::build`]; the hierarchical operator's rows, `ortm bake
 //! --levels ε --tolerance τ`) the texels most coupled to the surface beside them are clusters of
 //! their own ([`slit_texels`], at most [`MAX_SLIT_TEXELS`]) and near cluster pairs take their
-//! members' mean form factor ([`near_form_factors`]). Measured against each scene's own
+//! members' mean form factor ([`near_form_factors`]); the coarse solve then runs in single
+//! precision ([`DenseTransport::transfer_f32_with`]). Measured against each scene's own
 //! hierarchical solve (maps at `ε` = 3·10⁻³, `τ` = 10⁻³; README, *Slits in the remainder*),
 //! indirect: head 256² 28.6 % → 9.5 %, maze 128² 14.9 % → 3.8 %, Cornell 128² 7.8 % → 4.4 %.
 
@@ -92,10 +93,10 @@ pub fn auto_block(grid: &TexelGrid) -> u32 {
     block
 }
 
-/// At most this many texels are clusters of their own ([`slit_texels`]): with
-/// [`AUTO_MAX_CLUSTERS`] the coarse solve stays within the size of the exact one
-/// ([`AUTO_EXACT_TEXELS`]).
-pub const MAX_SLIT_TEXELS: usize = AUTO_EXACT_TEXELS - AUTO_MAX_CLUSTERS;
+/// At most this many texels are clusters of their own ([`slit_texels`]): with the
+/// [`AUTO_MAX_CLUSTERS`] tiles at most 5,120 clusters, whose single-precision solve took 9.2 s
+/// on the head at 256² (5,084 clusters; the double-precision one of 4,072 clusters 11.0 s).
+pub const MAX_SLIT_TEXELS: usize = 4096;
 
 /// A texel whose unoccluded form factor to the surface within its cluster's reach is above
 /// this is a slit texel ([`slit_texels`]).
@@ -386,7 +387,20 @@ impl Remainder {
                 progress,
             )?;
         }
-        let full = dense.transfer_with(progress)?;
+        // With the slit texels the coarse solve runs in single precision (its remainder is an
+        // approximation by area already; twice as fast for the larger system).
+        let (full64, full32) = if slits && block > 1 {
+            (None, Some(dense.transfer_f32_with(progress)?))
+        } else {
+            (Some(dense.transfer_with(progress)?), None)
+        };
+        let full_at = |ch: usize, i: usize, j: usize| -> f64 {
+            match (&full64, &full32) {
+                (Some(m), _) => m[ch][(i, j)],
+                (_, Some(m)) => f64::from(m[ch][(i, j)]),
+                _ => unreachable!("one of the two solves ran"),
+            }
+        };
         // R_fine per cluster pair (one visibility ray each; with `slits`, the system's own form
         // factors, so the remainder holds no first bounce), rows in parallel.
         let ff = &dense.form_factors;
@@ -414,18 +428,17 @@ impl Remainder {
                     } else {
                         0.0
                     };
-                    v[i * n + j] = (full[ch][(i, j)] - f) as f32;
+                    v[i * n + j] = (full_at(ch, i, j) - f) as f32;
                 }
             }
             v
         });
         drop(fine);
         let full = std::array::from_fn(|ch| {
-            let m = &full[ch];
             let mut v = vec![0.0f32; n * n];
             for i in 0..n {
                 for j in 0..n {
-                    v[i * n + j] = m[(i, j)] as f32;
+                    v[i * n + j] = full_at(ch, i, j) as f32;
                 }
             }
             v
