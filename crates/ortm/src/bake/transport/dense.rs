@@ -19,6 +19,22 @@ use super::{Cancelled, Kernels, Patch, SetupProgress};
 /// doubles are 864 MB) and time as n³.
 pub const MAX_TEXELS: usize = 6000;
 
+/// `solve(ch)` for the three channels, reporting one step each to `progress` ("transport: solve
+/// (R, G, B)") and stopping between channels when it is cancelled (each channel runs whole).
+fn per_channel<T>(
+    progress: &SetupProgress,
+    solve: impl Fn(usize) -> T,
+) -> Result<[T; 3], Cancelled> {
+    progress.phase("transport: solve (R, G, B)", 3);
+    let mut out: [Option<T>; 3] = [None, None, None];
+    for (ch, o) in out.iter_mut().enumerate() {
+        progress.check()?;
+        *o = Some(solve(ch));
+        progress.advance(1);
+    }
+    Ok(out.map(|m| m.expect("every channel solved")))
+}
+
 /// The assembled transport system over `n` patches.
 pub struct DenseTransport {
     /// Number of patches.
@@ -210,28 +226,14 @@ impl DenseTransport {
     /// solve") and stopping between channels when it is cancelled (each channel's
     /// factorisation and solve, `O(n³)`, runs whole).
     pub fn transfer_with(&self, progress: &SetupProgress) -> Result<[Mat<f64>; 3], Cancelled> {
-        progress.phase("transport: solve (R, G, B)", 3);
-        let mut out: [Option<Mat<f64>>; 3] = [None, None, None];
-        for (ch, o) in out.iter_mut().enumerate() {
-            progress.check()?;
-            *o = Some(self.transfer_channel(ch));
-            progress.advance(1);
-        }
-        Ok(out.map(|m| m.expect("every channel solved")))
+        per_channel(progress, |ch| self.transfer_channel(ch))
     }
 
     /// [`DenseTransport::transfer_with`] in single precision: the system, its factorisation
     /// and solve in f32, about twice as fast. For the coarse remainder of many clusters
     /// ([`super::coarse`]), an approximation by area already; the exact solve keeps f64.
     pub fn transfer_f32_with(&self, progress: &SetupProgress) -> Result<[Mat<f32>; 3], Cancelled> {
-        progress.phase("transport: solve (R, G, B)", 3);
-        let mut out: [Option<Mat<f32>>; 3] = [None, None, None];
-        for (ch, o) in out.iter_mut().enumerate() {
-            progress.check()?;
-            *o = Some(self.transfer_channel_f32(ch));
-            progress.advance(1);
-        }
-        Ok(out.map(|m| m.expect("every channel solved")))
+        per_channel(progress, |ch| self.transfer_channel_f32(ch))
     }
 
     /// The full transfer of channel `ch` in f32 ([`DenseTransport::transfer_f32_with`]).
