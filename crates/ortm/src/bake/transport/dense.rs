@@ -239,8 +239,10 @@ impl DenseTransport {
     /// The full transfer of channel `ch` in f32 ([`DenseTransport::transfer_f32_with`]).
     fn transfer_channel_f32(&self, ch: usize) -> Mat<f32> {
         let n = self.n;
-        let x = self.exitance(ch);
-        let x = Mat::<f32>::from_fn(n, n, |i, j| x[(i, j)] as f32);
+        let x = {
+            let x = self.exitance(ch);
+            Mat::<f32>::from_fn(n, n, |i, j| x[(i, j)] as f32)
+        };
         let f = Mat::<f32>::from_fn(n, n, |i, j| self.form_factors[(i, j)] as f32);
         let xf = if self.subsurface.is_some() {
             &x * &f
