@@ -19,7 +19,7 @@
 //! the profile's support as tree nodes with one profile value each; they are binned the same
 //! way, a node's transfer being the profile value times its sender weight `W_s`.
 
-use glam::Vec3;
+use glam::{Vec3, Vec4};
 
 use super::{CellTable, Integration, NO_CELL, Receivers};
 use crate::bake::texels::TexelGrid;
@@ -238,7 +238,7 @@ impl Integration<'_> {
         &self,
         index: &LinkIndex,
         acc: &mut [[f64; 3]],
-        sites: &[Vec3],
+        sites: &[Vec4],
         (xi, yi): (i32, i32),
         s: u32,
         value: &dyn Fn(u32) -> [f64; 3],

@@ -69,7 +69,7 @@
 
 mod links;
 
-use glam::{IVec2, Vec3};
+use glam::{IVec2, Vec3, Vec4};
 use rayon::prelude::*;
 
 use crate::Lightmap;
@@ -398,7 +398,8 @@ fn tile_quadrants(
 /// The candidate sites of every cell for the seam rule ([`place`]), as one flat list: cell `k`'s
 /// are `cells[start[k]..start[k + 1]]` — `k` itself, then its Voronoi neighbours (sorted), then
 /// the origin cell (the receiver itself) when there is one. Each receiver holds the positions of
-/// these sites in the same order ([`Receivers::cand`]).
+/// these sites in the same order ([`Receivers::cand`]), with each cell's own site carrying the
+/// squared radius around it within which no other candidate can be nearer ([`Candidates::reach`]).
 struct Candidates {
     start: Vec<u32>,
     cells: Vec<u32>,
@@ -424,9 +425,37 @@ impl Candidates {
 
     /// Receiver `r`'s candidate positions in `pos` (all receivers', [`Receivers::cand`]).
     #[inline]
-    fn of<'p>(&self, pos: &'p [Vec3], r: usize) -> &'p [Vec3] {
+    fn of<'p>(&self, pos: &'p [Vec4], r: usize) -> &'p [Vec4] {
         let n = self.cells.len();
         &pos[r * n..(r + 1) * n]
+    }
+
+    /// One receiver's candidate positions (`site[k]` the site of cell `k`, `None` where
+    /// uncovered), appended to `out` in candidate order as `(x, y, z, w)`: `w` is 0 except at
+    /// each cell's own site, where it is the squared radius [`Candidates::reach`].
+    fn push_positions(&self, site: &[Option<Vec3>], out: &mut Vec<Vec4>) {
+        for (k, w) in self.start.windows(2).enumerate() {
+            let cells = &self.cells[w[0] as usize..w[1] as usize];
+            let own = site[k];
+            let others = cells[1..].iter().map(|&n| site[n as usize]);
+            let reach = own.map_or(-1.0, |s| Self::reach(s, others.clone()));
+            out.push(own.unwrap_or(Self::UNCOVERED).extend(reach));
+            out.extend(others.map(|n| n.unwrap_or(Self::UNCOVERED).extend(0.0)));
+        }
+    }
+
+    /// The squared radius around a covered site `own` within which it is nearer than every
+    /// other candidate: a sender at distance `d` from `own` is at least `D − d` from a candidate
+    /// `D` away, so every sender within `D/2` of `own` takes `own` (and as the first candidate
+    /// it wins ties). Taken as `0.49·D` of the nearest other covered candidate, so that f32
+    /// rounding of the distances cannot turn a tie near `D/2` the other way; infinite when no
+    /// other candidate is covered.
+    fn reach(own: Vec3, others: impl Iterator<Item = Option<Vec3>>) -> f32 {
+        let nearest = others
+            .flatten()
+            .map(|s| (s - own).length_squared())
+            .fold(f32::INFINITY, f32::min);
+        0.49 * 0.49 * nearest
     }
 }
 
@@ -437,17 +466,26 @@ impl Candidates {
 /// assumes the first-order light is smooth across a cell; where the cell straddles a UV seam or
 /// several charts, its own site can land on an unrelated surface while a neighbouring site (or
 /// the receiver, for a sender across a seam) lies next to the sender.
+///
+/// A sender within the cell's [`Candidates::reach`] of its own site takes it without the
+/// other candidates being looked at (the same answer, found sooner: most senders).
 #[inline]
-fn place(cell: u32, p_m: Vec3, pos: &[Vec3], cand: &Candidates, moved: &mut u64) -> u32 {
+fn place(cell: u32, p_m: Vec3, pos: &[Vec4], cand: &Candidates, moved: &mut u64) -> u32 {
     let (a, b) = (
         cand.start[cell as usize] as usize,
         cand.start[cell as usize + 1] as usize,
     );
     let (cells, pos) = (&cand.cells[a..b], &pos[a..b]);
+    let p = p_m.extend(0.0);
+    // The distance to a candidate, its `w` (the reach or 0) left out.
+    let dist2 = |s: Vec4| (p - s).truncate().length_squared();
     let mut best = cell;
-    let mut d_best = (p_m - pos[0]).length_squared();
+    let mut d_best = dist2(pos[0]);
+    if d_best <= pos[0].w {
+        return cell;
+    }
     for (&k, &s) in cells[1..].iter().zip(&pos[1..]) {
-        let d = (p_m - s).length_squared();
+        let d = dist2(s);
         if d < d_best {
             best = k;
             d_best = d;
@@ -748,8 +786,9 @@ struct Receivers {
     /// Position of the site `t + Δt_k`, `None` when uncovered.
     sites: Vec<Option<Vec3>>,
     /// Per receiver, the positions of its candidate sites in [`Candidates`] order
-    /// ([`Candidates::UNCOVERED`] where uncovered), at `r · C` for `C` candidates.
-    cand: Vec<Vec3>,
+    /// ([`Candidates::UNCOVERED`] where uncovered), at `r · C` for `C` candidates; `w` holds
+    /// each cell's reach at its own site ([`Candidates::push_positions`]).
+    cand: Vec<Vec4>,
     stats: CellStats,
 }
 
@@ -819,11 +858,7 @@ impl Integration<'_> {
         let cl = self.cand.cells.len();
         let mut cand = Vec::with_capacity(recv.len() * cl);
         for r in 0..recv.len() {
-            let site = &sites[r * kmaps..(r + 1) * kmaps];
-            cand.extend(
-                (self.cand.cells.iter())
-                    .map(|&k| site[k as usize].unwrap_or(Candidates::UNCOVERED)),
-            );
+            (self.cand).push_positions(&sites[r * kmaps..(r + 1) * kmaps], &mut cand);
         }
         Receivers {
             xy,
@@ -989,7 +1024,7 @@ impl Integration<'_> {
     /// [`place`] with this integration's candidates; `sites` are one receiver's candidate
     /// positions ([`Receivers::cand`]).
     #[inline]
-    fn place(&self, cell: u32, p_m: Vec3, sites: &[Vec3], moved: &mut u64) -> u32 {
+    fn place(&self, cell: u32, p_m: Vec3, sites: &[Vec4], moved: &mut u64) -> u32 {
         place(cell, p_m, sites, &self.cand, moved)
     }
 
@@ -1003,7 +1038,7 @@ impl Integration<'_> {
     fn add_placed(
         &self,
         acc: &mut [[f64; 3]],
-        sites: &[Vec3],
+        sites: &[Vec4],
         cell: u32,
         p_m: Vec3,
         v: [f64; 3],
@@ -1014,5 +1049,89 @@ impl Integration<'_> {
         for c in 0..3 {
             a[c] += v[c] * share;
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::{RngExt, SeedableRng};
+
+    /// The nearest covered candidate by brute force, the first of equals in candidate order.
+    fn nearest(cell: u32, p: Vec3, site: &[Option<Vec3>], cand: &Candidates) -> u32 {
+        let (a, b) = (
+            cand.start[cell as usize] as usize,
+            cand.start[cell as usize + 1] as usize,
+        );
+        let mut best = (cell, f32::INFINITY);
+        for &k in &cand.cells[a..b] {
+            let Some(s) = site[k as usize] else { continue };
+            let d = (p - s).length_squared();
+            if d < best.1 {
+                best = (k, d);
+            }
+        }
+        best.0
+    }
+
+    /// [`place`] with each cell's reach gives the brute-force nearest candidate: random cells
+    /// with random neighbours, some sites uncovered, some shared by two cells, senders near and
+    /// far from the sites.
+    #[test]
+    fn place_with_reach_is_the_nearest_candidate() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+        let mut early = 0usize;
+        for _ in 0..200 {
+            let kmaps = rng.random_range(1..12usize);
+            let neighbours: Vec<Vec<u32>> = (0..kmaps)
+                .map(|k| {
+                    let mut n: Vec<u32> = (0..kmaps as u32)
+                        .filter(|&j| j != k as u32 && rng.random_bool(0.5))
+                        .collect();
+                    n.sort_unstable();
+                    n
+                })
+                .collect();
+            let origin = rng
+                .random_bool(0.7)
+                .then(|| rng.random_range(0..kmaps as u32));
+            let cand = Candidates::new(&neighbours, origin);
+            let mut site: Vec<Option<Vec3>> = (0..kmaps)
+                .map(|_| {
+                    rng.random_bool(0.85)
+                        .then(|| Vec3::new(rng.random(), rng.random(), rng.random()) * 0.2)
+                })
+                .collect();
+            if kmaps > 1 {
+                site[1] = site[0];
+            }
+            let mut pos = Vec::new();
+            cand.push_positions(&site, &mut pos);
+            for _ in 0..200 {
+                let cell = rng.random_range(0..kmaps as u32);
+                let spread = [1e-4f32, 1e-2, 0.1, 0.3][rng.random_range(0..4)];
+                let base = site[cell as usize].unwrap_or(Vec3::ZERO);
+                let p = base
+                    + Vec3::new(
+                        rng.random_range(-1.0..1.0),
+                        rng.random_range(-1.0..1.0),
+                        rng.random_range(-1.0..1.0),
+                    ) * spread;
+                let own = cand.start[cell as usize] as usize;
+                if (p - pos[own].truncate()).length_squared() <= pos[own].w {
+                    early += 1;
+                }
+                let mut moved = 0;
+                let got = place(cell, p, &pos, &cand, &mut moved);
+                let want = nearest(cell, p, &site, &cand);
+                assert_eq!(got, want, "cell {cell}, sender {p}");
+                assert_eq!(moved, u64::from(got != cell));
+            }
+        }
+        // The reach must take a fair share of the senders, or the test checks little of it.
+        assert!(
+            early > 5_000,
+            "{early} of 40000 senders took the early answer"
+        );
     }
 }
