@@ -28,8 +28,9 @@ use crate::bake::transport::hier::subsurface::SubsurfaceWalk;
 use crate::bake::transport::hier::tree::{NO_CHILD, NO_PARENT};
 
 /// A sender node that straddles cells and whose transfer to the receiver is at most this
-/// fraction of the operator's tolerance in every channel is binned whole at one member texel's
-/// cell instead of by its children ([`LinkIndex::small`]). Measured: with every offset selected
+/// fraction of the tolerance it was found at (the operator's for a link's sender, the
+/// subsurface walk's for its nodes) in every channel is binned whole at one member texel's
+/// cell instead of by its children ([`LinkIndex::small`], [`LinkIndex::small_subsurface`]). Measured: with every offset selected
 /// (so every node straddles; `bake_links`), Cornell 32² at ε = 10⁻² is 7.3 % off the exact
 /// solve with 0.1, as without the rule, and 19.3 % with 1; the head at 512² (100 offsets,
 /// ε = 10⁻³) bins 61 M link and 144 M subsurface nodes with 0.1, against 277 M and 339 M
@@ -55,6 +56,10 @@ pub(super) struct LinkIndex {
     /// at its [`LinkIndex::rep`] texel's cell instead of by its children:
     /// [`SMALL_NODE_FACTOR`] times the operator's tolerance.
     small: f64,
+    /// The same for the subsurface walk's nodes: [`SMALL_NODE_FACTOR`] times the walk's
+    /// tolerance, the error each of its node values may already carry (10⁻³ against the
+    /// links' 10⁻⁴ by default).
+    small_subsurface: f64,
 }
 
 impl LinkIndex {
@@ -114,6 +119,9 @@ impl LinkIndex {
             v_sat,
             rep,
             small: SMALL_NODE_FACTOR * op.tolerance() as f64,
+            small_subsurface: SMALL_NODE_FACTOR
+                * op.subsurface_walk()
+                    .map_or(op.tolerance() as f64, |w| w.tolerance()),
         }
     }
 
@@ -214,7 +222,7 @@ impl Integration<'_> {
                         acc,
                         sites,
                         (xi, yi),
-                        l.send,
+                        (l.send, index.small),
                         &value,
                         &mut stack,
                         counts,
@@ -226,8 +234,9 @@ impl Integration<'_> {
 
     /// Adds sender node `s`'s transfer to a receiver at texel `(xi, yi)` (its sums `acc`, its
     /// sites `sites`): whole to one cell when the node's box of offsets lies in it, else its
-    /// children's, down to single texels; a straddling node whose transfer is at most
-    /// [`LinkIndex::small`] goes whole to its member texel's cell. `value(node)` is a node's
+    /// children's, down to single texels; a straddling node whose transfer is at most `small`
+    /// ([`LinkIndex::small`] or [`LinkIndex::small_subsurface`]) goes whole to its member
+    /// texel's cell. `value(node)` is a node's
     /// transfer; `stack` is scratch space. Adds the nodes binned and those counted at a nearer
     /// site ([`super::place`]) to `stats`.
     #[expect(
@@ -240,7 +249,7 @@ impl Integration<'_> {
         acc: &mut [[f64; 3]],
         sites: &[Vec4],
         (xi, yi): (i32, i32),
-        s: u32,
+        (s, small): (u32, f64),
         value: &dyn Fn(u32) -> [f64; 3],
         stack: &mut Vec<u32>,
         (binned, moved): (&mut u64, &mut u64),
@@ -257,10 +266,7 @@ impl Integration<'_> {
                 index.uniform(&self.table, b[0] - xi, b[1] - yi, b[2] - xi, b[3] - yi)
             };
             let v = value(s);
-            if cell == NO_CELL
-                && n.children[0] != NO_CHILD
-                && v.iter().all(|x| x.abs() <= index.small)
-            {
+            if cell == NO_CELL && n.children[0] != NO_CHILD && v.iter().all(|x| x.abs() <= small) {
                 let [x, y] = index.rep[s as usize];
                 cell = self.table.cell(x - xi, y - yi);
             }
@@ -313,7 +319,8 @@ impl Integration<'_> {
                 };
                 let st = &mut rx.stats;
                 let counts = (&mut st.subsurface_nodes, &mut st.rehomed);
-                self.bin_node(index, acc, sites, xy, s, &value, &mut stack, counts);
+                let node = (s, index.small_subsurface);
+                self.bin_node(index, acc, sites, xy, node, &value, &mut stack, counts);
             }
         }
     }

@@ -277,6 +277,12 @@ impl SubsurfaceWalk {
         self.weight = weight;
     }
 
+    /// The walk's tolerance: the error a node's profile mean may carry, as a fraction of a
+    /// sender's power per unit area at the receiver (module docs, "Error control").
+    pub fn tolerance(&self) -> f64 {
+        self.tolerance
+    }
+
     /// `W_s` of node `node` per channel, m² (module docs).
     #[inline]
     pub fn weight(&self, node: u32) -> [f32; 3] {
