@@ -23,6 +23,7 @@ use glam::{Vec3, Vec4};
 
 use super::{CellTable, Integration, NO_CELL, Receivers};
 use crate::bake::texels::TexelGrid;
+use crate::bake::transport::Patch;
 use crate::bake::transport::hier::Operator;
 use crate::bake::transport::hier::subsurface::SubsurfaceWalk;
 use crate::bake::transport::hier::tree::{NO_CHILD, NO_PARENT};
@@ -49,6 +50,9 @@ pub(super) struct LinkIndex {
     h_sat: Vec<u32>,
     /// Summed-area table of the vertical borders: `(r, c)` differs from `(r + 1, c)`.
     v_sat: Vec<u32>,
+    /// Per node: where its sender stands for the seam rule ([`super::place`]): a texel's own
+    /// position, a cluster's centroid, metres.
+    position: Vec<Vec3>,
     /// Per node: a member texel's coordinates (the larger child's, down to a leaf): where a
     /// small straddling node is binned whole.
     rep: Vec<[i32; 2]>,
@@ -63,9 +67,23 @@ pub(super) struct LinkIndex {
 }
 
 impl LinkIndex {
-    pub(super) fn new(op: &Operator, grid: &TexelGrid, table: &CellTable) -> Self {
+    pub(super) fn new(
+        op: &Operator,
+        grid: &TexelGrid,
+        patches: &[Patch],
+        table: &CellTable,
+    ) -> Self {
         let tree = op.tree();
         let nodes = &tree.nodes;
+        let position = (nodes.iter())
+            .map(|n| {
+                if n.children[0] == NO_CHILD {
+                    patches[tree.order[n.first as usize] as usize].position_m
+                } else {
+                    n.centroid
+                }
+            })
+            .collect();
         let parent = tree.parents();
         // Boxes children first (children follow their parents in the node order).
         let mut bbox = vec![[i32::MAX, i32::MAX, i32::MIN, i32::MIN]; nodes.len()];
@@ -114,6 +132,7 @@ impl LinkIndex {
         let v_sat = sat(&|r, c| r + 1 < rows && cell(r, c) != cell(r + 1, c));
         Self {
             parent,
+            position,
             bbox,
             h_sat,
             v_sat,
@@ -190,7 +209,7 @@ impl Integration<'_> {
             for l in op.links_of(node) {
                 let b = index.bbox[l.send as usize];
                 let shared = index.uniform(&self.table, b[0] - x1, b[1] - y1, b[2] - x0, b[3] - y0);
-                let s_at = self.node_position(l.send);
+                let s_at = index.position[l.send as usize];
                 let dir = op.link_direction(node, l.send);
                 for &(_, r) in group {
                     let r = r as usize;
@@ -260,21 +279,23 @@ impl Integration<'_> {
         while let Some(s) = stack.pop() {
             let n = &tree.nodes[s as usize];
             let b = index.bbox[s as usize];
-            let mut cell = if n.children[0] == NO_CHILD {
+            let v = value(s);
+            let leaf = n.children[0] == NO_CHILD;
+            // A small node goes to its member texel's cell: the box's cell when the box lies in
+            // one (the member's offset is in it), so the box need not be tested first.
+            let cell = if leaf {
                 self.table.cell(b[0] - xi, b[1] - yi)
+            } else if v.iter().all(|x| x.abs() <= small) {
+                let [x, y] = index.rep[s as usize];
+                self.table.cell(x - xi, y - yi)
             } else {
                 index.uniform(&self.table, b[0] - xi, b[1] - yi, b[2] - xi, b[3] - yi)
             };
-            let v = value(s);
-            if cell == NO_CELL && n.children[0] != NO_CHILD && v.iter().all(|x| x.abs() <= small) {
-                let [x, y] = index.rep[s as usize];
-                cell = self.table.cell(x - xi, y - yi);
-            }
             if cell != NO_CELL {
                 *binned += 1;
-                let at = self.node_position(s);
+                let at = index.position[s as usize];
                 self.add_placed(acc, sites, cell, at, v, 1.0, moved);
-            } else if n.children[0] != NO_CHILD && n.area_m2 > 0.0 {
+            } else if !leaf && n.area_m2 > 0.0 {
                 stack.extend(n.children);
             }
         }
@@ -322,18 +343,6 @@ impl Integration<'_> {
                 let node = (s, index.small_subsurface);
                 self.bin_node(index, acc, sites, xy, node, &value, &mut stack, counts);
             }
-        }
-    }
-
-    /// Where a tree node's sender stands for the seam rule: a texel's own position, a
-    /// cluster's centroid.
-    fn node_position(&self, node: u32) -> Vec3 {
-        let tree = self.transport.links.as_ref().expect("links mode").tree();
-        let n = &tree.nodes[node as usize];
-        if n.children[0] == NO_CHILD {
-            self.transport.patches[tree.order[n.first as usize] as usize].position_m
-        } else {
-            n.centroid
         }
     }
 }

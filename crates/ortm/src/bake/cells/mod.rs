@@ -670,7 +670,8 @@ impl<'a> Integrator<'a> {
             c => Some(c),
         };
         let cand = Candidates::new(&cell_neighbours(&table, kmaps), origin);
-        let links = (transport.links.as_ref()).map(|op| links::LinkIndex::new(op, grid, &table));
+        let links = (transport.links.as_ref())
+            .map(|op| links::LinkIndex::new(op, grid, &transport.patches, &table));
         Self(Integration {
             transport,
             grid,
