@@ -31,11 +31,12 @@ use crate::bake::transport::hier::tree::{NO_CHILD, NO_PARENT};
 /// A sender node that straddles cells and whose transfer to the receiver is at most this
 /// fraction of the tolerance it was found at (the operator's for a link's sender, the
 /// subsurface walk's for its nodes) in every channel is binned whole at one member texel's
-/// cell instead of by its children ([`LinkIndex::small`], [`LinkIndex::small_subsurface`]). Measured: with every offset selected
-/// (so every node straddles; `bake_links`), Cornell 32² at ε = 10⁻² is 7.3 % off the exact
-/// solve with 0.1, as without the rule, and 19.3 % with 1; the head at 512² (100 offsets,
-/// ε = 10⁻³) bins 61 M link and 144 M subsurface nodes with 0.1, against 277 M and 339 M
-/// without the rule, and integrates its cells in 24 s instead of 50 s.
+/// cell instead of by its children ([`LinkIndex::small`], [`LinkIndex::small_subsurface`]).
+/// Measured: with every offset selected (so every node straddles; `bake_links`), Cornell 32²
+/// at ε = 10⁻² is 7.3 % off the exact solve with 0.1, as without the rule, and 19.3 % with 1;
+/// the head at 512² (100 offsets, ε = 10⁻³, the walk's tolerance too) bins 61 M link and 144 M
+/// subsurface nodes with 0.1, against 277 M and 339 M without the rule, and integrates its
+/// cells in 24 s instead of 50 s.
 pub const SMALL_NODE_FACTOR: f64 = 0.1;
 
 /// What the link walk needs besides the operator: parents, texture-space boxes and the
@@ -255,9 +256,8 @@ impl Integration<'_> {
     /// sites `sites`): whole to one cell when the node's box of offsets lies in it, else its
     /// children's, down to single texels; a straddling node whose transfer is at most `small`
     /// ([`LinkIndex::small`] or [`LinkIndex::small_subsurface`]) goes whole to its member
-    /// texel's cell. `value(node)` is a node's
-    /// transfer; `stack` is scratch space. Adds the nodes binned and those counted at a nearer
-    /// site ([`super::place`]) to `stats`.
+    /// texel's cell. `value(node)` is a node's transfer; `stack` is scratch space. Adds the
+    /// nodes binned and those counted at a nearer site ([`super::place`]) to `stats`.
     #[expect(
         clippy::too_many_arguments,
         reason = "one receiver's slices, one sender node and scratch space"
