@@ -14,8 +14,8 @@
 //! sides trade. With `slits` ([`Remainder::build`]; the hierarchical operator's rows, `ortm bake
 //! --levels ε --tolerance τ`) the texels most coupled to the surface beside them are clusters of
 //! their own ([`slit_texels`], at most [`MAX_SLIT_TEXELS`]) and near cluster pairs take their
-//! members' mean form factor ([`near_form_factors`]); the coarse solve then runs in single
-//! precision ([`DenseTransport::transfer_f32_with`]). Measured against each scene's own
+//! members' mean form factor ([`near_form_factors`]); the coarse solve's transfer is then
+//! kept in single precision ([`DenseTransport::transfer_f32_with`]). Measured against each scene's own
 //! hierarchical solve (maps at `ε` = 3·10⁻³, `τ` = 10⁻³; README, *Slits in the remainder*),
 //! indirect: head 256² 28.6 % → 9.5 %, maze 128² 14.9 % → 3.8 %, Cornell 128² 7.8 % → 4.4 %.
 
@@ -387,8 +387,8 @@ impl Remainder {
                 progress,
             )?;
         }
-        // With the slit texels the coarse solve runs in single precision (its remainder is an
-        // approximation by area already; twice as fast for the larger system).
+        // With the slit texels the coarse solve's transfer is kept in single precision (its
+        // remainder is an approximation by area already; half the memory for the larger system).
         let (full64, full32) = if slits && block > 1 {
             (None, Some(dense.transfer_f32_with(progress)?))
         } else {

@@ -41,9 +41,11 @@ pub struct DenseTransport {
     pub n: usize,
     /// Form factors `F_ij` (with visibility), `n × n`.
     pub form_factors: Mat<f64>,
-    /// Per channel, the exitance operator `X` restricted to translucent rows (`S_ij`), or `None`
-    /// when no patch is translucent.
-    pub subsurface: Option<[Mat<f64>; 3]>,
+    /// The exitance operator `X`, row by row: the non-zero entries `(j, X_ij)` per channel —
+    /// `(i, ρ̄_i)` alone on an opaque row, the subsurface weights `S_ij` of the patches within
+    /// the profile's support on a translucent row. Sparse, so `X F` costs `O(nnz · n)`, not a
+    /// dense product's `O(n³)`.
+    pub exitance: Vec<Vec<(u32, [f64; 3])>>,
     /// Effective albedo ρ̄ per patch.
     pub rho: Vec<Vec3>,
     /// Whether each patch is translucent.
@@ -103,36 +105,24 @@ impl DenseTransport {
             .iter()
             .map(|p| kernels.is_translucent(p.material))
             .collect();
-        let subsurface = translucent.iter().any(|&t| t).then(|| {
-            let s_rows: Vec<Vec<[f64; 3]>> = (0..n)
-                .into_par_iter()
-                .map(|i| {
-                    if !translucent[i] {
-                        return Vec::new();
-                    }
-                    (0..n)
-                        .map(|j| {
-                            kernels
-                                .subsurface(&patches[i], &patches[j], i == j)
-                                .unwrap_or([0.0; 3])
-                        })
-                        .collect()
-                })
-                .collect();
-            std::array::from_fn(|ch| {
-                Mat::from_fn(n, n, |i, j| {
-                    if translucent[i] {
-                        s_rows[i][j][ch]
-                    } else {
-                        0.0
-                    }
-                })
+        let exitance: Vec<Vec<(u32, [f64; 3])>> = (0..n)
+            .into_par_iter()
+            .map(|i| {
+                if !translucent[i] {
+                    return vec![(i as u32, patches[i].rho.to_array().map(f64::from))];
+                }
+                (0..n)
+                    .filter_map(|j| {
+                        let s = kernels.subsurface(&patches[i], &patches[j], i == j)?;
+                        (s != [0.0; 3]).then_some((j as u32, s))
+                    })
+                    .collect()
             })
-        });
+            .collect();
         Ok(Self {
             n,
             form_factors,
-            subsurface,
+            exitance,
             rho: patches.iter().map(|p| p.rho).collect(),
             translucent,
         })
@@ -143,31 +133,53 @@ impl DenseTransport {
         if r > 0.0 { 1.0 / r } else { 0.0 }
     }
 
-    /// `X` for channel `ch` as a dense matrix (diagonal ρ on opaque rows, `S` on translucent rows).
-    fn exitance(&self, ch: usize) -> Mat<f64> {
-        let mut x = match &self.subsurface {
-            Some(s) => s[ch].clone(),
-            None => Mat::zeros(self.n, self.n),
-        };
-        for i in 0..self.n {
-            if !self.translucent[i] {
-                x[(i, i)] = self.rho[i][ch] as f64;
+    /// `M = I − X F` for channel `ch`, converted to `T` by `to`: rows scaled by `ρ̄` where `X`
+    /// is diagonal (no translucent patch), else the dense product with `X` (faer's blocked
+    /// product beats the sparse rows once a profile's support holds tens of patches).
+    fn system<T: Copy + Send + Sync + 'static>(
+        &self,
+        ch: usize,
+        to: impl Fn(f64) -> T + Sync,
+    ) -> Mat<T> {
+        let n = self.n;
+        if self.translucent.iter().any(|&t| t) {
+            let mut x = Mat::<f64>::zeros(n, n);
+            for (i, row) in self.exitance.iter().enumerate() {
+                for &(j, v) in row {
+                    x[(i, j as usize)] = v[ch];
+                }
             }
+            let xf = &x * &self.form_factors;
+            drop(x);
+            return Mat::from_fn(n, n, |i, j| to(if i == j { 1.0 } else { 0.0 } - xf[(i, j)]));
         }
-        x
+        let mut m: Vec<T> = vec![to(0.0); n * n];
+        m.par_chunks_mut(n.max(1)).enumerate().for_each(|(j, out)| {
+            let f = self.form_factors.col_as_slice(j);
+            for (i, (o, row)) in out.iter_mut().zip(&self.exitance).enumerate() {
+                let xf: f64 = row.iter().map(|&(k, x)| x[ch] * f[k as usize]).sum();
+                *o = to(if i == j { 1.0 } else { 0.0 } - xf);
+            }
+        });
+        Mat::from_fn(n, n, |i, j| m[j * n + i])
     }
 
-    /// `M = I − X F` for channel `ch`.
-    fn system(&self, x: &Mat<f64>) -> Mat<f64> {
-        let xf = if self.subsurface.is_some() {
-            x * &self.form_factors
-        } else {
-            // X is diagonal: scale rows.
-            Mat::from_fn(self.n, self.n, |i, j| x[(i, i)] * self.form_factors[(i, j)])
-        };
-        Mat::from_fn(self.n, self.n, |i, j| {
-            (if i == j { 1.0 } else { 0.0 }) - xf[(i, j)]
-        })
+    /// `X ρ̄⁻¹` for channel `ch` as a dense matrix in `T` (the right-hand side of the full
+    /// transfer); columns of black patches (ρ̄ = 0) are zero.
+    fn exitance_per_albedo<T: Copy + Send + Sync + 'static>(
+        &self,
+        ch: usize,
+        to: impl Fn(f64) -> T + Sync,
+    ) -> Mat<T> {
+        let n = self.n;
+        let mut m: Vec<T> = vec![to(0.0); n * n];
+        for (i, row) in self.exitance.iter().enumerate() {
+            for &(j, x) in row {
+                let j = j as usize;
+                m[j * n + i] = to(x[ch] * self.inv_rho(j, ch));
+            }
+        }
+        Mat::from_fn(n, n, |i, j| m[j * n + i])
     }
 
     /// Exact final radiosity `B` (W/m²) for the first-order radiosity `b_o` (W/m², one per patch).
@@ -180,17 +192,13 @@ impl DenseTransport {
     /// The LU factorisation of the system per channel, `O(n³)` once; each
     /// [`FactoredTransport::solve`] after it is `O(n²)`.
     pub fn factor(&self) -> FactoredTransport {
-        let channels = std::array::from_fn(|ch| {
-            let x = self.exitance(ch);
-            let lu = self.system(&x).partial_piv_lu();
-            (x, lu)
-        });
         FactoredTransport {
             n: self.n,
             inv_rho: (0..self.n)
                 .map(|j| std::array::from_fn(|ch| self.inv_rho(j, ch)))
                 .collect(),
-            channels,
+            exitance: self.exitance.clone(),
+            channels: std::array::from_fn(|ch| self.system(ch, |v| v).partial_piv_lu()),
         }
     }
 
@@ -199,13 +207,12 @@ impl DenseTransport {
         let k = b_os.len();
         let mut out = vec![vec![Vec3::ZERO; self.n]; k];
         for ch in 0..3 {
-            let x = self.exitance(ch);
-            let m = self.system(&x);
-            let e = Mat::from_fn(self.n, k, |j, c| {
-                b_os[c][j][ch] as f64 * self.inv_rho(j, ch)
+            let rhs = Mat::from_fn(self.n, k, |i, c| {
+                exitance_times(&self.exitance[i], ch, |j| {
+                    b_os[c][j][ch] as f64 * self.inv_rho(j, ch)
+                })
             });
-            let rhs = &x * &e;
-            let b = m.partial_piv_lu().solve(&rhs);
+            let b = self.system(ch, |v| v).partial_piv_lu().solve(&rhs);
             for (c, o) in out.iter_mut().enumerate() {
                 for i in 0..self.n {
                     o[i][ch] = b[(i, c)] as f32;
@@ -229,60 +236,47 @@ impl DenseTransport {
         per_channel(progress, |ch| self.transfer_channel(ch))
     }
 
-    /// [`DenseTransport::transfer_with`] in single precision: the system, its factorisation
-    /// and solve in f32, about twice as fast. For the coarse remainder of many clusters
-    /// ([`super::coarse`]), an approximation by area already; the exact solve keeps f64.
+    /// [`DenseTransport::transfer_with`] stored in single precision: each channel solved in f64
+    /// and rounded, so the three matrices take half the memory. For the coarse remainder of
+    /// many clusters ([`super::coarse`]), an approximation by area already.
     pub fn transfer_f32_with(&self, progress: &SetupProgress) -> Result<[Mat<f32>; 3], Cancelled> {
         per_channel(progress, |ch| self.transfer_channel_f32(ch))
     }
 
-    /// The full transfer of channel `ch` in f32 ([`DenseTransport::transfer_f32_with`]).
+    /// The full transfer of channel `ch` in f32 ([`DenseTransport::transfer_f32_with`]),
+    /// solved in f64 and rounded: solved in f32, the triangular solves' products of small
+    /// couplings fall into subnormal numbers, whose arithmetic made the head's 256² remainder
+    /// (5,084 clusters) 4× slower than in f64 (README, "Slits in the remainder").
     fn transfer_channel_f32(&self, ch: usize) -> Mat<f32> {
-        let n = self.n;
-        let x = {
-            let x = self.exitance(ch);
-            Mat::<f32>::from_fn(n, n, |i, j| x[(i, j)] as f32)
-        };
-        let f = Mat::<f32>::from_fn(n, n, |i, j| self.form_factors[(i, j)] as f32);
-        let xf = if self.subsurface.is_some() {
-            &x * &f
-        } else {
-            Mat::from_fn(n, n, |i, j| x[(i, i)] * f[(i, j)])
-        };
-        drop(f);
-        let m = Mat::<f32>::from_fn(n, n, |i, j| (if i == j { 1.0 } else { 0.0 }) - xf[(i, j)]);
-        drop(xf);
-        let rhs = Mat::<f32>::from_fn(n, n, |i, j| x[(i, j)] * self.inv_rho(j, ch) as f32);
-        let mut r = m.partial_piv_lu().solve(&rhs);
-        for j in 0..n {
-            for i in 0..n {
-                if self.inv_rho(j, ch) == 0.0 {
-                    r[(i, j)] = 0.0;
-                } else if i == j {
-                    r[(i, j)] -= 1.0;
-                }
-            }
-        }
-        r
+        let r = self.transfer_channel(ch);
+        Mat::from_fn(self.n, self.n, |i, j| r[(i, j)] as f32)
     }
 
     /// The full transfer of channel `ch` ([`DenseTransport::transfer`]).
     fn transfer_channel(&self, ch: usize) -> Mat<f64> {
-        {
-            let x = self.exitance(ch);
-            let m = self.system(&x);
-            let rhs = Mat::from_fn(self.n, self.n, |i, j| x[(i, j)] * self.inv_rho(j, ch));
-            let mut r = m.partial_piv_lu().solve(&rhs);
-            for j in 0..self.n {
+        let rhs = self.exitance_per_albedo(ch, |v| v);
+        let mut r = self.system(ch, |v| v).partial_piv_lu().solve(&rhs);
+        self.less_identity(ch, &mut r, 0.0, 1.0);
+        r
+    }
+
+    /// `R = (M⁻¹ X ρ̄⁻¹) − I` from the solve `r`, in place; the columns of black patches
+    /// (ρ̄ = 0, never lit) are set to zero.
+    fn less_identity<T: Copy + std::ops::Sub<Output = T>>(
+        &self,
+        ch: usize,
+        r: &mut Mat<T>,
+        zero: T,
+        one: T,
+    ) {
+        for j in 0..self.n {
+            if self.inv_rho(j, ch) == 0.0 {
                 for i in 0..self.n {
-                    if self.inv_rho(j, ch) == 0.0 {
-                        r[(i, j)] = 0.0;
-                    } else if i == j {
-                        r[(i, j)] -= 1.0;
-                    }
+                    r[(i, j)] = zero;
                 }
+            } else {
+                r[(j, j)] = r[(j, j)] - one;
             }
-            r
         }
     }
 
@@ -309,12 +303,19 @@ impl DenseTransport {
     }
 }
 
+/// `(X v)_i` for channel `ch` from row `i` of `X` (its non-zero entries `(j, X_ij)`).
+fn exitance_times(row: &[(u32, [f64; 3])], ch: usize, v: impl Fn(usize) -> f64) -> f64 {
+    row.iter().map(|&(j, x)| x[ch] * v(j as usize)).sum()
+}
+
 /// The transport system of a [`DenseTransport`] factorised once ([`DenseTransport::factor`]):
 /// solves for any first-order lighting in `O(n²)`.
 pub struct FactoredTransport {
     n: usize,
     inv_rho: Vec<[f64; 3]>,
-    channels: [(Mat<f64>, PartialPivLu<f64>); 3],
+    /// The sparse rows of `X` ([`DenseTransport::exitance`]).
+    exitance: Vec<Vec<(u32, [f64; 3])>>,
+    channels: [PartialPivLu<f64>; 3],
 }
 
 impl FactoredTransport {
@@ -334,9 +335,12 @@ impl FactoredTransport {
             assert_eq!(s.len(), self.n, "one source value per patch");
         }
         let mut out = vec![Vec3::ZERO; self.n];
-        for (ch, (x, lu)) in self.channels.iter().enumerate() {
-            let e = Mat::from_fn(self.n, 1, |j, _| b_o[j][ch] as f64 * self.inv_rho[j][ch]);
-            let mut rhs = x * &e;
+        for (ch, lu) in self.channels.iter().enumerate() {
+            let mut rhs = Mat::from_fn(self.n, 1, |i, _| {
+                exitance_times(&self.exitance[i], ch, |j| {
+                    b_o[j][ch] as f64 * self.inv_rho[j][ch]
+                })
+            });
             if let Some(s) = source {
                 for (i, v) in s.iter().enumerate() {
                     rhs[(i, 0)] += v[ch] as f64;
