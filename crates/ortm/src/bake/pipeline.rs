@@ -673,8 +673,11 @@ pub(crate) struct Setup {
     pub grid: TexelGrid,
     /// Cluster size of the coarse solve (automatic resolved).
     pub block: u32,
-    /// Clusters of the coarse solve.
+    /// Clusters of the coarse solve: its lightmap tiles and at most `clusters − tiles` slit
+    /// texels alone.
     pub clusters: usize,
+    /// The lightmap tiles among [`Self::clusters`].
+    pub tiles: usize,
     /// Integrated cell values the bake will hold (memory estimate).
     pub cell_values: u64,
     /// The scene's hash.
@@ -713,7 +716,8 @@ impl Setup {
         } else {
             0
         };
-        let clusters = crate::bake::transport::coarse::cluster_count(&grid, block) + slits;
+        let tiles = crate::bake::transport::coarse::cluster_count(&grid, block);
+        let clusters = tiles + slits;
         let cell_values = match settings.cell_rule {
             CellRule::Integrated => grid.texels.len() as u64 * settings.offsets as u64,
             CellRule::Sampled => 0,
@@ -732,6 +736,7 @@ impl Setup {
             grid,
             block,
             clusters,
+            tiles,
             cell_values,
             hash,
             settings_json,
@@ -747,13 +752,12 @@ impl Setup {
         events: &(dyn Fn(BakeEvent) + Sync),
         cancel: &AtomicBool,
     ) -> Result<Transport, BakeError> {
-        let (grid, block, clusters) = (&self.grid, self.block, self.clusters);
+        let (grid, block, clusters, tiles) = (&self.grid, self.block, self.clusters, self.tiles);
         let (w, h) = settings.size;
         let links = match settings.tolerance {
             Some(t) => format!("; hierarchical first bounce at tolerance {t:e}"),
             None => String::new(),
         };
-        let tiles = crate::bake::transport::coarse::cluster_count(grid, block);
         let alone = match clusters - tiles {
             0 => String::new(),
             n => format!(" and up to {n} slit texels alone"),
