@@ -133,53 +133,37 @@ impl DenseTransport {
         if r > 0.0 { 1.0 / r } else { 0.0 }
     }
 
-    /// `M = I − X F` for channel `ch`, converted to `T` by `to`: rows scaled by `ρ̄` where `X`
-    /// is diagonal (no translucent patch), else the dense product with `X` (faer's blocked
-    /// product beats the sparse rows once a profile's support holds tens of patches).
-    fn system<T: Copy + Send + Sync + 'static>(
-        &self,
-        ch: usize,
-        to: impl Fn(f64) -> T + Sync,
-    ) -> Mat<T> {
+    /// `M = I − X F` for channel `ch`: rows scaled by `ρ̄` where `X` is diagonal (no translucent
+    /// patch), else the dense product with `X` (faer's blocked product beats the sparse rows
+    /// once a profile's support holds tens of patches).
+    fn system(&self, ch: usize) -> Mat<f64> {
         let n = self.n;
-        if self.translucent.iter().any(|&t| t) {
-            let mut x = Mat::<f64>::zeros(n, n);
-            for (i, row) in self.exitance.iter().enumerate() {
-                for &(j, v) in row {
-                    x[(i, j as usize)] = v[ch];
-                }
-            }
-            let xf = &x * &self.form_factors;
-            drop(x);
-            return Mat::from_fn(n, n, |i, j| to(if i == j { 1.0 } else { 0.0 } - xf[(i, j)]));
-        }
-        let mut m: Vec<T> = vec![to(0.0); n * n];
-        m.par_chunks_mut(n.max(1)).enumerate().for_each(|(j, out)| {
-            let f = self.form_factors.col_as_slice(j);
-            for (i, (o, row)) in out.iter_mut().zip(&self.exitance).enumerate() {
-                let xf: f64 = row.iter().map(|&(k, x)| x[ch] * f[k as usize]).sum();
-                *o = to(if i == j { 1.0 } else { 0.0 } - xf);
-            }
-        });
-        Mat::from_fn(n, n, |i, j| m[j * n + i])
+        let xf = if self.translucent.iter().any(|&t| t) {
+            &self.exitance_dense(ch, |_| 1.0) * &self.form_factors
+        } else {
+            let mut xf = vec![0.0; n * n];
+            xf.par_chunks_mut(n.max(1))
+                .enumerate()
+                .for_each(|(j, out)| {
+                    let f = self.form_factors.col_as_slice(j);
+                    for (o, row) in out.iter_mut().zip(&self.exitance) {
+                        *o = row.iter().map(|&(k, x)| x[ch] * f[k as usize]).sum();
+                    }
+                });
+            Mat::from_fn(n, n, |i, j| xf[j * n + i])
+        };
+        Mat::from_fn(n, n, |i, j| if i == j { 1.0 } else { 0.0 } - xf[(i, j)])
     }
 
-    /// `X ρ̄⁻¹` for channel `ch` as a dense matrix in `T` (the right-hand side of the full
-    /// transfer); columns of black patches (ρ̄ = 0) are zero.
-    fn exitance_per_albedo<T: Copy + Send + Sync + 'static>(
-        &self,
-        ch: usize,
-        to: impl Fn(f64) -> T + Sync,
-    ) -> Mat<T> {
-        let n = self.n;
-        let mut m: Vec<T> = vec![to(0.0); n * n];
+    /// `X` for channel `ch` as a dense matrix, column `j` scaled by `scale(j)`.
+    fn exitance_dense(&self, ch: usize, scale: impl Fn(usize) -> f64) -> Mat<f64> {
+        let mut x = Mat::<f64>::zeros(self.n, self.n);
         for (i, row) in self.exitance.iter().enumerate() {
-            for &(j, x) in row {
-                let j = j as usize;
-                m[j * n + i] = to(x[ch] * self.inv_rho(j, ch));
+            for &(j, v) in row {
+                x[(i, j as usize)] = v[ch] * scale(j as usize);
             }
         }
-        Mat::from_fn(n, n, |i, j| m[j * n + i])
+        x
     }
 
     /// Exact final radiosity `B` (W/m²) for the first-order radiosity `b_o` (W/m², one per patch).
@@ -198,7 +182,7 @@ impl DenseTransport {
                 .map(|j| std::array::from_fn(|ch| self.inv_rho(j, ch)))
                 .collect(),
             exitance: self.exitance.clone(),
-            channels: std::array::from_fn(|ch| self.system(ch, |v| v).partial_piv_lu()),
+            channels: std::array::from_fn(|ch| self.system(ch).partial_piv_lu()),
         }
     }
 
@@ -212,7 +196,7 @@ impl DenseTransport {
                     b_os[c][j][ch] as f64 * self.inv_rho(j, ch)
                 })
             });
-            let b = self.system(ch, |v| v).partial_piv_lu().solve(&rhs);
+            let b = self.system(ch).partial_piv_lu().solve(&rhs);
             for (c, o) in out.iter_mut().enumerate() {
                 for i in 0..self.n {
                     o[i][ch] = b[(i, c)] as f32;
@@ -254,9 +238,9 @@ impl DenseTransport {
 
     /// The full transfer of channel `ch` ([`DenseTransport::transfer`]).
     fn transfer_channel(&self, ch: usize) -> Mat<f64> {
-        let lu = self.system(ch, |v| v).partial_piv_lu();
+        let lu = self.system(ch).partial_piv_lu();
         let mut r = if self.translucent.iter().any(|&t| t) {
-            lu.solve(self.exitance_per_albedo(ch, |v| v))
+            lu.solve(self.exitance_dense(ch, |j| self.inv_rho(j, ch)))
         } else {
             // `X ρ̄⁻¹` is diagonal: `M⁻¹` (faster than the solve against it) times each
             // column's `ρ̄_j / ρ̄_j` (1, or 0 for black patches).
