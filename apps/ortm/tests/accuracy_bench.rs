@@ -181,6 +181,8 @@ fn the_cornell_rows_match_bake_solve_and_compare_and_stay_within_their_bounds() 
             "64",
             "--levels",
             "3e-3",
+            "--coarse-block",
+            "8",
             "--receiver-blocks",
             "off",
             "-o",

@@ -70,9 +70,10 @@ fn sharded_bakes_are_byte_identical_to_one_process() {
         // --tolerance, the subsurface walk.
         ("head --size 64 --offsets 30", &[2]),
         ("head --size 96 --offsets 30 --tolerance 1e-3", &[3]),
-        // Multi-resolution maps with receiver blocks: rows by receiver.
+        // Multi-resolution maps with receiver blocks: rows by receiver (from the pair
+        // evaluator on 8×8 clusters; the hierarchical rows are the last case's).
         (
-            "cornell --size 48 --levels 1e-2 --receiver-blocks on",
+            "cornell --size 48 --levels 1e-2 --coarse-block 8 --receiver-blocks on",
             &[3, 5],
         ),
         // With the gathered near field: each shard gathers its own receivers' rows.
