@@ -43,8 +43,7 @@ pub struct DenseTransport {
     pub form_factors: Mat<f64>,
     /// The exitance operator `X`, row by row: the non-zero entries `(j, X_ij)` per channel —
     /// `(i, ρ̄_i)` alone on an opaque row, the subsurface weights `S_ij` of the patches within
-    /// the profile's support on a translucent row. Sparse, so `X F` costs `O(nnz · n)`, not a
-    /// dense product's `O(n³)`.
+    /// the profile's support on a translucent row (no `n²` matrix per channel is kept).
     pub exitance: Vec<Vec<(u32, [f64; 3])>>,
     /// Effective albedo ρ̄ per patch.
     pub rho: Vec<Vec3>,
@@ -255,26 +254,18 @@ impl DenseTransport {
             }
             r
         };
-        self.less_identity(ch, &mut r, 0.0, 1.0);
+        self.less_identity(ch, &mut r);
         r
     }
 
     /// `R = (M⁻¹ X ρ̄⁻¹) − I` from the solve `r`, in place; the columns of black patches
     /// (ρ̄ = 0, never lit) are set to zero.
-    fn less_identity<T: Copy + std::ops::Sub<Output = T>>(
-        &self,
-        ch: usize,
-        r: &mut Mat<T>,
-        zero: T,
-        one: T,
-    ) {
+    fn less_identity(&self, ch: usize, r: &mut Mat<f64>) {
         for j in 0..self.n {
             if self.inv_rho(j, ch) == 0.0 {
-                for i in 0..self.n {
-                    r[(i, j)] = zero;
-                }
+                r.col_as_slice_mut(j).fill(0.0);
             } else {
-                r[(j, j)] = r[(j, j)] - one;
+                r[(j, j)] -= 1.0;
             }
         }
     }
