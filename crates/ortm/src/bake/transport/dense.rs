@@ -137,21 +137,22 @@ impl DenseTransport {
     /// once a profile's support holds tens of patches).
     fn system(&self, ch: usize) -> Mat<f64> {
         let n = self.n;
-        let xf = if self.translucent.iter().any(|&t| t) {
+        let mut m = if self.translucent.iter().any(|&t| t) {
             &self.exitance_dense(ch, |_| 1.0) * &self.form_factors
         } else {
-            let mut xf = vec![0.0; n * n];
-            xf.par_chunks_mut(n.max(1))
-                .enumerate()
-                .for_each(|(j, out)| {
-                    let f = self.form_factors.col_as_slice(j);
-                    for (o, row) in out.iter_mut().zip(&self.exitance) {
-                        *o = row.iter().map(|&(k, x)| x[ch] * f[k as usize]).sum();
-                    }
-                });
-            Mat::from_fn(n, n, |i, j| xf[j * n + i])
+            Mat::from_fn(n, n, |i, j| {
+                exitance_times(&self.exitance[i], ch, |k| self.form_factors[(k, j)])
+            })
         };
-        Mat::from_fn(n, n, |i, j| if i == j { 1.0 } else { 0.0 } - xf[(i, j)])
+        // `X F` into `I − X F` in place.
+        for j in 0..n {
+            let col = m.col_as_slice_mut(j);
+            for v in col.iter_mut() {
+                *v = 0.0 - *v;
+            }
+            col[j] += 1.0;
+        }
+        m
     }
 
     /// `X` for channel `ch` as a dense matrix, column `j` scaled by `scale(j)`.
