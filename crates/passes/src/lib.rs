@@ -38,10 +38,12 @@ pub mod indirect;
 pub mod mesh;
 pub mod pairing;
 pub mod pyramid;
+pub mod rows;
 pub mod schedule;
 pub mod timestamps;
 pub mod transfer;
 pub mod transfer_gather;
+pub mod transfer_rows;
 pub mod types;
 pub mod util;
 

@@ -60,7 +60,9 @@ use crate::gpu::Gpu;
 use crate::pairing::{PairInstance, PairedSchedule, pair_schedule};
 use crate::pyramid::PyramidScene;
 use crate::schedule::{FrameSchedule, build_schedule};
+use crate::rows::build_rows;
 use crate::transfer_gather::{GatherPass, GatherScene};
+use crate::transfer_rows::{RowsPass, RowsScene};
 use crate::types::{AtlasData, TransferPiece};
 use crate::util;
 
@@ -72,6 +74,9 @@ pub enum TransferPath {
     Blend,
     /// Compute shader gathering per tile (no blending).
     Compute,
+    /// Compute shader summing each texel's row of (weight, source) entries, the maps turned
+    /// around once per scene ([`crate::rows`], [`crate::transfer_rows`]).
+    Rows,
 }
 
 /// Format of the blend path's accumulation target (and so of its final lightmap).
@@ -196,6 +201,7 @@ pub struct TransferPass {
     options: TransferOptions,
     blend: Option<BlendPipelines>,
     gather: Option<GatherPass>,
+    rows: Option<RowsPass>,
 }
 
 /// Per-scene GPU data: atlases, the schedule and its buffers, the output texture.
@@ -209,6 +215,8 @@ pub struct TransferScene {
     instance_buffers: Vec<wgpu::Buffer>,
     /// Compute-path data.
     gather: Option<GatherScene>,
+    /// Rows-path data.
+    pub rows: Option<RowsScene>,
     /// Paired pieces (blend path with `TransferOptions::pair_pieces`); `None` otherwise.
     /// The pages' `texels` are emptied once uploaded (they live on the GPU);
     /// [`pair_schedule`] on `schedule` rebuilds them (deterministic) for a CPU mirror.
@@ -314,12 +322,20 @@ impl TransferPass {
                     options: *options,
                     blend: Some(blend),
                     gather: None,
+                    rows: None,
                 })
             }
             TransferPath::Compute => Ok(Self {
                 options: *options,
                 blend: None,
                 gather: Some(GatherPass::new(gpu)?),
+                rows: None,
+            }),
+            TransferPath::Rows => Ok(Self {
+                options: *options,
+                blend: None,
+                gather: None,
+                rows: Some(RowsPass::new(gpu)?),
             }),
         }
     }
@@ -515,7 +531,12 @@ impl TransferPass {
         let sizes = atlas_sizes(atlases)?;
         let schedule = build_schedule(lightmap_size, &sizes, pieces)?;
         let device = &gpu.device;
-        let atlas_views = self.upload_atlases(gpu, atlases)?;
+        // The rows path holds the maps' values in its rows: no atlas on the GPU.
+        let atlas_views = if self.options.path == TransferPath::Rows {
+            Vec::new()
+        } else {
+            self.upload_atlases(gpu, atlases)?
+        };
         let target = schedule.target_size();
         if schedule.receiver_levels > 0 {
             gpu.check_texture_size("transfer accumulation target", target[0], target[1])?;
@@ -526,6 +547,7 @@ impl TransferPass {
             bytemuck::bytes_of(&TransferParams::of(&schedule)),
             wgpu::BufferUsages::UNIFORM,
         );
+        let mut rows = None;
         let (instance_buffers, gather, final_tex, accum) = match self.options.path {
             TransferPath::Blend => {
                 let bufs = instance_buffers(device, "instances", &schedule.batches);
@@ -565,6 +587,15 @@ impl TransferPass {
                 let (scene, tex) = g.prepare(gpu, &schedule, &params)?;
                 (Vec::new(), Some(scene), tex, None)
             }
+            TransferPath::Rows => {
+                let r = self.rows.as_ref().ok_or_else(|| PassError::InvalidInput {
+                    what: "TransferPass".into(),
+                    problem: "rows path without its pipelines (internal bug)".into(),
+                })?;
+                let (scene, tex) = r.prepare(gpu, &build_rows(&schedule, atlases)?)?;
+                rows = Some(scene);
+                (Vec::new(), None, tex, None)
+            }
         };
         let (paired, pair_gpu) = self.prepare_pairs(gpu, &schedule, atlases)?;
         let dummy_pyramid = util::view(&gpu.create_rgba32f_texture(
@@ -581,6 +612,7 @@ impl TransferPass {
             atlas_views,
             instance_buffers,
             gather,
+            rows,
             paired,
             pair_gpu,
             dummy_pyramid,
@@ -734,6 +766,13 @@ impl TransferPass {
                 gs,
                 (inputs.first_order, inputs.base, pyramid),
                 &scene.atlas_views,
+            );
+        } else if let (Some(r), Some(rs)) = (&self.rows, &scene.rows) {
+            r.encode(
+                device,
+                encoder,
+                rs,
+                (inputs.first_order, inputs.base, pyramid),
             );
         } else if let Some(bp) = &self.blend {
             self.encode_blend(bp, device, encoder, inputs, pyramid);

@@ -1,5 +1,5 @@
-//! Multi-resolution maps: the pyramid pass against its CPU mirror (derived f32 bound), both
-//! transfer paths (blend, paired blend, compute) with pieces of levels 0..3, with and without
+//! Multi-resolution maps: the pyramid pass against its CPU mirror (derived f32 bound), every
+//! transfer path (blend, paired blend, compute, rows) with pieces of levels 0..3, with and without
 //! receiver blocks, against their CPU mirrors, the mirrors against the formula written out
 //! here (no schedule, no reduction, no accumulation target),
 //! the renderer end to end, and the errors (level > 0 without weights, bad weights, level
@@ -11,6 +11,7 @@ use common::demo::{blur_transfer, demo_lights, floor_and_box};
 use common::{Rng, gpu};
 use passes::frame::Renderer;
 use passes::pyramid::{PyramidInputs, PyramidPass, level_size, unpack_levels};
+use passes::rows::build_rows;
 use passes::schedule::{build_schedule, build_tiles};
 use passes::transfer::{AccumFormat, TransferInputs, TransferOptions, TransferPass, TransferPath};
 use passes::util::TexelReads;
@@ -346,8 +347,15 @@ fn mirrors_match_the_direct_formula() {
             &mirror,
             s.receiver_levels,
         );
+        let rows = cpu::transfer_rows::transfer_rows(
+            &build_rows(&s, &c.atlases).unwrap(),
+            &c.first_order,
+            None,
+            &mirror,
+        );
         assert_close(&blend, &want, 1e-5, 1e-3, "cpu blend vs direct");
         assert_close(&gather, &want, 1e-5, 1e-3, "cpu gather vs direct");
+        assert_close(&rows, &want, 1e-5, 1e-3, "cpu rows vs direct");
     }
 }
 
@@ -414,7 +422,7 @@ fn options(path: TransferPath, pair_pieces: bool, texel_reads: TexelReads) -> Tr
     }
 }
 
-/// Both transfer paths (blend, paired blend, compute; sampled and storage reads) with pieces
+/// Every transfer path (blend, paired blend, compute, rows; sampled and storage reads) with pieces
 /// of levels 0..3 equal their CPU mirrors per texel (the mirrors read the pyramid the GPU
 /// built, so only the transfer is compared: the bounds of `tests/transfer.rs`), and the
 /// direct formula within its 1e-3 bound, on a non-power-of-two and a power-of-two map.
@@ -439,6 +447,7 @@ fn transfer_paths_with_levels_match_mirrors() {
                 (TransferPath::Blend, false),
                 (TransferPath::Blend, true),
                 (TransferPath::Compute, false),
+                (TransferPath::Rows, false),
             ] {
                 let what = format!("{size:?} blocks {blocks} {path:?} paired {paired} {r:?}");
                 let (got, levels, scene) = run_transfer(&gpu, &c, options(path, paired, r));
@@ -446,6 +455,12 @@ fn transfer_paths_with_levels_match_mirrors() {
                 let s = &scene.schedule;
                 assert_eq!(s.receiver_levels > 0, blocks, "{what}");
                 let mirror = match (path, paired) {
+                    (TransferPath::Rows, _) => cpu::transfer_rows::transfer_rows(
+                        &build_rows(s, &c.atlases).unwrap(),
+                        &c.first_order,
+                        None,
+                        &levels,
+                    ),
                     (TransferPath::Compute, _) => cpu::transfer_gather::transfer_gather_levels(
                         &build_tiles(s),
                         &c.atlases,
@@ -502,6 +517,7 @@ fn level_zero_ignores_the_pyramid_bit_for_bit() {
         (TransferPath::Blend, false),
         (TransferPath::Blend, true),
         (TransferPath::Compute, false),
+        (TransferPath::Rows, false),
     ] {
         let o = options(path, paired, TexelReads::Sampled);
         let (plain, levels, scene) = run_transfer(&gpu, &c, o);

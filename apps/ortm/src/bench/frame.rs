@@ -146,6 +146,10 @@ fn transfer_name(renderer: &Renderer, scene: &RenderScene) -> String {
             )
         }
         (TransferPath::Compute, _) => "transfer, compute gather".to_string(),
+        (TransferPath::Rows, _) => format!(
+            "transfer, rows ({} entries)",
+            scene.transfer.rows.as_ref().map_or(0, |r| r.entries)
+        ),
     }
 }
 
@@ -177,7 +181,7 @@ fn roofline(
     let options = renderer.options().transfer;
     let format = match options.path {
         TransferPath::Blend => options.accum_format.texture_format(),
-        TransferPath::Compute => wgpu::TextureFormat::Rgba32Float,
+        TransferPath::Compute | TransferPath::Rows => wgpu::TextureFormat::Rgba32Float,
     };
     let format = if format == wgpu::TextureFormat::Rgba32Float && !gpu.supports_float32_blend() {
         wgpu::TextureFormat::Rgba16Float

@@ -65,8 +65,12 @@ pub enum Paths {
     Blend,
     /// Compute path only.
     Compute,
-    /// Both.
+    /// Rows path only (each texel sums its row of map entries; `ortm render --path rows`).
+    Rows,
+    /// Blend and compute.
     Both,
+    /// Blend, compute and rows.
+    All,
 }
 
 /// Arguments of `ortm bench render`.
@@ -188,6 +192,7 @@ struct Row {
     blend: Option<BenchReport>,
     paired: Option<BenchReport>,
     compute: Option<BenchReport>,
+    rows: Option<BenchReport>,
     paper: Option<(u32, f64)>,
 }
 
@@ -225,6 +230,7 @@ pub fn run(a: Args) -> Result<()> {
             .as_ref()
             .or(r.paired.as_ref())
             .or(r.compute.as_ref())
+            .or(r.rows.as_ref())
     }) {
         println!("timing: {}", r.timing);
     }
@@ -396,7 +402,7 @@ fn bench_job(a: &Args, gpu: &Gpu, (img_w, img_h): (u32, u32), job: Job) -> Resul
             statistic,
         )?)
     };
-    let blend_timed = matches!(a.paths, Paths::Blend | Paths::Both);
+    let blend_timed = matches!(a.paths, Paths::Blend | Paths::Both | Paths::All);
     let blend = if blend_timed && a.pair != Pair::On {
         Some(time_path(TransferPath::Blend, false)?)
     } else {
@@ -408,8 +414,14 @@ fn bench_job(a: &Args, gpu: &Gpu, (img_w, img_h): (u32, u32), job: Job) -> Resul
         None
     };
     let compute = match a.paths {
-        Paths::Compute | Paths::Both => Some(time_path(TransferPath::Compute, false)?),
-        Paths::Blend => None,
+        Paths::Compute | Paths::Both | Paths::All => {
+            Some(time_path(TransferPath::Compute, false)?)
+        }
+        Paths::Blend | Paths::Rows => None,
+    };
+    let rows = match a.paths {
+        Paths::Rows | Paths::All => Some(time_path(TransferPath::Rows, false)?),
+        _ => None,
     };
     let paper = TABLE_1
         .iter()
@@ -424,6 +436,7 @@ fn bench_job(a: &Args, gpu: &Gpu, (img_w, img_h): (u32, u32), job: Job) -> Resul
         blend,
         paired,
         compute,
+        rows,
         paper,
     })
 }
@@ -508,7 +521,7 @@ fn get(rep: &Option<BenchReport>, i: usize) -> Option<&BenchRow> {
 /// the frame rates, beside the paper's.
 fn print_table(rows: &[Row]) {
     println!(
-        "{:<24} {:>5} {:>5} {:>5} {:>6} {:>12} {:>9} {:>9} {:>9} {:>10} {:>8} {:>8} {:>10} {:>10} {:>9} {:>8} {:>8} {:>10}",
+        "{:<24} {:>5} {:>5} {:>5} {:>6} {:>12} {:>9} {:>9} {:>9} {:>10} {:>8} {:>8} {:>8} {:>10} {:>10} {:>9} {:>8} {:>8} {:>8} {:>10}",
         "configuration",
         "size",
         "maps",
@@ -519,6 +532,7 @@ fn print_table(rows: &[Row]) {
         "1st st.ms",
         "blend ms",
         "compute ms",
+        "rows ms",
         "dil ms",
         "disp ms",
         "blends/s",
@@ -526,6 +540,7 @@ fn print_table(rows: &[Row]) {
         "roof.%",
         "fps",
         "fps st.",
+        "fps rows",
         "paper fps"
     );
     for r in rows {
@@ -534,7 +549,8 @@ fn print_table(rows: &[Row]) {
     println!(
         "fps = 1000 / (first order + transfer (blend if timed) + dilation + display) with moving \
          lights (1st ms: shadow maps re-rendered every frame); fps st. = the same with static \
-         lights (1st st.ms: shadow maps reused); roof.% = blend-path texel blends/s ÷ \
+         lights (1st st.ms: shadow maps reused); fps rows = fps with the rows path's transfer \
+         (--paths rows|all); roof.% = blend-path texel blends/s ÷ \
          full-screen additive-blend roofline at the lightmap size; blend = the unpaired blend \
          path with --pair off|both, the paired one with --pair on (texel blends = map-texel \
          contributions; fragments in the paired table below)"
@@ -545,13 +561,20 @@ fn print_table(rows: &[Row]) {
 /// One line of the main table.
 fn print_row(r: &Row) {
     let blend_rep = r.blend_report();
-    let any = blend_rep.as_ref().or(r.compute.as_ref());
+    let any = blend_rep
+        .as_ref()
+        .or(r.compute.as_ref())
+        .or(r.rows.as_ref());
     let ms = |i: usize| any.and_then(|x| x.rows.get(i)).map(|x| x.ms);
     let blend = get(blend_rep, 1);
     let compute = get(&r.compute, 1);
+    let rows_ms = get(&r.rows, 1).map(|x| x.ms);
     let roof = get(blend_rep, 4).or(get(&r.compute, 4));
-    let transfer_ms = blend.or(compute).map(|x| x.ms);
+    let transfer_ms = blend.or(compute).map(|x| x.ms).or(rows_ms);
     let frame_ms = [ms(0), transfer_ms, ms(2), ms(3)]
+        .iter()
+        .try_fold(0.0, |acc, v| v.map(|v| acc + v));
+    let rows_frame_ms = [ms(0), rows_ms, ms(2), ms(3)]
         .iter()
         .try_fold(0.0, |acc, v| v.map(|v| acc + v));
     let static_ms = [ms(5), transfer_ms, ms(2), ms(3)]
@@ -559,10 +582,13 @@ fn print_row(r: &Row) {
         .try_fold(0.0, |acc, v| v.map(|v| acc + v));
     let f = |v: Option<f64>, p: usize| v.map_or("—".to_string(), |v| format!("{v:.p$}"));
     let e = |v: Option<f64>| v.map_or("—".to_string(), |v| format!("{v:.3e}"));
-    let blends = blend.or(compute).map_or(0, |x| x.texel_blends);
+    let blends = blend
+        .or(compute)
+        .or(get(&r.rows, 1))
+        .map_or(0, |x| x.texel_blends);
     let rate = blend.or(compute).map(|x| x.blends_per_s);
     println!(
-        "{:<24} {:>5} {:>5} {:>5} {:>6.2} {:>12} {:>9} {:>9} {:>9} {:>10} {:>8} {:>8} {:>10} {:>10} {:>9} {:>8} {:>8} {:>10}",
+        "{:<24} {:>5} {:>5} {:>5} {:>6.2} {:>12} {:>9} {:>9} {:>9} {:>10} {:>8} {:>8} {:>8} {:>10} {:>10} {:>9} {:>8} {:>8} {:>8} {:>10}",
         r.label,
         r.size,
         r.maps,
@@ -573,6 +599,7 @@ fn print_row(r: &Row) {
         f(ms(5), 2),
         f(blend.map(|x| x.ms), 2),
         f(compute.map(|x| x.ms), 2),
+        f(rows_ms, 2),
         f(ms(2), 2),
         f(ms(3), 2),
         e(rate),
@@ -584,6 +611,7 @@ fn print_row(r: &Row) {
         ),
         f(frame_ms.map(|m| 1000.0 / m), 2),
         f(static_ms.map(|m| 1000.0 / m), 2),
+        f(rows_frame_ms.map(|m| 1000.0 / m), 2),
         r.paper.map_or("—".to_string(), |(bins, fps)| format!(
             "{fps:.2} ({bins} bins)"
         )),
@@ -597,8 +625,8 @@ fn print_cpu_table(rows: &[Row]) {
          for cores other processes hold), ms:"
     );
     println!(
-        "{:<24} {:>9} {:>9} {:>9} {:>10} {:>8} {:>8} {:>10}",
-        "configuration", "1st", "1st st.", "blend", "compute", "dil", "disp", "roofline"
+        "{:<24} {:>9} {:>9} {:>9} {:>10} {:>8} {:>8} {:>8} {:>10}",
+        "configuration", "1st", "1st st.", "blend", "compute", "rows", "dil", "disp", "roofline"
     );
     for r in rows {
         let cpu = |rep: &Option<BenchReport>, i: usize| {
@@ -609,16 +637,19 @@ fn print_cpu_table(rows: &[Row]) {
         let blend_rep = r.blend_report();
         let any = if blend_rep.is_some() {
             blend_rep
-        } else {
+        } else if r.compute.is_some() {
             &r.compute
+        } else {
+            &r.rows
         };
         println!(
-            "{:<24} {:>9} {:>9} {:>9} {:>10} {:>8} {:>8} {:>10}",
+            "{:<24} {:>9} {:>9} {:>9} {:>10} {:>8} {:>8} {:>8} {:>10}",
             r.label,
             cpu(any, 0),
             cpu(any, 5),
             cpu(blend_rep, 1),
             cpu(&r.compute, 1),
+            cpu(&r.rows, 1),
             cpu(any, 2),
             cpu(any, 3),
             cpu(any, 4),

@@ -46,6 +46,9 @@ pub enum PathArg {
     Blend,
     /// Compute shader gathering per 8×8 tile (reference / fallback).
     Compute,
+    /// Compute shader summing each texel's row of map entries (the maps turned around once
+    /// per scene; docs/render.md, "Rows path").
+    Rows,
 }
 
 /// Where the displayed direct light comes from (`--direct`).
@@ -395,6 +398,10 @@ fn renderer_options(
         },
         PathArg::Compute => TransferOptions {
             path: TransferPath::Compute,
+            ..best
+        },
+        PathArg::Rows => TransferOptions {
+            path: TransferPath::Rows,
             ..best
         },
     };

@@ -10,3 +10,4 @@ pub mod indirect;
 pub mod pyramid;
 pub mod transfer;
 pub mod transfer_gather;
+pub mod transfer_rows;
