@@ -7,13 +7,18 @@
 //          texel i − W·H (rows of params.packed_width texels); once per frame.
 // cs_rows: final[t] = base[t] + Σ_{k in row(t)} w_k · source[s_k].rgb, skipping entries with
 //          the COVERED_ONLY bit (receiver blocks) where base[t].a == 0; alpha = base's.
-//          One dispatch per band of lightmap rows (a band's entries fit one storage binding).
+//          One dispatch per band of lightmap rows (a band's entries fit one texture).
+// Element i of the source and entries textures lies at (i mod TEXTURE_WIDTH, i / TEXTURE_WIDTH).
+// Both are textures because on lavapipe a texel fetch is one gather while a storage-buffer
+// load at a per-invocation address is done invocation by invocation (transfer_rows.rs).
 //
-// Bindings (one bind group per band; order = @binding order; must match `RowsPass` in
-// transfer_rows.rs): 0 = RowParams (uniform), 1 = first-order map (the pieces' input),
-// 2 = base map (the first-order term the final starts from), 3 = packed pyramid (1×1 dummy
-// without levels), 4 = source (storage, read_write), 5 = final map (storage texture, write),
-// 6 = the band's row offsets (storage, read), 7 = the band's entries (storage, read).
+// Bindings (order = @binding order; must match `RowsPass` in transfer_rows.rs):
+//   cs_pack (one bind group per frame): 0 = RowParams (uniform), 1 = first-order map (the
+//     pieces' input), 3 = packed pyramid (1×1 dummy without levels), 4 = source (storage
+//     texture, write);
+//   cs_rows (one bind group per band): 0 = RowParams, 2 = base map (the first-order term the
+//     final starts from), 5 = final map (storage texture, write), 6 = the band's row offsets
+//     (storage, read), 7 = the band's entries (RGBA32Uint texture), 8 = source (texture).
 
 // Must match `RowParams` in transfer_rows.rs (32 bytes).
 struct RowParams {
@@ -38,11 +43,15 @@ const COVERED_ONLY: u32 = 0x80000000u;
 @group(0) @binding(1) var first_order: texture_2d<f32>;
 @group(0) @binding(2) var base_map: texture_2d<f32>;
 @group(0) @binding(3) var pyramid: texture_2d<f32>;
-@group(0) @binding(4) var<storage, read_write> source: array<vec4<f32>>;
+@group(0) @binding(4) var source: texture_storage_2d<rgba32float, write>;
 @group(0) @binding(5) var final_map: texture_storage_2d<rgba32float, write>;
 @group(0) @binding(6) var<storage, read> offsets: array<u32>;
 // Must match `RowEntry` in rows.rs: the weight's f32 bits in .xyz, the source index in .w.
-@group(0) @binding(7) var<storage, read> entries: array<vec4<u32>>;
+@group(0) @binding(7) var entries: texture_2d<u32>;
+// The source as cs_rows reads it (the texture cs_pack wrote through binding 4).
+@group(0) @binding(8) var source_in: texture_2d<f32>;
+// Must match `TEXTURE_WIDTH` in transfer_rows.rs.
+const TEXTURE_WIDTH: u32 = 4096u;
 
 @compute @workgroup_size(PACK_GROUP)
 fn cs_pack(@builtin(global_invocation_id) gid: vec3<u32>) {
@@ -60,7 +69,18 @@ fn cs_pack(@builtin(global_invocation_id) gid: vec3<u32>) {
         let pw = params.packed_width;
         v = textureLoad(pyramid, vec2<i32>(i32(j % pw), i32(j / pw)), 0);
     }
-    source[i] = v;
+    textureStore(source, vec2<u32>(i % TEXTURE_WIDTH, i / TEXTURE_WIDTH), v);
+}
+
+fn entry(k: u32) -> vec4<u32> {
+    return textureLoad(entries, vec2<u32>(k % TEXTURE_WIDTH, k / TEXTURE_WIDTH), 0);
+}
+
+// Entry k's weight times its source.
+fn term(k: u32) -> vec3<f32> {
+    let e = entry(k);
+    let s = e.w & ~COVERED_ONLY;
+    return bitcast<vec3<f32>>(e.xyz) * textureLoad(source_in, vec2<u32>(s % TEXTURE_WIDTH, s / TEXTURE_WIDTH), 0).rgb;
 }
 
 @compute @workgroup_size(8, 8)
@@ -74,12 +94,22 @@ fn cs_rows(@builtin(global_invocation_id) gid: vec3<u32>) {
     let i = gid.y * params.lightmap_size.x + gid.x;
     var sum = vec3<f32>(0.0);
     let end = offsets[i + 1u];
-    for (var k = offsets[i]; k < end; k++) {
-        let e = entries[k];
-        if ((e.w & COVERED_ONLY) != 0u && !covered) {
-            continue;
+    var k = offsets[i];
+    if (covered) {
+        // Every entry counts: two per iteration (on lavapipe the loop's own cost was an
+        // eighth of the pass; four per iteration gained nothing more).
+        for (; k + 1u < end; k += 2u) {
+            sum += term(k) + term(k + 1u);
         }
-        sum += bitcast<vec3<f32>>(e.xyz) * source[e.w & ~COVERED_ONLY].rgb;
+        if (k < end) {
+            sum += term(k);
+        }
+    } else {
+        for (; k < end; k++) {
+            if ((entry(k).w & COVERED_ONLY) == 0u) {
+                sum += term(k);
+            }
+        }
     }
     textureStore(final_map, t, vec4<f32>(b.rgb + sum, b.a));
 }

@@ -149,8 +149,8 @@ pub fn build_rows(
                 let shift = inst.level - r;
                 for j in 0..inst.size[1] {
                     for i in 0..inst.size[0] {
-                        let a = atlas.rgb[((inst.src[1] + j) * atlas.width + inst.src[0] + i)
-                            as usize];
+                        let a =
+                            atlas.rgb[((inst.src[1] + j) * atlas.width + inst.src[0] + i) as usize];
                         if a == [0.0; 3] {
                             continue;
                         }
@@ -267,15 +267,32 @@ mod tests {
 
     #[test]
     fn a_level_zero_piece_becomes_one_entry_per_non_zero_value() {
-        let a = atlas(2, 2, |x, y| if (x, y) == (1, 1) { [0.0; 3] } else { [1.0, 2.0, 3.0] });
-        let s = build_schedule([4, 4], &[[2, 2]], &[piece([1, 1], [2, 2], [-1, 2], 0, 0)])
-            .unwrap();
+        let a = atlas(2, 2, |x, y| {
+            if (x, y) == (1, 1) {
+                [0.0; 3]
+            } else {
+                [1.0, 2.0, 3.0]
+            }
+        });
+        let s = build_schedule([4, 4], &[[2, 2]], &[piece([1, 1], [2, 2], [-1, 2], 0, 0)]).unwrap();
         let rows = build_rows(&s, &[a]).unwrap();
         assert_eq!(rows.source_len, 16);
         // Texel (1,1) reads (0,3); (2,1) reads (1,3); (1,2) and (2,2) read below the map
         // (cropped away), and (2,2)'s value is 0 anyway.
-        assert_eq!(rows.row(1, 1), &[RowEntry { w: [1.0, 2.0, 3.0], source: 12 }]);
-        assert_eq!(rows.row(2, 1), &[RowEntry { w: [1.0, 2.0, 3.0], source: 13 }]);
+        assert_eq!(
+            rows.row(1, 1),
+            &[RowEntry {
+                w: [1.0, 2.0, 3.0],
+                source: 12
+            }]
+        );
+        assert_eq!(
+            rows.row(2, 1),
+            &[RowEntry {
+                w: [1.0, 2.0, 3.0],
+                source: 13
+            }]
+        );
         assert!(rows.row(1, 2).is_empty() && rows.row(2, 2).is_empty());
         assert_eq!(rows.entries.len(), 2);
     }
@@ -290,16 +307,27 @@ mod tests {
         assert_eq!(rows.max_level, 1);
         // Level 1 of 4×4 is 2×2, packed alone: block (1, 0) is source 16 + 1.
         assert_eq!(rows.source_len, 16 + 4);
-        assert_eq!(rows.row(0, 0), &[RowEntry { w: [1.0, 2.0, 0.0], source: 17 }]);
-        assert_eq!(rows.row(1, 0), &[RowEntry { w: [3.0, 2.0, 0.0], source: 17 }]);
+        assert_eq!(
+            rows.row(0, 0),
+            &[RowEntry {
+                w: [1.0, 2.0, 0.0],
+                source: 17
+            }]
+        );
+        assert_eq!(
+            rows.row(1, 0),
+            &[RowEntry {
+                w: [3.0, 2.0, 0.0],
+                source: 17
+            }]
+        );
     }
 
     #[test]
     fn receiver_blocks_repeat_in_their_texels_marked_covered_only() {
         // A level-1 receiver block (0, 0) of a 3×3 lightmap: texels (0..2, 0..2).
         let a = atlas(1, 1, |_, _| [0.25; 3]);
-        let s = build_schedule([3, 3], &[[1, 1]], &[piece([0, 0], [1, 1], [1, 1], 1, 1)])
-            .unwrap();
+        let s = build_schedule([3, 3], &[[1, 1]], &[piece([0, 0], [1, 1], [1, 1], 1, 1)]).unwrap();
         let rows = build_rows(&s, &[a]).unwrap();
         let e = RowEntry {
             w: [0.25; 3],

@@ -35,6 +35,12 @@
 //!   one dispatch, one workgroup per non-empty 8×8 tile gathering the pieces covering it into
 //!   an RGBA32F storage buffer; no blending, no atomics. Same result up to float summation
 //!   order.
+//! - **Rows path** (`shaders/transfer_rows.wgsl`, [`crate::rows`], [`crate::transfer_rows`]):
+//!   the pieces turned around once per scene into every texel's row of `(weight, source)`
+//!   entries (the source: the first-order map and the packed pyramid, copied into one texture
+//!   each frame); one invocation per texel sums its row. Receiver blocks need no resolve:
+//!   their entries sit in the rows of the blocks' texels. Same result up to float summation
+//!   order; the default on CPU adapters ([`TransferOptions::best_for`]).
 //!
 //! # Accumulation format
 //! [`AccumFormat::Rgba32Float`] needs the `FLOAT32_BLENDABLE` feature in the blend path
@@ -59,8 +65,8 @@ use crate::error::PassError;
 use crate::gpu::Gpu;
 use crate::pairing::{PairInstance, PairedSchedule, pair_schedule};
 use crate::pyramid::PyramidScene;
-use crate::schedule::{FrameSchedule, build_schedule};
 use crate::rows::build_rows;
+use crate::schedule::{FrameSchedule, build_schedule};
 use crate::transfer_gather::{GatherPass, GatherScene};
 use crate::transfer_rows::{RowsPass, RowsScene};
 use crate::types::{AtlasData, TransferPiece};
@@ -121,16 +127,19 @@ pub struct TransferOptions {
 
 impl TransferOptions {
     /// The fastest measured settings for `gpu` (`docs/render.md`, `ortm bench render`):
-    /// - path: [`TransferPath::Blend`] on a CPU adapter (lavapipe: 23 ms vs 247 ms for the
-    ///   compute path at 256²/100), [`TransferPath::Compute`] on hardware GPUs (H100:
-    ///   0.12 ms vs 1.27 ms for the paired blend path; its few raster back-ends blend slowly);
+    /// - path: [`TransferPath::Rows`] on a CPU adapter (lavapipe, `ortm bench render --paths
+    ///   all`: 15.1 ms against 17.9 ms for the paired blend path and 67.2 ms for the compute
+    ///   path with 100 offsets at 256², 22.3 ms against 166.9 ms and 371.2 ms for the head's
+    ///   multi-resolution maps at 256²), [`TransferPath::Compute`] on hardware GPUs (H100:
+    ///   0.12 ms vs 1.27 ms for the paired blend path; its few raster back-ends blend slowly;
+    ///   the rows path not measured there yet);
     /// - blend accumulation in RGBA32F when the device can blend it, else RGBA16F;
     /// - paired pieces (~28 % less transfer CPU on lavapipe at 256²/100);
     /// - read-only storage textures where the device has them ([`Gpu::best_texel_reads`]).
     pub fn best_for(gpu: &Gpu) -> Self {
         Self {
             path: if gpu.adapter_info.device_type == wgpu::DeviceType::Cpu {
-                TransferPath::Blend
+                TransferPath::Rows
             } else {
                 TransferPath::Compute
             },

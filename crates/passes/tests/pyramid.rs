@@ -564,6 +564,110 @@ fn level_zero_ignores_the_pyramid_bit_for_bit() {
     }
 }
 
+/// The rows path in many bands (at most 40 entries each) equals it in one band bit for bit,
+/// with a base distinct from the pieces' input both equal the mirror, and a lightmap row
+/// with more entries than a band may hold is a clear error naming the row.
+#[test]
+fn rows_in_bands_with_a_base_match_the_mirror() {
+    use passes::transfer_rows::RowsPass;
+    let gpu = gpu();
+    let c = random_case(27, [37, 29], 3, true);
+    let sizes: Vec<[u32; 2]> = c.atlases.iter().map(|a| [a.width, a.height]).collect();
+    let s = build_schedule(c.size, &sizes, &c.pieces).unwrap();
+    let rows = build_rows(&s, &c.atlases).unwrap();
+    let widest = (0..c.size[1])
+        .map(|y| {
+            rows.offsets[((y + 1) * c.size[0]) as usize] - rows.offsets[(y * c.size[0]) as usize]
+        })
+        .max()
+        .unwrap() as u64;
+    let fo = first_order_texture(&gpu, &c, TexelReads::Sampled);
+    // The base: the first order scaled per texel (coverage kept), so that a path adding the
+    // wrong map shows.
+    let mut base = c.first_order.clone();
+    for (i, px) in base.rgba.iter_mut().enumerate() {
+        for v in &mut px[..3] {
+            *v *= 0.5 + (i % 7) as f32 * 0.1;
+        }
+    }
+    let base_view = gpu
+        .create_rgba32f_texture(
+            "test.base",
+            c.size[0],
+            c.size[1],
+            &base.rgba,
+            wgpu::TextureUsages::TEXTURE_BINDING,
+        )
+        .unwrap()
+        .create_view(&Default::default());
+    let max_level = s.max_level();
+    let pyr_pass = PyramidPass::new(&gpu).unwrap();
+    let pyr = pyr_pass
+        .prepare(&gpu, c.size, &c.weights, max_level)
+        .unwrap();
+    let run = |band_entries: Option<u64>| {
+        let mut pass = RowsPass::new(&gpu).unwrap();
+        if let Some(n) = band_entries {
+            pass = pass.with_band_entries(n);
+        }
+        let (scene, tex) = pass.prepare(&gpu, &rows)?;
+        let mut enc = gpu.device.create_command_encoder(&Default::default());
+        pyr_pass.encode(
+            &gpu,
+            &mut enc,
+            &PyramidInputs {
+                scene: &pyr,
+                first_order: &fo,
+            },
+        );
+        pass.encode(
+            &gpu.device,
+            &mut enc,
+            &scene,
+            (&fo, Some(&base_view), pyr.view()),
+        );
+        gpu.submit_and_wait("test.rows", enc).unwrap();
+        let packed = gpu.read_texel_image("test.pyramid", pyr.texture()).unwrap();
+        let img = gpu.read_texel_image("test.final", &tex).unwrap();
+        Ok::<_, passes::PassError>((
+            img,
+            scene.bands(),
+            unpack_levels(&packed, c.size, max_level),
+        ))
+    };
+    let (one, n1, levels) = run(None).unwrap();
+    let (many, n40, _) = run(Some(widest.max(40))).unwrap();
+    assert_eq!(n1, 1);
+    assert!(n40 > 3, "{n40} bands");
+    assert_eq!(one, many, "bands change nothing");
+    let mirror = cpu::transfer_rows::transfer_rows(&rows, &c.first_order, Some(&base), &levels);
+    assert_close(&one, &mirror, 1e-5, 1e-3, "rows with a base: gpu vs mirror");
+    // The base is what the final starts from: final − base is the transfer of the first order.
+    let plain = cpu::transfer_rows::transfer_rows(&rows, &c.first_order, None, &levels);
+    for (i, ((m, p), (b, f))) in mirror
+        .rgba
+        .iter()
+        .zip(&plain.rgba)
+        .zip(base.rgba.iter().zip(&c.first_order.rgba))
+        .enumerate()
+    {
+        for ch in 0..3 {
+            let want = p[ch] - f[ch] + b[ch];
+            assert!(
+                (m[ch] - want).abs() <= 1e-5 * want.abs().max(1.0),
+                "texel {i} channel {ch}: {} against {want}",
+                m[ch]
+            );
+        }
+    }
+    match run(Some(widest - 1)) {
+        Err(passes::PassError::TooLarge { what, .. }) => {
+            assert!(what.contains("entries of lightmap row"), "{what}")
+        }
+        other => panic!("a row wider than a band: {:?}", other.map(|r| r.1)),
+    }
+}
+
 /// Pieces of level > 0 without weights (renderer) or without a pyramid (transfer pass) are
 /// clear errors; so are bad weights and a level beyond the maximum.
 #[test]

@@ -414,9 +414,7 @@ fn bench_job(a: &Args, gpu: &Gpu, (img_w, img_h): (u32, u32), job: Job) -> Resul
         None
     };
     let compute = match a.paths {
-        Paths::Compute | Paths::Both | Paths::All => {
-            Some(time_path(TransferPath::Compute, false)?)
-        }
+        Paths::Compute | Paths::Both | Paths::All => Some(time_path(TransferPath::Compute, false)?),
         Paths::Blend | Paths::Rows => None,
     };
     let rows = match a.paths {

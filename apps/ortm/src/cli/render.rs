@@ -38,7 +38,7 @@ use passes::{Gpu, TexelImage};
 /// Transfer implementation.
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum PathArg {
-    /// The faster for the adapter: blend on a software adapter (lavapipe), compute on a
+    /// The faster for the adapter: rows on a software adapter (lavapipe), compute on a
     /// hardware GPU (both measured by `ortm bench render`); without any adapter, the CPU
     /// mirrors of the passes.
     Auto,

@@ -15,7 +15,11 @@ use crate::types::TexelImage;
 /// [`RowSchedule::packed_width`] texels; gaps of the packing are 0).
 ///
 /// Panics when `levels` lacks a level the rows read.
-pub fn source(rows: &RowSchedule, first_order: &TexelImage, levels: &[TexelImage]) -> Vec<[f32; 4]> {
+pub fn source(
+    rows: &RowSchedule,
+    first_order: &TexelImage,
+    levels: &[TexelImage],
+) -> Vec<[f32; 4]> {
     let [w, h] = rows.lightmap_size;
     assert_eq!((first_order.width, first_order.height), (w, h));
     let mut out = vec![[0.0f32; 4]; rows.source_len as usize];
