@@ -3,13 +3,13 @@
 //!
 //! # What is measured
 //! For each configuration: the atlases (1024², as in the paper) and pieces, then
-//! [`crate::bench::frame::bench_frame`] on the blend path and (unless `--paths blend`) on the compute
-//! path: first order (with shadow maps), transfer, dilation of the final map, display, and
+//! [`crate::bench::frame::bench_frame`] on the transfer paths `--paths` names (default all three:
+//! blend, compute, rows): first order (with shadow maps), transfer, dilation of the final map, display, and
 //! the full-screen additive-blend roofline at the lightmap size with as many blends as the
 //! transfer needs. Reported: milliseconds per pass (median of `--iterations` runs, GPU
 //! timestamps when the adapter has them), texel blends per frame and per second, the blend
 //! path's fraction of the roofline, and the frame rate of first order + blend transfer +
-//! dilation + display. `--pair off|on|both` times the blend path without and/or with
+//! dilation + display, and the same with the rows path's transfer (`fps rows`). `--pair off|on|both` times the blend path without and/or with
 //! paired pieces (`TransferOptions::pair_pieces`); the paired rows print both map-texel
 //! contributions and fragments per second against the roofline.
 //!
@@ -97,7 +97,7 @@ pub struct Args {
     #[arg(long, value_enum, default_value_t = Stat::Median)]
     statistic: Stat,
     /// Transfer paths to time.
-    #[arg(long, value_enum, default_value_t = Paths::Both)]
+    #[arg(long, value_enum, default_value_t = Paths::All)]
     paths: Paths,
     /// Shadow-map side, texels.
     #[arg(long, default_value_t = 1024)]
