@@ -1,10 +1,10 @@
 //! ortm's real-time wgpu passes: first-order lightmap, its area-weighted pyramid (for
-//! multi-resolution pieces), offset radiance transfer (paper Eq. 9, blend and compute paths),
+//! multi-resolution pieces), offset radiance transfer (paper Eq. 9: blend, compute and rows paths),
 //! indirect light, gutter dilation and display.
 //!
 //! # Frame
 //! ```text
-//! lights ─▶ first_order ─▶ [pyramid] ─▶ transfer (blend | compute) ─▶ [indirect] ─▶ dilate ─▶ display ─▶ RGBA8 image
+//! lights ─▶ first_order ─▶ [pyramid] ─▶ transfer (blend | compute | rows) ─▶ [indirect] ─▶ dilate ─▶ display ─▶ RGBA8 image
 //!              ▲ mesh, albedo  ▲ texel weights  ▲ atlases + pieces (from the binning stage)
 //! ```
 //! The pyramid pass ([`pyramid`]) runs only for multi-resolution pieces (level > 0).
