@@ -200,30 +200,35 @@ pub fn build_rows(
         raw[*k as usize] = RowEntry { w: a, source: s };
         *k += 1;
     });
-    // Per row: by source (stable, so equal reads keep the pieces' order), equal reads summed.
+    // Per row: by source (stable, so equal reads keep the pieces' order), equal reads summed,
+    // the merged row written over the front of `raw` (it never outruns the rows it reads).
     let mut offsets = Vec::with_capacity(texels as usize + 1);
-    let mut entries = Vec::with_capacity(total as usize);
     offsets.push(0u32);
+    let mut write = 0usize;
     for t in 0..texels as usize {
-        let row = &mut raw[counts[t] as usize..counts[t + 1] as usize];
-        row.sort_by_key(|e| e.source);
-        let mut k = 0;
-        while k < row.len() {
-            let s = row[k].source;
+        let (start, end) = (counts[t] as usize, counts[t + 1] as usize);
+        raw[start..end].sort_by_key(|e| e.source);
+        let mut k = start;
+        while k < end {
+            let s = raw[k].source;
             let mut sum = [0.0f64; 3];
-            while k < row.len() && row[k].source == s {
-                for (acc, v) in sum.iter_mut().zip(row[k].w) {
+            while k < end && raw[k].source == s {
+                for (acc, v) in sum.iter_mut().zip(raw[k].w) {
                     *acc += v as f64;
                 }
                 k += 1;
             }
-            entries.push(RowEntry {
+            raw[write] = RowEntry {
                 w: sum.map(|v| v as f32),
                 source: s,
-            });
+            };
+            write += 1;
         }
-        offsets.push(entries.len() as u32);
+        offsets.push(write as u32);
     }
+    raw.truncate(write);
+    raw.shrink_to_fit();
+    let entries = raw;
     Ok(RowSchedule {
         lightmap_size: size,
         max_level,

@@ -45,8 +45,6 @@ const TEXTURE_WIDTH: u32 = 4096;
 /// row zero): [`RowEntry`]'s 16 bytes per texel.
 fn entry_texture(gpu: &Gpu, band: usize, entries: &[RowEntry]) -> wgpu::TextureView {
     let height = (entries.len() as u32).div_ceil(TEXTURE_WIDTH);
-    let mut texels = bytemuck::cast_slice::<RowEntry, u8>(entries).to_vec();
-    texels.resize((TEXTURE_WIDTH * height) as usize * 16, 0);
     let size = wgpu::Extent3d {
         width: TEXTURE_WIDTH,
         height,
@@ -62,21 +60,38 @@ fn entry_texture(gpu: &Gpu, band: usize, entries: &[RowEntry]) -> wgpu::TextureV
         usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
         view_formats: &[],
     });
-    gpu.queue.write_texture(
-        wgpu::TexelCopyTextureInfo {
-            texture: &tex,
-            mip_level: 0,
-            origin: wgpu::Origin3d::ZERO,
-            aspect: wgpu::TextureAspect::All,
-        },
-        &texels,
-        wgpu::TexelCopyBufferLayout {
-            offset: 0,
-            bytes_per_row: Some(TEXTURE_WIDTH * 16),
-            rows_per_image: Some(height),
-        },
-        size,
-    );
+    // The full rows straight from `entries` (no copy of them all), the last one padded.
+    let full = (entries.len() / TEXTURE_WIDTH as usize) as u32;
+    let write = |y: u32, rows: u32, bytes: &[u8]| {
+        gpu.queue.write_texture(
+            wgpu::TexelCopyTextureInfo {
+                texture: &tex,
+                mip_level: 0,
+                origin: wgpu::Origin3d { x: 0, y, z: 0 },
+                aspect: wgpu::TextureAspect::All,
+            },
+            bytes,
+            wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(TEXTURE_WIDTH * 16),
+                rows_per_image: Some(rows),
+            },
+            wgpu::Extent3d {
+                width: TEXTURE_WIDTH,
+                height: rows,
+                depth_or_array_layers: 1,
+            },
+        );
+    };
+    let split = (full * TEXTURE_WIDTH) as usize;
+    if full > 0 {
+        write(0, full, bytemuck::cast_slice(&entries[..split]));
+    }
+    if split < entries.len() {
+        let mut tail = bytemuck::cast_slice::<RowEntry, u8>(&entries[split..]).to_vec();
+        tail.resize(TEXTURE_WIDTH as usize * 16, 0);
+        write(full, 1, &tail);
+    }
     util::view(&tex)
 }
 
