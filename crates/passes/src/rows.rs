@@ -270,6 +270,10 @@ mod tests {
         }
     }
 
+    fn entry(w: [f32; 3], source: u32) -> RowEntry {
+        RowEntry { w, source }
+    }
+
     #[test]
     fn a_level_zero_piece_becomes_one_entry_per_non_zero_value() {
         let a = atlas(2, 2, |x, y| {
@@ -284,20 +288,8 @@ mod tests {
         assert_eq!(rows.source_len, 16);
         // Texel (1,1) reads (0,3); (2,1) reads (1,3); (1,2) and (2,2) read below the map
         // (cropped away), and (2,2)'s value is 0 anyway.
-        assert_eq!(
-            rows.row(1, 1),
-            &[RowEntry {
-                w: [1.0, 2.0, 3.0],
-                source: 12
-            }]
-        );
-        assert_eq!(
-            rows.row(2, 1),
-            &[RowEntry {
-                w: [1.0, 2.0, 3.0],
-                source: 13
-            }]
-        );
+        assert_eq!(rows.row(1, 1), &[entry([1.0, 2.0, 3.0], 12)]);
+        assert_eq!(rows.row(2, 1), &[entry([1.0, 2.0, 3.0], 13)]);
         assert!(rows.row(1, 2).is_empty() && rows.row(2, 2).is_empty());
         assert_eq!(rows.entries.len(), 2);
     }
@@ -312,20 +304,8 @@ mod tests {
         assert_eq!(rows.max_level, 1);
         // Level 1 of 4×4 is 2×2, packed alone: block (1, 0) is source 16 + 1.
         assert_eq!(rows.source_len, 16 + 4);
-        assert_eq!(
-            rows.row(0, 0),
-            &[RowEntry {
-                w: [1.0, 2.0, 0.0],
-                source: 17
-            }]
-        );
-        assert_eq!(
-            rows.row(1, 0),
-            &[RowEntry {
-                w: [3.0, 2.0, 0.0],
-                source: 17
-            }]
-        );
+        assert_eq!(rows.row(0, 0), &[entry([1.0, 2.0, 0.0], 17)]);
+        assert_eq!(rows.row(1, 0), &[entry([3.0, 2.0, 0.0], 17)]);
     }
 
     #[test]

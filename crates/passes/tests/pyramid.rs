@@ -225,14 +225,7 @@ fn gpu_pyramid(gpu: &Gpu, c: &Case, max_level: u32) -> Vec<TexelImage> {
     let scene = pass.prepare(gpu, c.size, &c.weights, max_level).unwrap();
     let fo = first_order_texture(gpu, c, TexelReads::Sampled);
     let mut enc = gpu.device.create_command_encoder(&Default::default());
-    pass.encode(
-        gpu,
-        &mut enc,
-        &PyramidInputs {
-            scene: &scene,
-            first_order: &fo,
-        },
-    );
+    encode_pyramid(gpu, &pass, &mut enc, &scene, &fo);
     gpu.submit_and_wait("test.pyramid", enc).unwrap();
     let packed = gpu
         .read_texel_image("test.pyramid", scene.texture())
@@ -359,6 +352,17 @@ fn mirrors_match_the_direct_formula() {
     }
 }
 
+/// Records the pyramid pass building `scene` from `first_order`.
+fn encode_pyramid(
+    gpu: &Gpu,
+    pass: &PyramidPass,
+    enc: &mut wgpu::CommandEncoder,
+    scene: &passes::pyramid::PyramidScene,
+    first_order: &wgpu::TextureView,
+) {
+    pass.encode(gpu, enc, &PyramidInputs { scene, first_order });
+}
+
 /// Runs the transfer pass (with the pyramid pass first when needed) on the GPU; returns the
 /// final map, the pyramid levels it read (read back) and the pass's scene pieces.
 fn run_transfer(
@@ -378,14 +382,7 @@ fn run_transfer(
     });
     let mut enc = gpu.device.create_command_encoder(&Default::default());
     if let Some(p) = &pyr {
-        pyr_pass.encode(
-            gpu,
-            &mut enc,
-            &PyramidInputs {
-                scene: p,
-                first_order: &fo,
-            },
-        );
+        encode_pyramid(gpu, &pyr_pass, &mut enc, p, &fo);
     }
     let out = pass
         .encode(
@@ -536,14 +533,7 @@ fn level_zero_ignores_the_pyramid_bit_for_bit() {
         let pyr = pyr_pass.prepare(&gpu, c.size, &c.weights, 2).unwrap();
         let fo = first_order_texture(&gpu, &c, TexelReads::Sampled);
         let mut enc = gpu.device.create_command_encoder(&Default::default());
-        pyr_pass.encode(
-            &gpu,
-            &mut enc,
-            &PyramidInputs {
-                scene: &pyr,
-                first_order: &fo,
-            },
-        );
+        encode_pyramid(&gpu, &pyr_pass, &mut enc, &pyr, &fo);
         let out = pass
             .encode(
                 &gpu,
@@ -612,14 +602,7 @@ fn rows_in_bands_with_a_base_match_the_mirror() {
         }
         let (scene, tex) = pass.prepare(&gpu, &rows)?;
         let mut enc = gpu.device.create_command_encoder(&Default::default());
-        pyr_pass.encode(
-            &gpu,
-            &mut enc,
-            &PyramidInputs {
-                scene: &pyr,
-                first_order: &fo,
-            },
-        );
+        encode_pyramid(&gpu, &pyr_pass, &mut enc, &pyr, &fo);
         pass.encode(
             &gpu.device,
             &mut enc,
