@@ -74,10 +74,22 @@ pub struct Entry {
     pub value: [f32; 3],
 }
 
-/// Per-level sums of one row: `Σ R` and `Σ |R|` per block and channel.
+/// Per-level sums of one row: `Σ R` and `Σ |R|` per block and channel, levels `≥ 1` (level 0
+/// is the row itself, read in place).
 struct RowSums {
     sum: Vec<Vec<[f64; 3]>>,
     abs: Vec<Vec<[f64; 3]>>,
+}
+
+impl RowSums {
+    /// `(Σ R, Σ |R|)` of block `i` of level `l` of `row`.
+    fn at(&self, row: &[[f64; 3]], l: usize, i: usize) -> ([f64; 3], [f64; 3]) {
+        if l == 0 {
+            (row[i], row[i].map(f64::abs))
+        } else {
+            (self.sum[l][i], self.abs[l][i])
+        }
+    }
 }
 
 /// Level geometry and the texel weights shared by every row.
@@ -102,15 +114,37 @@ impl Layout {
         Self { dims, weight }
     }
 
-    fn sums(&self, row: &[[f64; 3]]) -> RowSums {
-        let mut sum = vec![row.to_vec()];
-        let mut abs = vec![row.iter().map(|v| v.map(f64::abs)).collect::<Vec<_>>()];
-        for l in 1..self.dims.len() {
-            let d = self.dims[l - 1];
-            sum.push(halve(d, &sum[l - 1], [0.0; 3], add3));
-            abs.push(halve(d, &abs[l - 1], [0.0; 3], add3));
+    /// The block sums of `row` (a full `W × H` row) into `out`, levels `1..`: each level's sum
+    /// and absolute sum from one pass over the level below (level 0 read in place), every
+    /// block's children added in row-major order from zero, as [`halve`] adds them.
+    fn sums_into(&self, row: &[[f64; 3]], out: &mut RowSums) {
+        let levels = self.dims.len();
+        out.sum.resize_with(levels, Vec::new);
+        out.abs.resize_with(levels, Vec::new);
+        for l in 1..levels {
+            let (w, h) = self.dims[l - 1];
+            let (nw, nh) = self.dims[l];
+            let (below, above) = out.sum.split_at_mut(l);
+            let (below_abs, above_abs) = out.abs.split_at_mut(l);
+            let (sum, abs) = (&mut above[0], &mut above_abs[0]);
+            sum.clear();
+            sum.resize((nw * nh) as usize, [0.0; 3]);
+            abs.clear();
+            abs.resize((nw * nh) as usize, [0.0; 3]);
+            for y in 0..h {
+                for x in 0..w {
+                    let j = (y * w + x) as usize;
+                    let o = ((y / 2) * nw + x / 2) as usize;
+                    let (v, a) = if l == 1 {
+                        (row[j], row[j].map(f64::abs))
+                    } else {
+                        (below[l - 1][j], below_abs[l - 1][j])
+                    };
+                    add3(&mut sum[o], &v);
+                    add3(&mut abs[o], &a);
+                }
+            }
         }
-        RowSums { sum, abs }
     }
 }
 
@@ -137,11 +171,10 @@ fn partition(
     while let Some((l, bx, by)) = stack.pop() {
         let (lw, _) = layout.dims[l as usize];
         let i = (by * lw + bx) as usize;
-        let a = sums.abs[l as usize][i];
+        let (s, a) = sums.at(row, l as usize, i);
         if a == [0.0; 3] {
             continue;
         }
-        let s = sums.sum[l as usize][i];
         let emit = |out: &mut Vec<Entry>| {
             out.push(Entry {
                 level: l as u8,
@@ -229,19 +262,23 @@ pub fn partition_rows_in(
                 (
                     vec![[0.0f32; 3]; n],
                     vec![[0.0f64; 3]; layout.weight[0].len()],
+                    RowSums {
+                        sum: Vec::new(),
+                        abs: Vec::new(),
+                    },
                 )
             },
-            |(r, full), i| {
+            |(r, full, sums), i| {
                 progress.check()?;
                 row(i, r);
                 for (t, v) in grid.texels.iter().zip(r.iter()) {
                     full[(t.y * w + t.x) as usize] = v.map(|c| c as f64);
                 }
                 let t = &grid.texels[i as usize];
-                let sums = layout.sums(full);
+                layout.sums_into(full, sums);
                 let out = settings
                     .iter()
-                    .map(|s| partition(&layout, &sums, full, (t.x, t.y), s))
+                    .map(|s| partition(&layout, sums, full, (t.x, t.y), s))
                     .collect();
                 progress.advance(1);
                 Ok(out)
