@@ -254,6 +254,9 @@ pub fn partition_rows_in(
     let layout = Layout::new(grid, level_count(grid.width, grid.height));
     let n = grid.texels.len();
     let w = grid.width;
+    // Each covered texel's index in the `W × H` grid, read once per row (not the texels
+    // themselves: ~100 bytes each, `n` of them per row).
+    let at: Vec<u32> = grid.texels.iter().map(|t| t.y * w + t.x).collect();
     progress.phase("multi-resolution rows", receivers.len() as u64);
     let per_receiver: Vec<Vec<Vec<Entry>>> = receivers
         .into_par_iter()
@@ -271,8 +274,8 @@ pub fn partition_rows_in(
             |(r, full, sums), i| {
                 progress.check()?;
                 row(i, r);
-                for (t, v) in grid.texels.iter().zip(r.iter()) {
-                    full[(t.y * w + t.x) as usize] = v.map(|c| c as f64);
+                for (&k, v) in at.iter().zip(r.iter()) {
+                    full[k as usize] = v.map(|c| c as f64);
                 }
                 let t = &grid.texels[i as usize];
                 layout.sums_into(full, sums);
@@ -323,6 +326,8 @@ pub fn hierarchical_row(tr: &Transport) -> Option<impl Fn(u32, &mut [[f32; 3]]) 
     let share: Vec<f32> = (tr.patches.iter().zip(&rem.cluster_of))
         .map(|(p, &c)| p.area_m2 / rem.clusters[c as usize].area_m2)
         .collect();
+    // The senders' areas, read `n` times per row (not the patches themselves).
+    let area: Vec<f32> = tr.patches.iter().map(|p| p.area_m2).collect();
     Some(move |i: u32, out: &mut [[f32; 3]]| {
         let ci = rem.cluster_of[i as usize] as usize;
         let rows = rem.rem.each_ref().map(|r| &r[ci * nc..(ci + 1) * nc]);
@@ -340,7 +345,7 @@ pub fn hierarchical_row(tr: &Transport) -> Option<impl Fn(u32, &mut [[f32; 3]]) 
                 }
                 let inv_area = 1.0 / tree.nodes[l.send as usize].area_m2;
                 for &j in tree.members(l.send) {
-                    let f = k * tr.patches[j as usize].area_m2 * inv_area;
+                    let f = k * area[j as usize] * inv_area;
                     let o = &mut out[j as usize];
                     for (c, v) in o.iter_mut().enumerate() {
                         *v += p.rho[c] * f;
