@@ -519,7 +519,7 @@ fn get(rep: &Option<BenchReport>, i: usize) -> Option<&BenchRow> {
 /// the frame rates, beside the paper's.
 fn print_table(rows: &[Row]) {
     println!(
-        "{:<24} {:>5} {:>5} {:>5} {:>6} {:>12} {:>9} {:>9} {:>9} {:>10} {:>8} {:>8} {:>8} {:>10} {:>10} {:>9} {:>8} {:>8} {:>8} {:>10}",
+        "{:<24} {:>5} {:>5} {:>5} {:>6} {:>12} {:>9} {:>9} {:>9} {:>10} {:>8} {:>8} {:>8} {:>10} {:>10} {:>9} {:>8} {:>8} {:>8} {:>9} {:>10}",
         "configuration",
         "size",
         "maps",
@@ -539,6 +539,7 @@ fn print_table(rows: &[Row]) {
         "fps",
         "fps st.",
         "fps rows",
+        "fps r.st.",
         "paper fps"
     );
     for r in rows {
@@ -547,8 +548,8 @@ fn print_table(rows: &[Row]) {
     println!(
         "fps = 1000 / (first order + transfer (blend if timed) + dilation + display) with moving \
          lights (1st ms: shadow maps re-rendered every frame); fps st. = the same with static \
-         lights (1st st.ms: shadow maps reused); fps rows = fps with the rows path's transfer \
-         (--paths rows|all); roof.% = blend-path texel blends/s ÷ \
+         lights (1st st.ms: shadow maps reused); fps rows, fps r.st. = the same two with the \
+         rows path's transfer (--paths rows|all); roof.% = blend-path texel blends/s ÷ \
          full-screen additive-blend roofline at the lightmap size; blend = the unpaired blend \
          path with --pair off|both, the paired one with --pair on (texel blends = map-texel \
          contributions; fragments in the paired table below)"
@@ -575,6 +576,9 @@ fn print_row(r: &Row) {
     let rows_frame_ms = [ms(0), rows_ms, ms(2), ms(3)]
         .iter()
         .try_fold(0.0, |acc, v| v.map(|v| acc + v));
+    let rows_static_ms = [ms(5), rows_ms, ms(2), ms(3)]
+        .iter()
+        .try_fold(0.0, |acc, v| v.map(|v| acc + v));
     let static_ms = [ms(5), transfer_ms, ms(2), ms(3)]
         .iter()
         .try_fold(0.0, |acc, v| v.map(|v| acc + v));
@@ -586,7 +590,7 @@ fn print_row(r: &Row) {
         .map_or(0, |x| x.texel_blends);
     let rate = blend.or(compute).map(|x| x.blends_per_s);
     println!(
-        "{:<24} {:>5} {:>5} {:>5} {:>6.2} {:>12} {:>9} {:>9} {:>9} {:>10} {:>8} {:>8} {:>8} {:>10} {:>10} {:>9} {:>8} {:>8} {:>8} {:>10}",
+        "{:<24} {:>5} {:>5} {:>5} {:>6.2} {:>12} {:>9} {:>9} {:>9} {:>10} {:>8} {:>8} {:>8} {:>10} {:>10} {:>9} {:>8} {:>8} {:>8} {:>9} {:>10}",
         r.label,
         r.size,
         r.maps,
@@ -610,6 +614,7 @@ fn print_row(r: &Row) {
         f(frame_ms.map(|m| 1000.0 / m), 2),
         f(static_ms.map(|m| 1000.0 / m), 2),
         f(rows_frame_ms.map(|m| 1000.0 / m), 2),
+        f(rows_static_ms.map(|m| 1000.0 / m), 2),
         r.paper.map_or("—".to_string(), |(bins, fps)| format!(
             "{fps:.2} ({bins} bins)"
         )),
