@@ -556,8 +556,7 @@ impl TransferPass {
             bytemuck::bytes_of(&TransferParams::of(&schedule)),
             wgpu::BufferUsages::UNIFORM,
         );
-        let mut rows = None;
-        let (instance_buffers, gather, final_tex, accum) = match self.options.path {
+        let (instance_buffers, gather, rows, final_tex, accum) = match self.options.path {
             TransferPath::Blend => {
                 let bufs = instance_buffers(device, "instances", &schedule.batches);
                 let usage = wgpu::TextureUsages::RENDER_ATTACHMENT
@@ -583,7 +582,7 @@ impl TransferPass {
                         self.resolve_bind_group(device, &params, util::view(&t))
                     })
                     .transpose()?;
-                (bufs, None, tex, accum)
+                (bufs, None, None, tex, accum)
             }
             TransferPath::Compute => {
                 let g = self
@@ -594,7 +593,7 @@ impl TransferPass {
                         problem: "compute path without its pipelines (internal bug)".into(),
                     })?;
                 let (scene, tex) = g.prepare(gpu, &schedule, &params)?;
-                (Vec::new(), Some(scene), tex, None)
+                (Vec::new(), Some(scene), None, tex, None)
             }
             TransferPath::Rows => {
                 let r = self.rows.as_ref().ok_or_else(|| PassError::InvalidInput {
@@ -602,8 +601,7 @@ impl TransferPass {
                     problem: "rows path without its pipelines (internal bug)".into(),
                 })?;
                 let (scene, tex) = r.prepare(gpu, &build_rows(&schedule, atlases)?)?;
-                rows = Some(scene);
-                (Vec::new(), None, tex, None)
+                (Vec::new(), None, Some(scene), tex, None)
             }
         };
         let (paired, pair_gpu) = self.prepare_pairs(gpu, &schedule, atlases)?;

@@ -570,18 +570,14 @@ fn print_row(r: &Row) {
     let rows_ms = get(&r.rows, 1).map(|x| x.ms);
     let roof = get(blend_rep, 4).or(get(&r.compute, 4));
     let transfer_ms = blend.or(compute).map(|x| x.ms).or(rows_ms);
-    let frame_ms = [ms(0), transfer_ms, ms(2), ms(3)]
-        .iter()
-        .try_fold(0.0, |acc, v| v.map(|v| acc + v));
-    let rows_frame_ms = [ms(0), rows_ms, ms(2), ms(3)]
-        .iter()
-        .try_fold(0.0, |acc, v| v.map(|v| acc + v));
-    let rows_static_ms = [ms(5), rows_ms, ms(2), ms(3)]
-        .iter()
-        .try_fold(0.0, |acc, v| v.map(|v| acc + v));
-    let static_ms = [ms(5), transfer_ms, ms(2), ms(3)]
-        .iter()
-        .try_fold(0.0, |acc, v| v.map(|v| acc + v));
+    // Frames per second of first order (`ms(0)` moving lights, `ms(5)` static) + `transfer`
+    // + dilation + display; `None` when a pass was not timed.
+    let fps = |first: Option<f64>, transfer: Option<f64>| {
+        [first, transfer, ms(2), ms(3)]
+            .iter()
+            .try_fold(0.0, |acc, v| v.map(|v| acc + v))
+            .map(|m| 1000.0 / m)
+    };
     let f = |v: Option<f64>, p: usize| v.map_or("—".to_string(), |v| format!("{v:.p$}"));
     let e = |v: Option<f64>| v.map_or("—".to_string(), |v| format!("{v:.3e}"));
     let blends = blend
@@ -611,10 +607,10 @@ fn print_row(r: &Row) {
                 .map(|(a, b)| 100.0 * a / b),
             1
         ),
-        f(frame_ms.map(|m| 1000.0 / m), 2),
-        f(static_ms.map(|m| 1000.0 / m), 2),
-        f(rows_frame_ms.map(|m| 1000.0 / m), 2),
-        f(rows_static_ms.map(|m| 1000.0 / m), 2),
+        f(fps(ms(0), transfer_ms), 2),
+        f(fps(ms(5), transfer_ms), 2),
+        f(fps(ms(0), rows_ms), 2),
+        f(fps(ms(5), rows_ms), 2),
         r.paper.map_or("—".to_string(), |(bins, fps)| format!(
             "{fps:.2} ({bins} bins)"
         )),
