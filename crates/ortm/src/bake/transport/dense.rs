@@ -133,12 +133,11 @@ impl DenseTransport {
     }
 
     /// `M = I − X F` for channel `ch`: rows scaled by `ρ̄` where `X` is diagonal (no translucent
-    /// patch), else the dense product with `X` (faer's blocked product beats the sparse rows
-    /// once a profile's support holds tens of patches).
+    /// patch), else the sparse rows of `X` times `F` ([`sparse_times_dense`]).
     fn system(&self, ch: usize) -> Mat<f64> {
         let n = self.n;
         let mut m = if self.translucent.iter().any(|&t| t) {
-            &self.exitance_dense(ch, |_| 1.0) * &self.form_factors
+            sparse_times_dense(&self.exitance, ch, &self.form_factors)
         } else {
             Mat::from_fn(n, n, |i, j| {
                 exitance_times(&self.exitance[i], ch, |k| self.form_factors[(k, j)])
@@ -294,6 +293,49 @@ impl DenseTransport {
     }
 }
 
+/// Columns of `F` per block of [`sparse_times_dense`]: a row's sums are four AVX-512 registers
+/// of `f64`, and the block's copy of `F` (`n × 32` doubles, 1.3 MB at n = 5,084) stays in a
+/// 2 MB L2 cache. (8 columns: the same within the timing noise.)
+const PRODUCT_BLOCK: usize = 32;
+
+/// `X F` for channel `ch` of the sparse rows `x` (row `i`: its non-zero entries `(k, X_ik)`) and
+/// the dense `f` (`n × n`): `nnz(X) · n` multiply-adds instead of the dense product's `n³`. On
+/// the head's 256² remainder (5,084 clusters, 203 non-zero weights per row) the coarse solve's
+/// three channels take 14.7–15.2 s instead of 18.9 s. Blocks of [`PRODUCT_BLOCK`] columns in parallel; each block's columns of `F` are
+/// copied row-major first, so a row's entries read `PRODUCT_BLOCK` adjacent values per entry.
+/// The sums run in the order of each row's entries (not faer's blocked order: results equal
+/// the dense product's to rounding; the head's 256² bake is byte-identical).
+fn sparse_times_dense(x: &[Vec<(u32, [f64; 3])>], ch: usize, f: &Mat<f64>) -> Mat<f64> {
+    let n = f.nrows();
+    let cols = f.ncols();
+    let mut out = vec![0.0f64; n * cols];
+    out.par_chunks_mut(n * PRODUCT_BLOCK)
+        .enumerate()
+        .for_each(|(b, chunk)| {
+            let c0 = b * PRODUCT_BLOCK;
+            let width = chunk.len() / n;
+            let mut block = vec![[0.0f64; PRODUCT_BLOCK]; n];
+            for (l, col) in (c0..c0 + width).enumerate() {
+                for (k, v) in f.col_as_slice(col).iter().enumerate() {
+                    block[k][l] = *v;
+                }
+            }
+            for (i, row) in x.iter().enumerate() {
+                let mut acc = [0.0f64; PRODUCT_BLOCK];
+                for &(k, w) in row {
+                    let w = w[ch];
+                    for (a, v) in acc.iter_mut().zip(&block[k as usize]) {
+                        *a += w * v;
+                    }
+                }
+                for (l, a) in acc[..width].iter().enumerate() {
+                    chunk[l * n + i] = *a;
+                }
+            }
+        });
+    Mat::from_fn(n, cols, |i, j| out[j * n + i])
+}
+
 /// `(X v)_i` for channel `ch` from row `i` of `X` (its non-zero entries `(j, X_ij)`).
 fn exitance_times(row: &[(u32, [f64; 3])], ch: usize, v: impl Fn(usize) -> f64) -> f64 {
     row.iter().map(|&(j, x)| x[ch] * v(j as usize)).sum()
@@ -353,6 +395,41 @@ mod tests {
     use super::*;
     use crate::bake::raycast::Visibility;
     use crate::bake::transport::Effects;
+
+    /// The sparse product equals faer's dense one, for a size that is not a multiple of the
+    /// column block and rows with no entry, one entry and many.
+    #[test]
+    fn sparse_times_dense_equals_the_dense_product() {
+        let n = 21;
+        let f = Mat::from_fn(n, n, |i, j| ((i * 7 + j * 13) % 17) as f64 / 17.0 - 0.4);
+        let x: Vec<Vec<(u32, [f64; 3])>> = (0..n)
+            .map(|i| {
+                (0..n)
+                    .filter(|j| i % 5 != 0 && (i * j + i) % (i % 4 + 2) == 0)
+                    .map(|j| (j as u32, [0.1 * i as f64 - j as f64, 0.5, -(j as f64)]))
+                    .collect()
+            })
+            .collect();
+        assert!(x.iter().any(Vec::is_empty) && x.iter().any(|r| r.len() > 5));
+        for ch in 0..3 {
+            let dense = Mat::from_fn(n, n, |i, k| {
+                x[i].iter()
+                    .find(|e| e.0 as usize == k)
+                    .map_or(0.0, |e| e.1[ch])
+            });
+            let want = &dense * &f;
+            let got = sparse_times_dense(&x, ch, &f);
+            for i in 0..n {
+                for j in 0..n {
+                    let (a, b) = (got[(i, j)], want[(i, j)]);
+                    assert!(
+                        (a - b).abs() <= 1e-12 * b.abs().max(1.0),
+                        "({i}, {j}): {a} vs {b}"
+                    );
+                }
+            }
+        }
+    }
 
     /// Two facing squares: the factorised solve equals the 2×2 closed form
     /// `B = (I − ρF)⁻¹ B_o` and the multi-lighting solve, for several lightings.
