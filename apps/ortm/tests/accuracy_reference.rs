@@ -1,7 +1,8 @@
 //! The path-traced reference (`ortm::accuracy::reference`) against the exact dense solve of the
 //! same scene: two independent computations of the transport's model (Monte Carlo paths through
 //! the BVH and the profile by probe rays, vs form factors and the profile's texel quadrature
-//! solved by LU). Plus determinism (seed, thread count).
+//! solved by LU). Plus determinism (seed, thread count), and a measurement of the subsurface
+//! weights' row sums against the continuous surface (`*_subsurface_rows_*`, ignored).
 
 mod common;
 
@@ -720,5 +721,271 @@ fn head_64_cluster_evaluator_against_the_reference() {
                 relative_rmse(&ev, &exact, None)
             );
         }
+    }
+}
+
+/// Eight point lights of 1/8 W/sr each on a Fibonacci sphere at four bounding radii from the
+/// head's centre: light from every side, so that most texels lie away from a shadow's edge.
+fn dome_lights(scene: &Scene) -> Vec<Light> {
+    let (centre, r) = scene.mesh.bounding_sphere().expect("a mesh");
+    let n = 8;
+    (0..n)
+        .map(|k| {
+            let z = 1.0 - 2.0 * (k as f32 + 0.5) / n as f32;
+            let phi = k as f32 * 2.399_963;
+            let s = (1.0 - z * z).sqrt();
+            Light::Point {
+                position_m: centre + 4.0 * r * Vec3::new(s * phi.cos(), z, s * phi.sin()),
+                color: Vec3::ONE,
+                intensity_w_sr: 1.0 / n as f32,
+            }
+        })
+        .collect()
+}
+
+/// Scales `α` (per receiver) and `β` (per sender) of the weights `α_i · raw_ij · β_j` such that
+/// every row sums to `q̂_i` (a uniform irradiance re-emits what the continuous surface does)
+/// and every area-weighted column `Σ_i A_i α_i raw_ij β_j / A_j` to `q̂_j` (every sender
+/// re-emits it): Sinkhorn's alternating scaling, `iterations` times, columns last.
+fn balance(
+    rows: &[Vec<(usize, [f64; 3])>],
+    area: &[f64],
+    q_hat: &[[f64; 3]],
+    iterations: usize,
+) -> (Vec<[f64; 3]>, Vec<[f64; 3]>) {
+    let n = rows.len();
+    let (mut alpha, mut beta) = (vec![[1.0f64; 3]; n], vec![[1.0f64; 3]; n]);
+    for _ in 0..iterations {
+        for (i, row) in rows.iter().enumerate() {
+            let mut r = [0.0f64; 3];
+            for &(j, w) in row {
+                for c in 0..3 {
+                    r[c] += w[c] * beta[j][c];
+                }
+            }
+            for c in 0..3 {
+                alpha[i][c] = if r[c] > 0.0 { q_hat[i][c] / r[c] } else { 1.0 };
+            }
+        }
+        let mut col = vec![[0.0f64; 3]; n];
+        for (i, row) in rows.iter().enumerate() {
+            for &(j, w) in row {
+                for c in 0..3 {
+                    col[j][c] += area[i] * alpha[i][c] * w[c] / area[j];
+                }
+            }
+        }
+        for j in 0..n {
+            for c in 0..3 {
+                beta[j][c] = if col[j][c] > 0.0 {
+                    q_hat[j][c] / col[j][c]
+                } else {
+                    1.0
+                };
+            }
+        }
+    }
+    (alpha, beta)
+}
+
+/// RMS over patches and channels of `sum_i / q̂_i − 1`.
+fn rms_deviation(sums: &[[f64; 3]], q_hat: &[[f64; 3]]) -> f64 {
+    let mut acc = 0.0;
+    for (s, q) in sums.iter().zip(q_hat) {
+        for c in 0..3 {
+            acc += (s[c] / q[c] - 1.0).powi(2);
+        }
+    }
+    (acc / (3 * sums.len()) as f64).sqrt()
+}
+
+/// Figures of [`subsurface_rows_at`]: RMS deviation of the weights' row sums from `Q̂`, capped
+/// and balanced, and their agreement with the reference under `lights` over the texels away
+/// from the first order's edges.
+struct RowsFigures {
+    capped_rows: f64,
+    balanced_rows: f64,
+    balanced_columns: f64,
+    capped_away: Agreement,
+    balanced_away: Agreement,
+    balanced_all: Agreement,
+    capped_all: Agreement,
+}
+
+/// The head at `size`², subsurface alone: the transport's weights (normalised per sender,
+/// columns capped at `Q̂_j`) and the same raw weights balanced in rows and columns
+/// ([`balance`]), each applied to the first order of `lights` (`B_i = Σ_j S_ij E_j`, the exact
+/// solve without interreflection) and compared with the reference at `spp` paths per texel.
+fn subsurface_rows_at(size: u32, spp: u32, lights: impl Fn(&Scene) -> Vec<Light>) -> RowsFigures {
+    use rayon::prelude::*;
+    let (scene, grid) = head_at(size);
+    let effects = Effects {
+        radiosity: false,
+        subsurface: true,
+    };
+    let vis = Arc::new(Visibility::new(&scene.mesh));
+    let kernels = Kernels::new(&scene, effects, vis.clone());
+    let patches = texel_patches(&grid);
+    let n = patches.len();
+    let q_hat: Vec<[f64; 3]> = (patches.iter())
+        .map(|p| kernels.continuous_reemission(p).expect("skin"))
+        .collect();
+    let area: Vec<f64> = patches.iter().map(|p| p.area_m2 as f64).collect();
+    // The raw weights within the profile's support, row by row.
+    let support = kernels.support_m[0] as f32;
+    let rows: Vec<Vec<(usize, [f64; 3])>> = (0..n)
+        .into_par_iter()
+        .map(|i| {
+            (0..n)
+                .filter(|&j| {
+                    i == j || (patches[i].position_m - patches[j].position_m).length() <= support
+                })
+                .filter_map(|j| {
+                    let w = kernels.subsurface_raw(&patches[i], &patches[j], i == j)?;
+                    (w != [0.0; 3]).then_some((j, w))
+                })
+                .collect()
+        })
+        .collect();
+    let mut capped = patches.clone();
+    kernels.normalise_subsurface(&mut capped);
+    let beta_cap: Vec<[f64; 3]> = (capped.iter())
+        .map(|p| p.subsurface_scale.to_array().map(f64::from))
+        .collect();
+    let ones = vec![[1.0f64; 3]; n];
+    let (alpha, beta) = balance(&rows, &area, &q_hat, 50);
+    let sums = |alpha: &[[f64; 3]], beta: &[[f64; 3]]| {
+        let mut row = vec![[0.0f64; 3]; n];
+        let mut col = vec![[0.0f64; 3]; n];
+        for (i, r) in rows.iter().enumerate() {
+            for &(j, w) in r {
+                for c in 0..3 {
+                    let s = alpha[i][c] * w[c] * beta[j][c];
+                    row[i][c] += s;
+                    col[j][c] += area[i] * s / area[j];
+                }
+            }
+        }
+        (rms_deviation(&row, &q_hat), rms_deviation(&col, &q_hat))
+    };
+    let (capped_rows, capped_columns) = sums(&ones, &beta_cap);
+    let (balanced_rows, balanced_columns) = sums(&alpha, &beta);
+    println!(
+        "{size}²: row / column sums against Q̂, RMS deviation: capped {capped_rows:.4} / \
+         {capped_columns:.4}, balanced {balanced_rows:.4} / {balanced_columns:.4}"
+    );
+    let apply = |alpha: &[[f64; 3]], beta: &[[f64; 3]], b_o: &[Vec3]| -> Vec<Vec3> {
+        (rows.iter().enumerate())
+            .map(|(i, row)| {
+                let mut s = [0.0f64; 3];
+                for &(j, w) in row {
+                    for c in 0..3 {
+                        let rho = patches[j].rho[c] as f64;
+                        if rho > 0.0 {
+                            s[c] += alpha[i][c] * w[c] * beta[j][c] * b_o[j][c] as f64 / rho;
+                        }
+                    }
+                }
+                Vec3::new(s[0] as f32, s[1] as f32, s[2] as f32)
+            })
+            .collect()
+    };
+    let lights = lights(&scene);
+    let maps = run(&scene, &grid, &lights, &settings(spp, 1, effects));
+    let b_o = lighting::first_order(&grid, &lights, &vis);
+    let capped_b = apply(&ones, &beta_cap, &b_o);
+    if n <= 6000 {
+        let same = relative_rmse(&capped_b, &exact(&scene, &grid, &lights, effects), None);
+        assert!(
+            same < 1e-5,
+            "the capped weights are the exact solve's: {same}"
+        );
+    }
+    let balanced_b = apply(&alpha, &beta, &b_o);
+    let all = vec![true; n];
+    println!("capped, all texels:");
+    let capped_all = agreement(&grid, &maps, &capped_b, 3.0, &all);
+    println!("balanced, all texels:");
+    let balanced_all = agreement(&grid, &maps, &balanced_b, 3.0, &all);
+    let (_, capped_away) = by_first_order_edges(&grid, &maps, &capped_b, "capped, ");
+    let (_, balanced_away) = by_first_order_edges(&grid, &maps, &balanced_b, "balanced, ");
+    println!(
+        "{size}²: all texels capped {:.4} ({:.4} within 3σ), balanced {:.4} ({:.4}); away from \
+         the first order's edges capped {:.4} ({:.4}), balanced {:.4} ({:.4}); the reference's \
+         noise {:.4} / {:.4}",
+        capped_all.rmse,
+        capped_all.within,
+        balanced_all.rmse,
+        balanced_all.within,
+        capped_away.rmse,
+        capped_away.within,
+        balanced_away.rmse,
+        balanced_away.within,
+        capped_all.noise,
+        capped_away.noise
+    );
+    RowsFigures {
+        capped_rows,
+        balanced_rows,
+        balanced_columns,
+        capped_away,
+        balanced_away,
+        balanced_all,
+        capped_all,
+    }
+}
+
+/// The subsurface weights' row sums against the continuous surface (head at 64², subsurface
+/// alone). Under a uniform irradiance texel `i` re-emits `Σ_j S_ij` in the transport and `Q̂_i`
+/// (`Kernels::continuous_reemission`) in the continuous model the reference samples. The
+/// weights are normalised per sender (columns capped at `Q̂_j`), so nothing holds the rows,
+/// and they are off by a few percent: under lights from every side ([`dome_lights`]), away
+/// from the first order's edges, that is most of the exact solve's distance to the
+/// reference. The same weights balanced in rows and columns (Sinkhorn, in this test only)
+/// agree with the reference there to its noise. A measurement for the transport's next
+/// step, not a check of what it does now: `cargo test --release --test accuracy_reference
+/// subsurface_rows -- --ignored --nocapture` (10 s on 2 cores; the 256² one, with the paper's
+/// light as well, 2.6 minutes).
+#[test]
+#[ignore]
+fn head_64_subsurface_rows_against_the_continuous_surface() {
+    let f = subsurface_rows_at(64, 1024, dome_lights);
+    // Measured (1,024 spp in 256 replicates of 4, seed 1; 2,558 of 3,782 texels away from
+    // the edges): rows 0.0404 / columns 0.0168 capped, 0.0015 / 0.0000 balanced; all texels
+    // capped 0.0467 (0.820 within 3σ), balanced 0.0366 (0.936); away from the edges capped
+    // 0.0343 (0.862), balanced 0.0167 (0.979), noise 0.0152.
+    assert!(f.capped_rows > 0.02, "capped rows {:.4}", f.capped_rows);
+    assert!(f.balanced_rows < 0.005 && f.balanced_columns < 0.005);
+    let away = (&f.capped_away, &f.balanced_away);
+    assert!(
+        away.0.rmse > 1.8 * away.0.noise,
+        "capped {:.4}",
+        away.0.rmse
+    );
+    assert!(
+        away.1.rmse < 1.25 * away.1.noise,
+        "balanced {:.4}",
+        away.1.rmse
+    );
+    assert!(f.balanced_all.rmse < f.capped_all.rmse);
+}
+
+/// [`head_64_subsurface_rows_against_the_continuous_surface`] at 256², the face bakes' size,
+/// under the dome and under the paper's Fig. 5 lamp (the scene's light): 512 paths per texel.
+#[test]
+#[ignore]
+fn head_256_subsurface_rows_against_the_continuous_surface() {
+    let dome = subsurface_rows_at(256, 512, dome_lights);
+    let fig5 = subsurface_rows_at(256, 512, |s: &Scene| s.lights.clone());
+    // Measured (512 spp in 128 replicates of 4, seed 1): rows 0.0252 capped (per channel
+    // 0.021 / 0.026 / 0.029), 0.0006 balanced. Dome: all texels capped 0.0316 (0.923 within
+    // 3σ), balanced 0.0247 (0.976), noise 0.0229; away from the edges (53,435 texels) 0.0299
+    // → 0.0220, noise 0.0218. Fig. 5: all 0.0330 (0.951) → 0.0316 (0.965), noise 0.0260; away
+    // (50,877) 0.0250 → 0.0229, noise 0.0227.
+    for f in [&dome, &fig5] {
+        assert!(f.capped_rows > 0.015, "capped rows {:.4}", f.capped_rows);
+        assert!(f.balanced_all.rmse < f.capped_all.rmse);
+        assert!(f.balanced_away.rmse < 1.1 * f.balanced_away.noise);
+        assert!(f.balanced_all.within > f.capped_all.within);
     }
 }

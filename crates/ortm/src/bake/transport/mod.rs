@@ -528,15 +528,8 @@ impl Kernels {
                     return 0;
                 }
                 p.subsurface_scale = Vec3::ONE;
-                let m = p.material as usize;
-                let Some(profile) = self.profiles[m].as_ref() else {
+                let Some(cap) = self.continuous_reemission(p) else {
                     return 0;
-                };
-                let cap = match (&self.surface, &self.tables[m], p.footprint_m) {
-                    (Some(s), Some(table), Some(_)) => {
-                        s.at(table, p.material, p.position_m, self.support_m[m])
-                    }
-                    _ => std::array::from_fn(|c| profile.channels[c].total_reflectance()),
                 };
                 for c in 0..3 {
                     if q[c] > cap[c] {
@@ -548,6 +541,21 @@ impl Kernels {
             .sum();
         progress.check()?;
         Ok(scaled)
+    }
+
+    /// `Q̂` of patch `p` per channel: what the continuous surface re-emits per unit of power
+    /// entering at its centre ([`surface::SurfaceReemission`]) for a texel of kernels built from
+    /// a scene, else the plane's value ρ̄ (clusters, tree nodes, kernels from parts); `None` for
+    /// an opaque patch. The cap of [`Kernels::scale_subsurface`].
+    pub fn continuous_reemission(&self, p: &Patch) -> Option<[f64; 3]> {
+        let m = p.material as usize;
+        let profile = self.profiles[m].as_ref()?;
+        Some(match (&self.surface, &self.tables[m], p.footprint_m) {
+            (Some(s), Some(table), Some(_)) => {
+                s.at(table, p.material, p.position_m, self.support_m[m])
+            }
+            _ => std::array::from_fn(|c| profile.channels[c].total_reflectance()),
+        })
     }
 
     /// True when material `m` scatters under the surface.
