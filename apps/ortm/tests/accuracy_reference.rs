@@ -743,51 +743,6 @@ fn dome_lights(scene: &Scene) -> Vec<Light> {
         .collect()
 }
 
-/// Scales `α` (per receiver) and `β` (per sender) of the weights `α_i · raw_ij · β_j` such that
-/// every row sums to `q̂_i` (a uniform irradiance re-emits what the continuous surface does)
-/// and every area-weighted column `Σ_i A_i α_i raw_ij β_j / A_j` to `q̂_j` (every sender
-/// re-emits it): Sinkhorn's alternating scaling, `iterations` times, columns last.
-fn balance(
-    rows: &[Vec<(usize, [f64; 3])>],
-    area: &[f64],
-    q_hat: &[[f64; 3]],
-    iterations: usize,
-) -> (Vec<[f64; 3]>, Vec<[f64; 3]>) {
-    let n = rows.len();
-    let (mut alpha, mut beta) = (vec![[1.0f64; 3]; n], vec![[1.0f64; 3]; n]);
-    for _ in 0..iterations {
-        for (i, row) in rows.iter().enumerate() {
-            let mut r = [0.0f64; 3];
-            for &(j, w) in row {
-                for c in 0..3 {
-                    r[c] += w[c] * beta[j][c];
-                }
-            }
-            for c in 0..3 {
-                alpha[i][c] = if r[c] > 0.0 { q_hat[i][c] / r[c] } else { 1.0 };
-            }
-        }
-        let mut col = vec![[0.0f64; 3]; n];
-        for (i, row) in rows.iter().enumerate() {
-            for &(j, w) in row {
-                for c in 0..3 {
-                    col[j][c] += area[i] * alpha[i][c] * w[c] / area[j];
-                }
-            }
-        }
-        for j in 0..n {
-            for c in 0..3 {
-                beta[j][c] = if col[j][c] > 0.0 {
-                    q_hat[j][c] / col[j][c]
-                } else {
-                    1.0
-                };
-            }
-        }
-    }
-    (alpha, beta)
-}
-
 /// RMS over patches and channels of `sum_i / q̂_i − 1`.
 fn rms_deviation(sums: &[[f64; 3]], q_hat: &[[f64; 3]]) -> f64 {
     let mut acc = 0.0;
@@ -814,7 +769,7 @@ struct RowsFigures {
 
 /// The head at `size`², subsurface alone: the transport's weights (normalised per sender,
 /// columns capped at `Q̂_j`) and the same raw weights balanced in rows and columns
-/// ([`balance`]), each applied to the first order of `lights` (`B_i = Σ_j S_ij E_j`, the exact
+/// (`Kernels::balance_rounds`, 50 rounds), each applied to the first order of `lights` (`B_i = Σ_j S_ij E_j`, the exact
 /// solve without interreflection) and compared with the reference at `spp` paths per texel.
 fn subsurface_rows_at(size: u32, spp: u32, lights: impl Fn(&Scene) -> Vec<Light>) -> RowsFigures {
     use rayon::prelude::*;
@@ -824,7 +779,7 @@ fn subsurface_rows_at(size: u32, spp: u32, lights: impl Fn(&Scene) -> Vec<Light>
         subsurface: true,
     };
     let vis = Arc::new(Visibility::new(&scene.mesh));
-    let kernels = Kernels::new(&scene, effects, vis.clone());
+    let mut kernels = Kernels::new(&scene, effects, vis.clone());
     let patches = texel_patches(&grid);
     let n = patches.len();
     let q_hat: Vec<[f64; 3]> = (patches.iter())
@@ -853,7 +808,17 @@ fn subsurface_rows_at(size: u32, spp: u32, lights: impl Fn(&Scene) -> Vec<Light>
         .map(|p| p.subsurface_scale.to_array().map(f64::from))
         .collect();
     let ones = vec![[1.0f64; 3]; n];
-    let (alpha, beta) = balance(&rows, &area, &q_hat, 50);
+    kernels.balance_rounds = 50;
+    let mut balanced = patches.clone();
+    kernels.normalise_subsurface(&mut balanced);
+    let factors = |f: fn(&ortm::bake::transport::Patch) -> Vec3| -> Vec<[f64; 3]> {
+        balanced
+            .iter()
+            .map(|p| f(p).to_array().map(f64::from))
+            .collect()
+    };
+    let alpha = factors(|p| p.subsurface_gather);
+    let beta = factors(|p| p.subsurface_scale);
     let sums = |alpha: &[[f64; 3]], beta: &[[f64; 3]]| {
         let mut row = vec![[0.0f64; 3]; n];
         let mut col = vec![[0.0f64; 3]; n];
@@ -894,14 +859,20 @@ fn subsurface_rows_at(size: u32, spp: u32, lights: impl Fn(&Scene) -> Vec<Light>
     let maps = run(&scene, &grid, &lights, &settings(spp, 1, effects));
     let b_o = lighting::first_order(&grid, &lights, &vis);
     let capped_b = apply(&ones, &beta_cap, &b_o);
+    let balanced_b = apply(&alpha, &beta, &b_o);
     if n <= 6000 {
         let same = relative_rmse(&capped_b, &exact(&scene, &grid, &lights, effects), None);
         assert!(
             same < 1e-5,
             "the capped weights are the exact solve's: {same}"
         );
+        let solve = DenseTransport::new(&patches, &kernels).solve(&b_o);
+        let same = relative_rmse(&balanced_b, &solve, None);
+        assert!(
+            same < 1e-5,
+            "the balanced weights are the balanced solve's: {same}"
+        );
     }
-    let balanced_b = apply(&alpha, &beta, &b_o);
     let all = vec![true; n];
     println!("capped, all texels:");
     let capped_all = agreement(&grid, &maps, &capped_b, 3.0, &all);
@@ -941,9 +912,9 @@ fn subsurface_rows_at(size: u32, spp: u32, lights: impl Fn(&Scene) -> Vec<Light>
 /// weights are normalised per sender (columns capped at `Q̂_j`), so nothing holds the rows,
 /// and they are off by a few percent: under lights from every side ([`dome_lights`]), away
 /// from the first order's edges, that is most of the exact solve's distance to the
-/// reference. The same weights balanced in rows and columns (Sinkhorn, in this test only)
-/// agree with the reference there to its noise. A measurement for the transport's next
-/// step, not a check of what it does now: `cargo test --release --test accuracy_reference
+/// reference. The same weights balanced in rows and columns (`Kernels::balance_rounds`,
+/// `ortm solve --balance-subsurface`) agree with the reference there to its noise:
+/// `cargo test --release --test accuracy_reference
 /// subsurface_rows -- --ignored --nocapture` (10 s on 2 cores; the 256² one, with the paper's
 /// light as well, 2.6 minutes).
 #[test]

@@ -2,7 +2,8 @@
 //! (`ortm::bake::near_field`, whose unit tests check it against the profile integrated by
 //! brute force across a shadow edge) changes translucent texels only, keeps the written first
 //! order, moves the power little (it re-weights light within each sender, it creates none), and
-//! refuses a subdivision that has no middle sub-texel.
+//! refuses a subdivision that has no middle sub-texel. And `ortm solve --balance-subsurface R`,
+//! the subsurface weights balanced in rows and columns.
 
 mod common;
 
@@ -245,4 +246,67 @@ fn the_bake_takes_the_gathered_near_field() {
         "{e}"
     );
     assert!(!d.join("x").join("index.json").exists(), "an index written");
+}
+
+/// `ortm solve --balance-subsurface R` (`Kernels::balance_rounds`): nothing changes without
+/// skin; on the head the final changes, the written first order does not, and the power moves
+/// little (balancing holds every sender's re-emission at the continuous surface's `Q̂`, which
+/// the capped weights reach or stay under); out-of-range rounds and the near field beside it
+/// are refused before any work.
+#[test]
+fn balanced_subsurface_weights_through_the_cli() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let room = ["solve", "cornell", "--size", "32"];
+    ok(ortm(&[&room[..], &["-o", "plain"]].concat(), d));
+    ok(ortm(
+        &[&room[..], &["--balance-subsurface", "20", "-o", "bal"]].concat(),
+        d,
+    ));
+    let read = |n: &str, f: &str| read_lightmap_exr(&d.join(n).join(f)).unwrap().data;
+    assert!(read("plain", "final.exr") == read("bal", "final.exr"));
+
+    let head = [
+        "solve",
+        "head",
+        "--size",
+        "24",
+        "--first-order-samples",
+        "1",
+    ];
+    ok(ortm(&[&head[..], &["-o", "hp"]].concat(), d));
+    ok(ortm(
+        &[&head[..], &["--balance-subsurface", "50", "-o", "hb"]].concat(),
+        d,
+    ));
+    assert!(read("hp", "first_order.exr") == read("hb", "first_order.exr"));
+    let (p, b) = (read("hp", "final.exr"), read("hb", "final.exr"));
+    let (mut changed, mut sum_p, mut sum_b) = (0, 0.0f64, 0.0f64);
+    for (x, y) in p.iter().zip(&b) {
+        if (0..3).any(|c| (x[c] - y[c]).abs() > 1e-2 * x[c].abs().max(1e-3)) {
+            changed += 1;
+        }
+        sum_p += x.iter().map(|&v| v as f64).sum::<f64>();
+        sum_b += y.iter().map(|&v| v as f64).sum::<f64>();
+    }
+    // Measured: 295 texels changed by more than 1 %, the sum 407.7 → 411.9 (+1.0 %).
+    println!("head 24²: {changed} texels changed by > 1 %, sum {sum_p:.3} → {sum_b:.3}");
+    assert!(changed > 50, "{changed} texels changed");
+    assert!((sum_b / sum_p - 1.0).abs() < 0.03, "sum {sum_p} → {sum_b}");
+
+    let refused = |extra: &[&str]| {
+        let args = [&["solve", "head", "--size", "24"][..], extra, &["-o", "x"]].concat();
+        fails(ortm(&args, d))
+    };
+    let e = refused(&["--balance-subsurface", "1001"]);
+    assert!(
+        e.contains("--balance-subsurface 1001: at most 1000 rounds"),
+        "{e}"
+    );
+    let e = refused(&["--balance-subsurface", "5", "--near-field", "3"]);
+    assert!(
+        e.contains("--balance-subsurface 5 with --near-field 3: not combined"),
+        "{e}"
+    );
+    assert!(!d.join("x").exists(), "output folder made");
 }

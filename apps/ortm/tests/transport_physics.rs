@@ -35,6 +35,7 @@ fn cube_patches(n: usize, rho: Vec3, texels: bool) -> Vec<Patch> {
                     rho,
                     material: 0,
                     subsurface_scale: Vec3::ONE,
+                    subsurface_gather: Vec3::ONE,
                     footprint_m: texels.then(|| [e1 / n as f32, e2 / n as f32]),
                 });
             }

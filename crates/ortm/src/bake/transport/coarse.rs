@@ -222,6 +222,7 @@ pub fn cluster_texels(
                     rho: rho / a,
                     material,
                     subsurface_scale: Vec3::ONE,
+                    subsurface_gather: Vec3::ONE,
                     footprint_m: if members == 1 { footprint } else { None },
                 }
             },

@@ -443,6 +443,7 @@ mod tests {
             rho,
             material: 0,
             subsurface_scale: Vec3::ONE,
+            subsurface_gather: Vec3::ONE,
             footprint_m: None,
         };
         let patches = [

@@ -67,6 +67,7 @@ impl SurfaceReemission {
                     rho: Vec3::ONE,
                     material: *m,
                     subsurface_scale: Vec3::ONE,
+                    subsurface_gather: Vec3::ONE,
                     footprint_m: None,
                 }
             })

@@ -303,7 +303,18 @@ impl SubsurfaceWalk {
         let leaf = |j: usize, a: &Patch, b: &Patch| {
             (self.near.get(i as u32, j as u32)).or_else(|| kernels.subsurface_raw(a, b, i == j))
         };
-        self.walk_with(tree, patches, kernels, i, leaf, visit);
+        // The receiver's factor on its row ([`Patch::subsurface_gather`]; 1 as the walk
+        // normalises, balanced operators' patches may carry another).
+        let g = patches[i].subsurface_gather.to_array().map(f64::from);
+        let mut visit = visit;
+        if g == [1.0; 3] {
+            self.walk_with(tree, patches, kernels, i, leaf, visit);
+        } else {
+            let scaled = |s: u32, rd: [f64; 3], me: bool| {
+                visit(s, [rd[0] * g[0], rd[1] * g[1], rd[2] * g[2]], me)
+            };
+            self.walk_with(tree, patches, kernels, i, leaf, scaled);
+        }
     }
 
     /// [`SubsurfaceWalk::walk`] with the raw weight of a single texel `j` (patch `b`) seen
@@ -447,6 +458,7 @@ mod tests {
                     rho: Vec3::new(0.8, 0.5, 0.4),
                     material: u32::from(x >= 3 * n / 4),
                     subsurface_scale: Vec3::ONE,
+                    subsurface_gather: Vec3::ONE,
                     footprint_m: footprints.then(|| {
                         let side = pitch * (1.0 + 0.3 * fx).sqrt();
                         [Vec3::X * side, Vec3::Y * side]
