@@ -10,6 +10,26 @@ mod common;
 use common::{fails, ok, ortm};
 use ortm::render::read_lightmap_exr;
 
+/// The error of `ortm solve head --size 24 <extra> -o x` in `d`, which must fail.
+fn refused_solve(d: &std::path::Path, extra: &[&str]) -> String {
+    let args = [&["solve", "head", "--size", "24"][..], extra, &["-o", "x"]].concat();
+    fails(ortm(&args, d))
+}
+
+/// Texels of `b` more than 1 % (or 10⁻⁵ absolute) off `a` in some channel, and the sums of
+/// all channels of `a` and of `b`.
+fn changed_and_sums(a: &[[f32; 3]], b: &[[f32; 3]]) -> (usize, f64, f64) {
+    let (mut changed, mut sum_a, mut sum_b) = (0, 0.0f64, 0.0f64);
+    for (x, y) in a.iter().zip(b) {
+        if (0..3).any(|c| (x[c] - y[c]).abs() > 1e-2 * x[c].abs().max(1e-3)) {
+            changed += 1;
+        }
+        sum_a += x.iter().map(|&v| v as f64).sum::<f64>();
+        sum_b += y.iter().map(|&v| v as f64).sum::<f64>();
+    }
+    (changed, sum_a, sum_b)
+}
+
 #[test]
 fn the_near_field_changes_skin_only() {
     let dir = tempfile::tempdir().unwrap();
@@ -51,14 +71,7 @@ fn the_near_field_changes_skin_only() {
         read_lightmap_exr(&d.join("hp/final.exr")).unwrap(),
         read_lightmap_exr(&d.join("hn/final.exr")).unwrap(),
     );
-    let (mut changed, mut sum_p, mut sum_n) = (0, 0.0f64, 0.0f64);
-    for (a, b) in p.data.iter().zip(&n.data) {
-        if (0..3).any(|c| (a[c] - b[c]).abs() > 1e-2 * a[c].abs().max(1e-3)) {
-            changed += 1;
-        }
-        sum_p += a.iter().map(|&x| x as f64).sum::<f64>();
-        sum_n += b.iter().map(|&x| x as f64).sum::<f64>();
-    }
+    let (changed, sum_p, sum_n) = changed_and_sums(&p.data, &n.data);
     // Measured: 194 texels changed, the sum 407.5 → 416.4 (+2.2 %: the sub-texels need no
     // caps in creases, and the path-traced reference agrees — README, *The subsurface near
     // field*, energy ratios).
@@ -91,10 +104,7 @@ fn the_near_field_changes_skin_only() {
     );
     assert!(!d.join("small").exists(), "output folder made");
 
-    let refused = |extra: &[&str]| {
-        let args = [&["solve", "head", "--size", "24"][..], extra, &["-o", "x"]].concat();
-        fails(ortm(&args, d))
-    };
+    let refused = |extra: &[&str]| refused_solve(d, extra);
     let e = refused(&["--near-field", "4"]);
     assert!(
         e.contains("--near-field 4: 4 sub-texels per side: give an odd number from 3 to 7"),
@@ -281,32 +291,25 @@ fn balanced_subsurface_weights_through_the_cli() {
     ));
     assert!(read("hp", "first_order.exr") == read("hb", "first_order.exr"));
     let (p, b) = (read("hp", "final.exr"), read("hb", "final.exr"));
-    let (mut changed, mut sum_p, mut sum_b) = (0, 0.0f64, 0.0f64);
-    for (x, y) in p.iter().zip(&b) {
-        if (0..3).any(|c| (x[c] - y[c]).abs() > 1e-2 * x[c].abs().max(1e-3)) {
-            changed += 1;
-        }
-        sum_p += x.iter().map(|&v| v as f64).sum::<f64>();
-        sum_b += y.iter().map(|&v| v as f64).sum::<f64>();
-    }
+    let (changed, sum_p, sum_b) = changed_and_sums(&p, &b);
     // Measured: 295 texels changed by more than 1 %, the sum 407.7 → 411.9 (+1.0 %).
     println!("head 24²: {changed} texels changed by > 1 %, sum {sum_p:.3} → {sum_b:.3}");
     assert!(changed > 50, "{changed} texels changed");
     assert!((sum_b / sum_p - 1.0).abs() < 0.03, "sum {sum_p} → {sum_b}");
 
-    let refused = |extra: &[&str]| {
-        let args = [&["solve", "head", "--size", "24"][..], extra, &["-o", "x"]].concat();
-        fails(ortm(&args, d))
-    };
-    let e = refused(&["--balance-subsurface", "1001"]);
-    assert!(
-        e.contains("--balance-subsurface 1001: at most 1000 rounds"),
-        "{e}"
-    );
-    let e = refused(&["--balance-subsurface", "5", "--near-field", "3"]);
-    assert!(
-        e.contains("--balance-subsurface 5 with --near-field 3: not combined"),
-        "{e}"
-    );
+    let refused = |extra: &[&str]| refused_solve(d, extra);
+    for (extra, want) in [
+        (
+            &["--balance-subsurface", "1001"][..],
+            "--balance-subsurface 1001: at most 1000 rounds",
+        ),
+        (
+            &["--balance-subsurface", "5", "--near-field", "3"][..],
+            "--balance-subsurface 5 with --near-field 3: not combined",
+        ),
+    ] {
+        let e = refused(extra);
+        assert!(e.contains(want), "{e}");
+    }
     assert!(!d.join("x").exists(), "output folder made");
 }
