@@ -311,5 +311,27 @@ fn balanced_subsurface_weights_through_the_cli() {
         let e = refused(extra);
         assert!(e.contains(want), "{e}");
     }
+    // Refused before any work when its pairs would take more than half the memory limit
+    // (64² head: 3,782 covered texels, about 1.5 MB of pairs).
+    let mut cmd = common::ortm_command();
+    cmd.args([
+        "solve",
+        "head",
+        "--size",
+        "64",
+        "--balance-subsurface",
+        "50",
+        "-o",
+        "x",
+    ])
+    .current_dir(d)
+    .env("ORTM_MEMORY_LIMIT_BYTES", "1000000");
+    let e = fails(cmd.output().unwrap());
+    assert!(
+        e.contains(
+            "--balance-subsurface 50: the skin weights of 3782 covered texels need about 1.5 MB"
+        ),
+        "{e}"
+    );
     assert!(!d.join("x").exists(), "output folder made");
 }

@@ -54,7 +54,7 @@ use ortm::bake::report::save_solution_pngs;
 use ortm::bake::texels::TexelGrid;
 use ortm::bake::transport::dense::DenseTransport;
 use ortm::bake::transport::hier::{BuildError, Operator, Settings};
-use ortm::bake::transport::{Kernels, SetupProgress, texel_patches};
+use ortm::bake::transport::{Kernels, SetupProgress, balance_memory_bytes, texel_patches};
 use ortm::render::lightmap_exr::write_lightmap_exr;
 use ortm::scene::light::{LIGHT_SYNTAX, parse_light};
 
@@ -140,7 +140,9 @@ pub struct Args {
     /// it), what each texel gathers under a uniform irradiance (the rows) is held to the
     /// continuous surface's value, whose footprints of unequal size leave the capped rows a
     /// few percent off (README, *The subsurface weights' rows*). 50 rounds hold the rows
-    /// within ~0.2 %. Not with --near-field; the bake's maps do not take it yet.
+    /// within ~0.2 %. Keeps every skin pair's raw weight (16 bytes each, ~390 MB for the head
+    /// at 256², checked against the memory limit first). Not with --near-field; the bake's
+    /// maps do not take it yet.
     #[arg(long, default_value_t = 0, value_name = "R")]
     balance_subsurface: u32,
 }
@@ -349,6 +351,23 @@ pub fn run(a: Args) -> Result<()> {
                 mb(need),
                 mb(limit),
                 n = near.subdivision,
+            );
+        }
+    }
+    if let (1.., Some(limit)) = (
+        a.balance_subsurface,
+        ortm::io::limits::memory_limit_bytes()?,
+    ) {
+        let need = balance_memory_bytes(&scene, &grid, effects);
+        if need > limit / 2 {
+            bail!(
+                "--balance-subsurface {}: the skin weights of {} covered texels need about {:.1} \
+                 MB to balance, more than half the memory limit ({:.1} MB: physical memory or \
+                 ORTM_MEMORY_LIMIT_BYTES); give a smaller --size, or 0 to keep the capped weights",
+                a.balance_subsurface,
+                grid.texels.len(),
+                need as f64 / 1e6,
+                limit as f64 / 1e6,
             );
         }
     }

@@ -211,6 +211,38 @@ impl Patch {
     }
 }
 
+/// The fraction of a profile's power beyond its support radius ([`Kernels::support_m`]).
+const SUPPORT_FRACTION: f64 = 1e-4;
+
+/// Bytes of one pair's raw weight kept by [`Kernels::balance_rounds`]: receiver index and
+/// three `f32`.
+const BALANCE_PAIR_BYTES: u64 = 16;
+
+/// The memory [`Kernels::balance_rounds`] keeps for `grid`'s texels in `scene`, estimated
+/// before anything is built: [`BALANCE_PAIR_BYTES`] per pair of texels of a translucent
+/// material within its profile's support, `π r² / A_j` receivers per sender as on a plane
+/// (bytes; 0 without subsurface scattering). For a memory check ahead of the solve.
+pub fn balance_memory_bytes(scene: &Scene, grid: &TexelGrid, effects: Effects) -> u64 {
+    if !effects.subsurface {
+        return 0;
+    }
+    let support: Vec<Option<f64>> = (scene.materials.iter())
+        .map(|m| (m.subsurface.as_ref()).map(|s| Profile::new(s).support_radius(SUPPORT_FRACTION)))
+        .collect();
+    let n = grid.texels.len() as f64;
+    (grid.texels.iter())
+        .map(
+            |t| match support.get(t.material as usize).copied().flatten() {
+                Some(r) => {
+                    let pairs = std::f64::consts::PI * r * r / (t.area_m2 as f64).max(1e-30);
+                    pairs.clamp(1.0, n) as u64 * BALANCE_PAIR_BYTES
+                }
+                None => 0,
+            },
+        )
+        .sum()
+}
+
 /// Patches of every covered texel of `grid`, in texel order (subsurface weights not yet
 /// normalised: [`Kernels::normalise_subsurface`]; [`Transport::new`] and
 /// [`dense::DenseTransport::new`] do it).
@@ -285,7 +317,7 @@ impl Kernels {
             .collect();
         let support_m = profiles
             .iter()
-            .map(|p| p.map_or(0.0, |p| p.support_radius(1e-4)))
+            .map(|p| p.map_or(0.0, |p| p.support_radius(SUPPORT_FRACTION)))
             .collect();
         let tables = profiles
             .iter()
