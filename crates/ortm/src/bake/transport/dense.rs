@@ -301,13 +301,17 @@ const PRODUCT_BLOCK: usize = 32;
 /// `X F` for channel `ch` of the sparse rows `x` (row `i`: its non-zero entries `(k, X_ik)`) and
 /// the dense `f` (`n × n`): `nnz(X) · n` multiply-adds instead of the dense product's `n³`. On
 /// the head's 256² remainder (5,084 clusters, 203 non-zero weights per row) the coarse solve's
-/// three channels take 14.7–15.2 s instead of 18.9 s. Blocks of [`PRODUCT_BLOCK`] columns in parallel; each block's columns of `F` are
-/// copied row-major first, so a row's entries read `PRODUCT_BLOCK` adjacent values per entry.
-/// The sums run in the order of each row's entries (not faer's blocked order: results equal
-/// the dense product's to rounding; the head's 256² bake is byte-identical).
+/// three channels take 14.7–15.2 s instead of 18.9 s. Blocks of [`PRODUCT_BLOCK`] columns in
+/// parallel; each block's columns of `F` are copied row-major first, so a row's entries read
+/// `PRODUCT_BLOCK` adjacent values per entry. The sums run in the order of each row's entries
+/// (not faer's blocked order: results equal the dense product's to rounding; the head's 256²
+/// bake is byte-identical).
 fn sparse_times_dense(x: &[Vec<(u32, [f64; 3])>], ch: usize, f: &Mat<f64>) -> Mat<f64> {
     let n = f.nrows();
     let cols = f.ncols();
+    if n == 0 {
+        return Mat::zeros(0, cols);
+    }
     let mut out = vec![0.0f64; n * cols];
     out.par_chunks_mut(n * PRODUCT_BLOCK)
         .enumerate()
