@@ -960,3 +960,112 @@ fn head_256_subsurface_rows_against_the_continuous_surface() {
         assert!(f.balanced_all.within > f.capped_all.within);
     }
 }
+
+/// RMS over texels of `rows_i / q̂_i − 1` in channel `c`.
+fn rms_in_channel(rows: &[[f64; 3]], q_hat: &[[f64; 3]], c: usize) -> f64 {
+    let v: f64 = (rows.iter().zip(q_hat))
+        .map(|(r, q)| (r[c] / q[c] - 1.0).powi(2))
+        .sum();
+    (v / rows.len() as f64).sqrt()
+}
+
+/// The rows of the weights as the subsurface near field uses them (`ortm solve --near-field
+/// N`, reach 2: the senders within 2 texels replaced by their `N × N` sub-texels' raw weights,
+/// the others the capped weights) against `Q̂`, beside the capped weights' rows, head at
+/// `size`², per channel. Measured (`cargo test --release --test accuracy_reference
+/// near_field_rows -- --ignored --nocapture`, 43 s for both): 64², N = 5,
+/// capped 0.0381 / 0.0405 / 0.0425, the near field's 0.0430 / 0.0567 / 0.0694; 256², N = 3,
+/// capped 0.0208 / 0.0257 / 0.0285, the near field's 0.0207 / 0.0238 / 0.0269. The near field
+/// does not hold the rows either: balancing it would mean balancing these weights.
+fn near_field_rows_at(size: u32, n_sub: u32) -> ([f64; 3], [f64; 3]) {
+    use rayon::prelude::*;
+    let (scene, grid) = head_at(size);
+    let effects = Effects {
+        radiosity: false,
+        subsurface: true,
+    };
+    let vis = Arc::new(Visibility::new(&scene.mesh));
+    let kernels = Kernels::new(&scene, effects, vis);
+    let mut patches = texel_patches(&grid);
+    kernels.normalise_subsurface(&mut patches);
+    let q_hat: Vec<[f64; 3]> = (patches.iter())
+        .map(|p| kernels.continuous_reemission(p).expect("skin"))
+        .collect();
+    let fine = TexelGrid::build_with_size(&scene, grid.width * n_sub, grid.height * n_sub).unwrap();
+    let fine_patches = texel_patches(&fine);
+    // A sub-texel belongs to the texel above it when both lie in one chart (near_field.rs).
+    let mut children: Vec<Vec<u32>> = vec![Vec::new(); grid.texels.len()];
+    for (s, t) in fine.texels.iter().enumerate() {
+        if let Some(j) = grid.at((t.x / n_sub) as i32, (t.y / n_sub) as i32)
+            && grid.texels[j as usize].chart == t.chart
+        {
+            children[j as usize].push(s as u32);
+        }
+    }
+    let support = kernels.support_m[0] as f32;
+    let middle = (n_sub / 2) as i32;
+    let rows: Vec<([f64; 3], [f64; 3])> = (0..patches.len())
+        .into_par_iter()
+        .map(|i| {
+            let (a, ti) = (&patches[i], &grid.texels[i]);
+            let centre = fine.at(
+                ti.x as i32 * n_sub as i32 + middle,
+                ti.y as i32 * n_sub as i32 + middle,
+            );
+            let (mut capped, mut near) = ([0.0f64; 3], [0.0f64; 3]);
+            let mut window = Vec::new();
+            for dy in -2..=2 {
+                for dx in -2..=2 {
+                    let Some(j) = grid.at(ti.x as i32 + dx, ti.y as i32 + dy) else {
+                        continue;
+                    };
+                    window.push(j as usize);
+                    for &s in &children[j as usize] {
+                        let b = &fine_patches[s as usize];
+                        if let Some(w) = kernels.subsurface_raw(a, b, Some(s) == centre) {
+                            (0..3).for_each(|c| near[c] += w[c]);
+                        }
+                    }
+                }
+            }
+            for (j, b) in patches.iter().enumerate() {
+                if i != j && (a.position_m - b.position_m).length() > support {
+                    continue;
+                }
+                if let Some(w) = kernels.subsurface(a, b, i == j) {
+                    (0..3).for_each(|c| capped[c] += w[c]);
+                    if !window.contains(&j) {
+                        (0..3).for_each(|c| near[c] += w[c]);
+                    }
+                }
+            }
+            (capped, near)
+        })
+        .collect();
+    let capped: Vec<[f64; 3]> = rows.iter().map(|r| r.0).collect();
+    let near: Vec<[f64; 3]> = rows.iter().map(|r| r.1).collect();
+    let per_channel = |r: &[[f64; 3]]| [0, 1, 2].map(|c| rms_in_channel(r, &q_hat, c));
+    let (capped, near) = (per_channel(&capped), per_channel(&near));
+    println!(
+        "{size}², N = {n_sub}: rows against Q̂, RMS deviation per channel: capped \
+         {capped:.4?}, the near field's {near:.4?}"
+    );
+    (capped, near)
+}
+
+/// [`near_field_rows_at`] at 64² (N = 5) and 256² (N = 3): the near field's rows are off
+/// `Q̂` at least as far as the texels' own (within 10 % of them, or further).
+#[test]
+#[ignore]
+fn head_near_field_rows_against_the_continuous_surface() {
+    for (size, n_sub) in [(64, 5), (256, 3)] {
+        let (capped, near) = near_field_rows_at(size, n_sub);
+        for c in 0..3 {
+            assert!(capped[c] > 0.015, "{size}²: capped {capped:?}");
+            assert!(
+                near[c] > 0.9 * capped[c],
+                "{size}²: {near:?} against {capped:?}"
+            );
+        }
+    }
+}
