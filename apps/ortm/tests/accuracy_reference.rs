@@ -745,13 +745,8 @@ fn dome_lights(scene: &Scene) -> Vec<Light> {
 
 /// RMS over patches and channels of `sum_i / q̂_i − 1`.
 fn rms_deviation(sums: &[[f64; 3]], q_hat: &[[f64; 3]]) -> f64 {
-    let mut acc = 0.0;
-    for (s, q) in sums.iter().zip(q_hat) {
-        for c in 0..3 {
-            acc += (s[c] / q[c] - 1.0).powi(2);
-        }
-    }
-    (acc / (3 * sums.len()) as f64).sqrt()
+    let squares: f64 = (0..3).map(|c| rms_in_channel(sums, q_hat, c).powi(2)).sum();
+    (squares / 3.0).sqrt()
 }
 
 /// Figures of [`subsurface_rows_at`]: RMS deviation of the weights' row sums from `Q̂`, capped
@@ -993,15 +988,7 @@ fn near_field_rows_at(size: u32, n_sub: u32) -> ([f64; 3], [f64; 3]) {
         .collect();
     let fine = TexelGrid::build_with_size(&scene, grid.width * n_sub, grid.height * n_sub).unwrap();
     let fine_patches = texel_patches(&fine);
-    // A sub-texel belongs to the texel above it when both lie in one chart (near_field.rs).
-    let mut children: Vec<Vec<u32>> = vec![Vec::new(); grid.texels.len()];
-    for (s, t) in fine.texels.iter().enumerate() {
-        if let Some(j) = grid.at((t.x / n_sub) as i32, (t.y / n_sub) as i32)
-            && grid.texels[j as usize].chart == t.chart
-        {
-            children[j as usize].push(s as u32);
-        }
-    }
+    let children = ortm::bake::near_field::sub_texels(&grid, &fine, n_sub);
     let support = kernels.support_m[0] as f32;
     let middle = (n_sub / 2) as i32;
     let rows: Vec<([f64; 3], [f64; 3])> = (0..patches.len())

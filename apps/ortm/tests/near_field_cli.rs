@@ -10,6 +10,16 @@ mod common;
 use common::{fails, ok, ortm};
 use ortm::render::read_lightmap_exr;
 
+/// The error of `ortm <args>` run in `d` under `ORTM_MEMORY_LIMIT_BYTES` = `limit`, which
+/// must fail.
+fn fails_under_memory_limit(d: &std::path::Path, args: &[&str], limit: &str) -> String {
+    let mut cmd = common::ortm_command();
+    cmd.args(args)
+        .current_dir(d)
+        .env("ORTM_MEMORY_LIMIT_BYTES", limit);
+    fails(cmd.output().unwrap())
+}
+
 /// The error of `ortm solve head --size 24 <extra> -o x` in `d`, which must fail.
 fn refused_solve(d: &std::path::Path, extra: &[&str]) -> String {
     let args = [&["solve", "head", "--size", "24"][..], extra, &["-o", "x"]].concat();
@@ -84,20 +94,20 @@ fn the_near_field_changes_skin_only() {
 
     // Refused before any work when its sub-texels would take more than half the memory limit
     // (24² head: 534 covered texels, 9 × (534 × 200 + 576 × 4) bytes = 0.98 MB).
-    let mut cmd = common::ortm_command();
-    cmd.args([
-        "solve",
-        "head",
-        "--size",
-        "24",
-        "--near-field",
-        "3",
-        "-o",
-        "small",
-    ])
-    .current_dir(d)
-    .env("ORTM_MEMORY_LIMIT_BYTES", "1000000");
-    let e = fails(cmd.output().unwrap());
+    let e = fails_under_memory_limit(
+        d,
+        &[
+            "solve",
+            "head",
+            "--size",
+            "24",
+            "--near-field",
+            "3",
+            "-o",
+            "small",
+        ],
+        "1000000",
+    );
     assert!(
         e.contains("--near-field 3: its 3×3 sub-texels of 534 covered texels need about 1.0 MB"),
         "{e}"
@@ -144,22 +154,22 @@ fn the_near_field_changes_skin_only() {
     );
     assert!(!d.join("x").exists(), "output folder made");
     // Its rows may take a quarter of the memory limit, checked as they are gathered.
-    let mut cmd = common::ortm_command();
-    cmd.args([
-        "solve",
-        "head",
-        "--size",
-        "24",
-        "--effects",
-        "radiosity",
-        "--near-gather",
-        "8",
-        "-o",
-        "tight",
-    ])
-    .current_dir(d)
-    .env("ORTM_MEMORY_LIMIT_BYTES", "100000");
-    let e = fails(cmd.output().unwrap());
+    let e = fails_under_memory_limit(
+        d,
+        &[
+            "solve",
+            "head",
+            "--size",
+            "24",
+            "--effects",
+            "radiosity",
+            "--near-gather",
+            "8",
+            "-o",
+            "tight",
+        ],
+        "100000",
+    );
     assert!(
         e.contains("--near-gather 8: the gathered near field outgrew its memory budget")
             && e.contains("limit 25.0 kB")
@@ -313,20 +323,20 @@ fn balanced_subsurface_weights_through_the_cli() {
     }
     // Refused before any work when its pairs would take more than half the memory limit
     // (64² head: 3,782 covered texels, about 1.5 MB of pairs).
-    let mut cmd = common::ortm_command();
-    cmd.args([
-        "solve",
-        "head",
-        "--size",
-        "64",
-        "--balance-subsurface",
-        "50",
-        "-o",
-        "x",
-    ])
-    .current_dir(d)
-    .env("ORTM_MEMORY_LIMIT_BYTES", "1000000");
-    let e = fails(cmd.output().unwrap());
+    let e = fails_under_memory_limit(
+        d,
+        &[
+            "solve",
+            "head",
+            "--size",
+            "64",
+            "--balance-subsurface",
+            "50",
+            "-o",
+            "x",
+        ],
+        "1000000",
+    );
     assert!(
         e.contains(
             "--balance-subsurface 50: the skin weights of 3782 covered texels need about 1.5 MB"

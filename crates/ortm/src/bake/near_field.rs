@@ -182,14 +182,7 @@ pub fn correction(
     let fine = TexelGrid::build_with_size(scene, grid.width * n, grid.height * n)?;
     let fine_patches: Vec<Patch> = texel_patches(&fine);
     let e_fine = lighting::irradiance(&fine, lights, vis);
-    let mut children: Vec<Vec<u32>> = vec![Vec::new(); grid.texels.len()];
-    for (s, t) in fine.texels.iter().enumerate() {
-        if let Some(j) = grid.at((t.x / n) as i32, (t.y / n) as i32)
-            && grid.texels[j as usize].chart == t.chart
-        {
-            children[j as usize].push(s as u32);
-        }
-    }
+    let children = sub_texels(grid, &fine, n);
     let total = grid.texels.len();
     progress.phase("near field", total as u64);
     let reach = near.reach as i32;
@@ -248,6 +241,20 @@ pub fn correction(
         .collect();
     progress.check()?;
     Ok(delta)
+}
+
+/// The sub-texels of every covered texel of `grid` in `fine` (`n×` its size): those below it
+/// in the same chart, indices into `fine`'s texels.
+pub fn sub_texels(grid: &TexelGrid, fine: &TexelGrid, n: u32) -> Vec<Vec<u32>> {
+    let mut children: Vec<Vec<u32>> = vec![Vec::new(); grid.texels.len()];
+    for (s, t) in fine.texels.iter().enumerate() {
+        if let Some(j) = grid.at((t.x / n) as i32, (t.y / n) as i32)
+            && grid.texels[j as usize].chart == t.chart
+        {
+            children[j as usize].push(s as u32);
+        }
+    }
+    children
 }
 
 #[cfg(test)]

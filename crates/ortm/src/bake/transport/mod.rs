@@ -463,26 +463,56 @@ impl Kernels {
         progress: &SetupProgress,
         keep_near: bool,
     ) -> Result<(Vec<[f64; 3]>, NearWeights), Cancelled> {
+        let n = patches.len();
+        let (q, near) = self.per_sender(
+            patches,
+            progress,
+            keep_near,
+            || [0.0f64; 3],
+            |q, j, i, s| {
+                let inv_area = 1.0 / patches[j].area_m2 as f64;
+                let w = patches[i as usize].area_m2 as f64 * inv_area;
+                for c in 0..3 {
+                    q[c] += s[c] * w;
+                }
+            },
+        )?;
+        Ok((q.unwrap_or_else(|| vec![[0.0; 3]; n]), near))
+    }
+
+    /// Visits every translucent sender `j`'s receivers `i` within the profile's support, with
+    /// their raw weight `raw_ij` ([`Kernels::subsurface_raw`]): `add(acc_j, j, i, raw_ij)` into
+    /// an accumulator per sender made by `init`, senders in parallel. With `keep_near`, also
+    /// keeps the raw weights of the pairs integrated in polar form ([`NearWeights`]). Reports
+    /// "transport: subsurface weights" (one step per patch). `None` for the accumulators when
+    /// no patch scatters (nothing visited).
+    fn per_sender<T: Send>(
+        &self,
+        patches: &[Patch],
+        progress: &SetupProgress,
+        keep_near: bool,
+        init: impl Fn() -> T + Sync,
+        add: impl Fn(&mut T, usize, u32, [f64; 3]) + Sync,
+    ) -> Result<(Option<Vec<T>>, NearWeights), Cancelled> {
         let cell = self.support_m.iter().copied().fold(0.0f64, f64::max);
         if cell <= 0.0 || !patches.iter().any(|p| self.is_translucent(p.material)) {
-            return Ok((vec![[0.0; 3]; patches.len()], NearWeights::default()));
+            return Ok((None, NearWeights::default()));
         }
         progress.phase("transport: subsurface weights", patches.len() as u64);
         let grid = SupportGrid::new(patches, self);
         type Near = Vec<(u32, [f32; 3])>;
-        let per_sender: Vec<([f64; 3], Near)> = patches
+        let per_sender: Vec<(T, Near)> = patches
             .par_iter()
             .enumerate()
             .map(|(j, b)| {
-                let mut q = [0.0f64; 3];
+                let mut acc = init();
                 let mut near: Near = Vec::new();
                 if j % 1024 == 0 {
                     progress.advance(1024.min(patches.len() - j) as u64);
                 }
                 if !self.is_translucent(b.material) || progress.check().is_err() {
-                    return (q, near);
+                    return (acc, near);
                 }
-                let inv_area = 1.0 / b.area_m2 as f64;
                 grid.for_each_near(b.position_m, |i| {
                     let a = &patches[i as usize];
                     if let Some(s) = self.subsurface_raw(a, b, i as usize == j) {
@@ -492,18 +522,15 @@ impl Kernels {
                         {
                             near.push((i, s.map(|x| x as f32)));
                         }
-                        let w = a.area_m2 as f64 * inv_area;
-                        for c in 0..3 {
-                            q[c] += s[c] * w;
-                        }
+                        add(&mut acc, j, i, s);
                     }
                 });
-                (q, near)
+                (acc, near)
             })
             .collect();
         progress.check()?;
         let near = NearWeights::by_receiver(patches.len(), per_sender.iter().map(|(_, n)| n));
-        Ok((per_sender.into_iter().map(|(q, _)| q).collect(), near))
+        Ok((Some(per_sender.into_iter().map(|(a, _)| a).collect()), near))
     }
 
     /// Sets every patch's [`Patch::subsurface_scale`] so that no sender re-emits more than
@@ -554,47 +581,22 @@ impl Kernels {
             p.subsurface_scale = Vec3::ONE;
             p.subsurface_gather = Vec3::ONE;
         }
-        let cell = self.support_m.iter().copied().fold(0.0f64, f64::max);
-        if cell <= 0.0 || !patches.iter().any(|p| self.is_translucent(p.material)) {
-            return Ok((0, NearWeights::default()));
-        }
-        progress.phase("transport: subsurface weights", n as u64);
-        let grid = SupportGrid::new(patches, self);
+        // Per sender `j`: every receiver `i` with its raw weight `raw_ij`.
         type Pairs = Vec<(u32, [f32; 3])>;
-        // Per sender `j`: every receiver `i` with its raw weight `raw_ij`, and the near ones.
-        let per_sender: Vec<(Pairs, Pairs)> = {
-            let patches: &[Patch] = patches;
-            (patches.par_iter().enumerate())
-                .map(|(j, b)| {
-                    let (mut pairs, mut near): (Pairs, Pairs) = (Vec::new(), Vec::new());
-                    if j % 1024 == 0 {
-                        progress.advance(1024.min(n - j) as u64);
-                    }
-                    if !self.is_translucent(b.material) || progress.check().is_err() {
-                        return (pairs, near);
-                    }
-                    grid.for_each_near(b.position_m, |i| {
-                        let a = &patches[i as usize];
-                        if let Some(s) = self.subsurface_raw(a, b, i as usize == j)
-                            && s != [0.0; 3]
-                        {
-                            let s = s.map(|x| x as f32);
-                            if keep_near
-                                && b.footprint_m.is_some_and(|f| {
-                                    footprint::is_near(a.position_m, b.position_m, f)
-                                })
-                            {
-                                near.push((i, s));
-                            }
-                            pairs.push((i, s));
-                        }
-                    });
-                    (pairs, near)
-                })
-                .collect()
+        let (per_sender, near) = self.per_sender(
+            patches,
+            progress,
+            keep_near,
+            Pairs::new,
+            |pairs, _, i, s| {
+                if s != [0.0; 3] {
+                    pairs.push((i, s.map(|x| x as f32)));
+                }
+            },
+        )?;
+        let Some(per_sender) = per_sender else {
+            return Ok((0, near));
         };
-        progress.check()?;
-        let near = NearWeights::by_receiver(n, per_sender.iter().map(|(_, near)| near));
         progress.phase("transport: subsurface cap", n as u64);
         let q_hat: Vec<Option<[f64; 3]>> = (patches.par_iter().enumerate())
             .map(|(j, p)| {
@@ -615,7 +617,7 @@ impl Kernels {
         for _ in 0..self.balance_rounds {
             progress.check()?;
             let mut row = vec![[0.0f64; 3]; n];
-            for ((pairs, _), b) in per_sender.iter().zip(&beta) {
+            for (pairs, b) in per_sender.iter().zip(&beta) {
                 for &(i, w) in pairs {
                     for c in 0..3 {
                         row[i as usize][c] += w[c] as f64 * b[c];
@@ -628,7 +630,7 @@ impl Kernels {
                 }
             }
             beta = (per_sender.par_iter().enumerate())
-                .map(|(j, (pairs, _))| {
+                .map(|(j, pairs)| {
                     let Some(q) = q_hat[j] else {
                         return [1.0; 3];
                     };

@@ -304,17 +304,13 @@ impl SubsurfaceWalk {
             (self.near.get(i as u32, j as u32)).or_else(|| kernels.subsurface_raw(a, b, i == j))
         };
         // The receiver's factor on its row ([`Patch::subsurface_gather`]; 1 as the walk
-        // normalises, balanced operators' patches may carry another).
+        // normalises, an exact product then).
         let g = patches[i].subsurface_gather.to_array().map(f64::from);
         let mut visit = visit;
-        if g == [1.0; 3] {
-            self.walk_with(tree, patches, kernels, i, leaf, visit);
-        } else {
-            let scaled = |s: u32, rd: [f64; 3], me: bool| {
-                visit(s, [rd[0] * g[0], rd[1] * g[1], rd[2] * g[2]], me)
-            };
-            self.walk_with(tree, patches, kernels, i, leaf, scaled);
-        }
+        let scaled = |s: u32, rd: [f64; 3], me: bool| {
+            visit(s, [rd[0] * g[0], rd[1] * g[1], rd[2] * g[2]], me)
+        };
+        self.walk_with(tree, patches, kernels, i, leaf, scaled);
     }
 
     /// [`SubsurfaceWalk::walk`] with the raw weight of a single texel `j` (patch `b`) seen
