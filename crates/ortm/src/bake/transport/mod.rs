@@ -597,19 +597,7 @@ impl Kernels {
         let Some(per_sender) = per_sender else {
             return Ok((0, near));
         };
-        progress.phase("transport: subsurface cap", n as u64);
-        let q_hat: Vec<Option<[f64; 3]>> = (patches.par_iter().enumerate())
-            .map(|(j, p)| {
-                if j % 4096 == 0 {
-                    progress.advance(4096.min(n - j) as u64);
-                }
-                if progress.check().is_err() {
-                    return None;
-                }
-                self.continuous_reemission(p)
-            })
-            .collect();
-        progress.check()?;
+        let q_hat = self.continuous_reemissions(patches, progress)?;
         progress.phase("transport: subsurface balance", self.balance_rounds as u64);
         let area: Vec<f64> = patches.iter().map(|p| p.area_m2 as f64).collect();
         let ratio = |target: f64, sum: f64| if sum > 0.0 { target / sum } else { 1.0 };
@@ -684,39 +672,19 @@ impl Kernels {
 
     /// [`Kernels::scale_subsurface`] reporting "transport: subsurface cap" to `progress` where
     /// it integrates the continuous surface at the texels (~40 s at 1024² on the head), and
-    /// stopping when it is cancelled (the patches' scales are then partly set).
+    /// stopping when it is cancelled (the patches' scales are then left as they were).
     pub fn scale_subsurface_with(
         &self,
         patches: &mut [Patch],
         q: &[[f64; 3]],
         progress: &SetupProgress,
     ) -> Result<usize, Cancelled> {
-        let n = patches.len();
-        // Only texels of a scene's translucent surface ask for the continuous surface's
-        // integral; every other patch is scaled at once, unreported.
-        let none = SetupProgress::none();
-        let progress = if self.surface.is_some()
-            && (patches.iter()).any(|p| p.footprint_m.is_some() && self.is_translucent(p.material))
-        {
-            progress.phase("transport: subsurface cap", n as u64);
-            progress
-        } else {
-            &none
-        };
-        let scaled = patches
-            .par_iter_mut()
-            .zip(q)
-            .enumerate()
-            .map(|(j, (p, q))| {
-                if j % 4096 == 0 {
-                    progress.advance(4096.min(n - j) as u64);
-                }
-                if progress.check().is_err() {
-                    return 0;
-                }
+        let caps = self.continuous_reemissions(patches, progress)?;
+        let scaled = (patches.par_iter_mut().zip(q).zip(caps))
+            .map(|((p, q), cap)| {
                 p.subsurface_scale = Vec3::ONE;
                 p.subsurface_gather = Vec3::ONE;
-                let Some(cap) = self.continuous_reemission(p) else {
+                let Some(cap) = cap else {
                     return 0;
                 };
                 for c in 0..3 {
@@ -727,8 +695,41 @@ impl Kernels {
                 usize::from(p.subsurface_scale != Vec3::ONE)
             })
             .sum();
-        progress.check()?;
         Ok(scaled)
+    }
+
+    /// [`Kernels::continuous_reemission`] of every patch, in parallel, reporting "transport:
+    /// subsurface cap" where texels of a scene's translucent surface ask for the continuous
+    /// surface's integral (~40 s at 1024² on the head; every other patch is done at once,
+    /// unreported) and stopping when it is cancelled.
+    fn continuous_reemissions(
+        &self,
+        patches: &[Patch],
+        progress: &SetupProgress,
+    ) -> Result<Vec<Option<[f64; 3]>>, Cancelled> {
+        let n = patches.len();
+        let none = SetupProgress::none();
+        let progress = if self.surface.is_some()
+            && (patches.iter()).any(|p| p.footprint_m.is_some() && self.is_translucent(p.material))
+        {
+            progress.phase("transport: subsurface cap", n as u64);
+            progress
+        } else {
+            &none
+        };
+        let caps = (patches.par_iter().enumerate())
+            .map(|(j, p)| {
+                if j % 4096 == 0 {
+                    progress.advance(4096.min(n - j) as u64);
+                }
+                if progress.check().is_err() {
+                    return None;
+                }
+                self.continuous_reemission(p)
+            })
+            .collect();
+        progress.check()?;
+        Ok(caps)
     }
 
     /// `Q̂` of patch `p` per channel: what the continuous surface re-emits per unit of power
