@@ -116,6 +116,14 @@ fn render_writes_frame_and_lightmaps_consistent_with_cpu_reference() {
         dir,
     ));
     assert!(e.contains("--size"), "{e}");
+    for tau in ["-0.1", "1", "nan"] {
+        let flag = format!("--rows-prune={tau}");
+        let e = fails(ortm(&["render", "bake", &flag], dir));
+        assert!(
+            e.contains("--rows-prune") && e.contains("keep every entry"),
+            "{tau}: {e}"
+        );
+    }
 
     // No usable adapter (only a backend this build lacks) and a GPU transfer path asked for
     // (`--path auto` falls back to the CPU, see tests/frictions.rs): the error says how to get

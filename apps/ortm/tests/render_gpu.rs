@@ -70,7 +70,12 @@ fn renderer(gpu: &Gpu, scene: &Scene, shadow: u32, display: DisplayOptions) -> R
             max_shadow_layers: render::shadow_layers_for(&scene.lights),
             ..Default::default()
         },
-        transfer: TransferOptions::best_for(gpu),
+        // Every row entry kept: the derived bounds below hold the GPU to the maps exactly
+        // (the pruning `best_for` adds on CPU adapters is `passes::rows`'s, tested there).
+        transfer: TransferOptions {
+            rows_prune: 0.0,
+            ..TransferOptions::best_for(gpu)
+        },
         display,
         ..Default::default()
     };

@@ -40,7 +40,9 @@
 //!   entries (the source: the first-order map and the packed pyramid, copied into one texture
 //!   each frame); one invocation per texel sums its row. Receiver blocks need no resolve:
 //!   their entries sit in the rows of the blocks' texels. Same result up to float summation
-//!   order; the default on CPU adapters ([`TransferOptions::best_for`]).
+//!   order and the rows' pruning ([`TransferOptions::rows_prune`]: none by default, a bound
+//!   `τ` of each row's weight in `best_for`); the default on CPU adapters
+//!   ([`TransferOptions::best_for`]).
 //!
 //! # Accumulation format
 //! [`AccumFormat::Rgba32Float`] needs the `FLOAT32_BLENDABLE` feature in the blend path
@@ -65,7 +67,7 @@ use crate::error::PassError;
 use crate::gpu::Gpu;
 use crate::pairing::{PairInstance, PairedSchedule, pair_schedule};
 use crate::pyramid::PyramidScene;
-use crate::rows::build_rows;
+use crate::rows::build_rows_pruned;
 use crate::schedule::{FrameSchedule, build_schedule};
 use crate::transfer_gather::{GatherPass, GatherScene};
 use crate::transfer_rows::{RowsPass, RowsScene};
@@ -106,7 +108,7 @@ impl AccumFormat {
 }
 
 /// Settings fixed at creation.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct TransferOptions {
     /// Blend or compute accumulation.
     pub path: TransferPath,
@@ -123,6 +125,10 @@ pub struct TransferOptions {
     /// [`Gpu::supports_storage_reads`]; same values, and on lavapipe much cheaper
     /// (`docs/render.md`). `best_for` takes [`Gpu::best_texel_reads`].
     pub texel_reads: util::TexelReads,
+    /// Rows path only: each texel's row pruned at this `τ` ([`crate::rows`], "Pruning": its
+    /// transfer changes by at most `τ · Σ|w| · max source`). [`crate::rows::ROWS_PRUNE`] in
+    /// [`TransferOptions::best_for`], 0 (every entry) in `default()`.
+    pub rows_prune: f32,
 }
 
 impl TransferOptions {
@@ -135,7 +141,10 @@ impl TransferOptions {
     ///   the rows path not measured there yet);
     /// - blend accumulation in RGBA32F when the device can blend it, else RGBA16F;
     /// - paired pieces (~28 % less transfer CPU on lavapipe at 256²/100);
-    /// - read-only storage textures where the device has them ([`Gpu::best_texel_reads`]).
+    /// - read-only storage textures where the device has them ([`Gpu::best_texel_reads`]);
+    /// - rows pruned at [`crate::rows::ROWS_PRUNE`] (on lavapipe the rows pass ~6 % faster, 8 %
+    ///   less CPU, for the head's maps at 256², whose indirect light moves 0.08 % RMS;
+    ///   `docs/render.md`, "Rows pruning").
     pub fn best_for(gpu: &Gpu) -> Self {
         Self {
             path: if gpu.adapter_info.device_type == wgpu::DeviceType::Cpu {
@@ -150,6 +159,7 @@ impl TransferOptions {
             },
             pair_pieces: true,
             texel_reads: gpu.best_texel_reads(),
+            rows_prune: crate::rows::ROWS_PRUNE,
         }
     }
 }
@@ -600,7 +610,10 @@ impl TransferPass {
                     what: "TransferPass".into(),
                     problem: "rows path without its pipelines (internal bug)".into(),
                 })?;
-                let (scene, tex) = r.prepare(gpu, &build_rows(&schedule, atlases)?)?;
+                let (scene, tex) = r.prepare(
+                    gpu,
+                    &build_rows_pruned(&schedule, atlases, self.options.rows_prune)?,
+                )?;
                 (Vec::new(), None, Some(scene), tex, None)
             }
         };

@@ -416,6 +416,7 @@ fn options(path: TransferPath, pair_pieces: bool, texel_reads: TexelReads) -> Tr
         accum_format: AccumFormat::Rgba32Float,
         pair_pieces,
         texel_reads,
+        rows_prune: 0.0,
     }
 }
 

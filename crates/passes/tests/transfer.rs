@@ -259,6 +259,7 @@ fn exact_single_piece() {
             accum_format: AccumFormat::Rgba32Float,
             pair_pieces: false,
             texel_reads: TexelReads::Sampled,
+            rows_prune: 0.0,
         };
         assert_eq!(run_gpu(&c, options), want, "{path:?}");
         if let Some(options) = storage_reads(options) {
@@ -276,6 +277,7 @@ fn blend_rgba32f_matches_cpu() {
         accum_format: AccumFormat::Rgba32Float,
         pair_pieces: false,
         texel_reads: TexelReads::Sampled,
+        rows_prune: 0.0,
     };
     let got = run_gpu(&c, options);
     assert_close(&got, &want, 1e-3, 1e-3, "blend rgba32f");
@@ -299,6 +301,7 @@ fn compute_path_matches_cpu_and_blend() {
             accum_format: AccumFormat::Rgba32Float,
             pair_pieces: false,
             texel_reads: TexelReads::Sampled,
+            rows_prune: 0.0,
         },
     );
     assert_close(&got, &want, 1e-3, 1e-3, "compute");
@@ -309,6 +312,7 @@ fn compute_path_matches_cpu_and_blend() {
             accum_format: AccumFormat::Rgba32Float,
             pair_pieces: false,
             texel_reads: TexelReads::Sampled,
+            rows_prune: 0.0,
         },
     );
     assert_close(&got, &blend, 1e-5, 1e-3, "compute vs blend");
@@ -327,6 +331,7 @@ fn blend_rgba16f_within_half_float_bound() {
             accum_format: AccumFormat::Rgba16Float,
             pair_pieces: false,
             texel_reads: TexelReads::Sampled,
+            rows_prune: 0.0,
         },
     );
     let u = 2f32.powi(-11);
@@ -406,6 +411,7 @@ fn paired_options() -> TransferOptions {
         accum_format: AccumFormat::Rgba32Float,
         pair_pieces: true,
         texel_reads: TexelReads::Sampled,
+        rows_prune: 0.0,
     }
 }
 

@@ -106,6 +106,8 @@ pub struct Args {
     /// as `ortm render --first-order-samples`).
     #[arg(long, default_value_t = 1, value_name = "N")]
     first_order_samples: u32,
+    #[command(flatten)]
+    rows: super::render::RowsArgs,
     /// Displayed image size, WIDTHxHEIGHT.
     #[arg(long, default_value = "1280x720")]
     image: String,
@@ -209,17 +211,19 @@ struct Job {
 pub fn run(a: Args) -> Result<()> {
     let (img_w, img_h) = render::parse_size(&a.image)?;
     super::solve::check_first_order_samples(a.first_order_samples)?;
+    a.rows.check()?;
     let gpu = Gpu::new_headless()?;
     println!(
         "adapter: {} ({:?}); iterations: {} ({:?}, after 1 warm-up); shadow maps {}²; \
-         first order {}×{} sub-texels per texel; display {img_w}×{img_h}",
+         first order {}×{} sub-texels per texel; display {img_w}×{img_h}; rows pruned at τ = {}",
         gpu.adapter_info.name,
         gpu.adapter_info.backend,
         a.iterations,
         a.statistic,
         a.shadow_size,
         a.first_order_samples,
-        a.first_order_samples
+        a.first_order_samples,
+        a.rows.rows_prune
     );
     let mut rows = Vec::new();
     for job in jobs(&a) {
@@ -328,6 +332,7 @@ fn renderer_options(
             path,
             pair_pieces,
             texel_reads: texel_reads.unwrap_or(gpu.best_texel_reads()),
+            rows_prune: a.rows.rows_prune,
             ..TransferOptions::best_for(gpu)
         },
         display: DisplayOptions {

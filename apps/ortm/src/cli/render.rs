@@ -226,6 +226,8 @@ pub struct Args {
     /// fit (on a GPU lightmaps up to 1365², on the CPU mirrors up to 682²), else 1.
     #[arg(long, value_name = "N")]
     first_order_samples: Option<u32>,
+    #[command(flatten)]
+    rows: RowsArgs,
     /// Atlas side when the bake has no atlases.json (power of two).
     #[arg(long, default_value_t = DEFAULT_ATLAS_SIDE)]
     atlas_size: u32,
@@ -245,9 +247,36 @@ pub struct Args {
     transfer_input_out: Option<PathBuf>,
 }
 
+/// The rows path's pruning (`ortm render`, `ortm bench render`).
+#[derive(clap::Args, Clone, Copy, Debug)]
+pub struct RowsArgs {
+    /// Rows path (the default on CPU adapters such as lavapipe): drop each texel's smallest
+    /// entries while they sum to at most TAU of its row's weight, so its transfer changes by
+    /// at most TAU · Σ|w| · the brightest first order read (docs/render.md, "Rows pruning");
+    /// 0 keeps every entry.
+    #[arg(long, value_name = "TAU", default_value_t = passes::rows::ROWS_PRUNE)]
+    pub rows_prune: f32,
+}
+
+impl RowsArgs {
+    /// `Err` naming the flag and the range when `--rows-prune` is not in `[0, 1)`.
+    pub fn check(&self) -> Result<()> {
+        let t = self.rows_prune;
+        if !(t.is_finite() && (0.0..1.0).contains(&t)) {
+            anyhow::bail!(
+                "--rows-prune {t}: give a fraction of each row's weight from 0 (keep every \
+                 entry) to below 1, e.g. {}",
+                passes::rows::ROWS_PRUNE
+            );
+        }
+        Ok(())
+    }
+}
+
 /// Runs `ortm render`.
 pub fn run(a: Args) -> Result<()> {
     let t0 = Instant::now();
+    a.rows.check()?;
     // A bad --first-order-samples fails before the bake is opened (the default is chosen once
     // the device's limits are known, below).
     if let Some(n) = a.first_order_samples {
@@ -412,7 +441,10 @@ fn renderer_options(
             samples,
             ..Default::default()
         },
-        transfer,
+        transfer: TransferOptions {
+            rows_prune: a.rows.rows_prune,
+            ..transfer
+        },
         display: DisplayOptions {
             width,
             height,
