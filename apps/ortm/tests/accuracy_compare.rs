@@ -328,6 +328,26 @@ fn reference_noise_and_the_three_sigma_share() {
     assert!(close(n.within_three_sigma, expected_within, 1e-12), "{n:?}");
     assert!(close(noise_corrected(0.5, 0.3), 0.4, 1e-12));
     assert_eq!(noise_corrected(0.2, 0.3), 0.0);
+    assert_eq!((n.unlit_misses, n.unlit_largest), (0, 0.0), "{n:?}");
+    // Texels the reference found unlit (0 ± 0): an exact 0 is within 3σ, anything else a
+    // miss counted apart with its largest value.
+    let (mut r0, mut se0, mut t0) = (reference.clone(), se.clone(), reference.clone());
+    for i in 0..3 {
+        r0[i] = Vec3::ZERO;
+        se0[i] = Vec3::ZERO;
+        t0[i] = Vec3::new(0.0, [0.0, 2e-6, 5e-6][i], 0.0);
+    }
+    let n0 = reference_noise(&grid, &r0, &se0, &t0, None);
+    assert_eq!(n0.unlit_misses, 2, "{n0:?}");
+    assert!(close(n0.unlit_largest, 5e-6, 1e-6), "{n0:?}");
+    assert!(
+        close(
+            n0.within_three_sigma,
+            1.0 - 2.0 / grid.texels.len() as f64,
+            1e-12
+        ),
+        "{n0:?}"
+    );
 
     let dir = tempfile::tempdir().unwrap();
     std::fs::create_dir(dir.path().join("r")).unwrap();

@@ -179,6 +179,17 @@ pub fn run(a: Args) -> Result<()> {
             "within 3σ       {:.2} % of covered texels (|test − reference| ≤ 3 standard errors in every channel)",
             100.0 * n.within_three_sigma
         );
+        if n.unlit_misses > 0 {
+            println!(
+                "                of the misses, {} ({:.2} % of covered texels) where the reference is 0 ± 0 \
+                 (none of its paths found light): the test there at most {:.3e} W/m², {:.2e} of \
+                 the reference's RMS",
+                n.unlit_misses,
+                100.0 * n.unlit_misses as f64 / grid.texels.len() as f64,
+                n.unlit_largest,
+                n.unlit_largest / c.reference_rms
+            );
+        }
     }
     print_worst(&c);
     let img = error_image(&grid, &reference, &test, c.reference_rms);

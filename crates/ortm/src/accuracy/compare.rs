@@ -265,6 +265,12 @@ pub struct ReferenceNoise {
     /// Fraction of covered texels where the test is within 3 standard errors of the reference
     /// in every channel (`|test − b| ≤ 3σ`).
     pub within_three_sigma: f64,
+    /// Of the covered texels outside 3σ, those where the reference is `0 ± 0` in every
+    /// channel: none of its paths found light there, so its standard error says nothing and
+    /// any test value but an exact 0 counts as a miss.
+    pub unlit_misses: usize,
+    /// The largest `|test|` over those texels, W/m² (0 without any).
+    pub unlit_largest: f64,
 }
 
 /// The reference's noise ([`ReferenceNoise`]) from `std_error` (per covered texel of `grid`, as
@@ -298,12 +304,16 @@ pub fn reference_noise(
         let ind_shifted: Vec<Vec3> = ind.iter().zip(std_error).map(|(b, s)| *b + *s).collect();
         relative_rmse(&ind_shifted, &ind, Some(&mask))
     });
-    let within = (0..n)
-        .filter(|&i| {
-            let d = (test[i] - reference[i]).abs();
-            d.cmple(std_error[i] * 3.0).all()
-        })
-        .count();
+    let (mut within, mut unlit_misses, mut unlit_largest) = (0usize, 0usize, 0f64);
+    for i in 0..n {
+        let d = (test[i] - reference[i]).abs();
+        if d.cmple(std_error[i] * 3.0).all() {
+            within += 1;
+        } else if reference[i] == Vec3::ZERO && std_error[i] == Vec3::ZERO {
+            unlit_misses += 1;
+            unlit_largest = unlit_largest.max(d.max_element() as f64);
+        }
+    }
     ReferenceNoise {
         total,
         indirect,
@@ -312,6 +322,8 @@ pub fn reference_noise(
         } else {
             within as f64 / n as f64
         },
+        unlit_misses,
+        unlit_largest,
     }
 }
 
