@@ -329,6 +329,13 @@ fn reference_noise_and_the_three_sigma_share() {
     assert!(close(noise_corrected(0.5, 0.3), 0.4, 1e-12));
     assert_eq!(noise_corrected(0.2, 0.3), 0.0);
     assert_eq!((n.unlit_misses, n.unlit_largest), (0, 0.0), "{n:?}");
+    let lit = first.iter().filter(|f| f.max_element() > 0.0).count();
+    let lit_within = (0..grid.texels.len())
+        .filter(|&i| near(i) && first[i].max_element() > 0.0)
+        .count();
+    let (n_lit, share) = n.within_lit.unwrap();
+    assert_eq!(n_lit, lit, "{n:?}");
+    assert!(lit > 0 && close(share, lit_within as f64 / lit as f64, 1e-12), "{n:?}");
     // Texels the reference found unlit (0 ± 0): an exact 0 is within 3σ, anything else a
     // miss counted apart with its largest value.
     let (mut r0, mut se0, mut t0) = (reference.clone(), se.clone(), reference.clone());
@@ -338,6 +345,7 @@ fn reference_noise_and_the_three_sigma_share() {
         t0[i] = Vec3::new(0.0, [0.0, 2e-6, 5e-6][i], 0.0);
     }
     let n0 = reference_noise(&grid, &r0, &se0, &t0, None);
+    assert_eq!(n0.within_lit, None, "{n0:?}");
     assert_eq!(n0.unlit_misses, 2, "{n0:?}");
     assert!(close(n0.unlit_largest, 5e-6, 1e-6), "{n0:?}");
     assert!(

@@ -179,6 +179,12 @@ pub fn run(a: Args) -> Result<()> {
             "within 3σ       {:.2} % of covered texels (|test − reference| ≤ 3 standard errors in every channel)",
             100.0 * n.within_three_sigma
         );
+        if let Some((lit, share)) = n.within_lit {
+            println!(
+                "                {:.2} % of the {lit} texels the reference's first order lights at their centre",
+                100.0 * share
+            );
+        }
         if n.unlit_misses > 0 {
             println!(
                 "                of the misses, {} ({:.2} % of covered texels) where the reference is 0 ± 0 \

@@ -271,6 +271,9 @@ pub struct ReferenceNoise {
     pub unlit_misses: usize,
     /// The largest `|test|` over those texels, W/m² (0 without any).
     pub unlit_largest: f64,
+    /// With the reference's first order: the covered texels it lights at their centre (first
+    /// order above 0 in some channel) and the fraction of them within 3σ.
+    pub within_lit: Option<(usize, f64)>,
 }
 
 /// The reference's noise ([`ReferenceNoise`]) from `std_error` (per covered texel of `grid`, as
@@ -305,9 +308,15 @@ pub fn reference_noise(
         relative_rmse(&ind_shifted, &ind, Some(&mask))
     });
     let (mut within, mut unlit_misses, mut unlit_largest) = (0usize, 0usize, 0f64);
+    let (mut lit, mut lit_within) = (0usize, 0usize);
     for i in 0..n {
         let d = (test[i] - reference[i]).abs();
-        if d.cmple(std_error[i] * 3.0).all() {
+        let ok = d.cmple(std_error[i] * 3.0).all();
+        if reference_first.is_some_and(|f| f[i].max_element() > 0.0) {
+            lit += 1;
+            lit_within += usize::from(ok);
+        }
+        if ok {
             within += 1;
         } else if reference[i] == Vec3::ZERO && std_error[i] == Vec3::ZERO {
             unlit_misses += 1;
@@ -324,6 +333,8 @@ pub fn reference_noise(
         },
         unlit_misses,
         unlit_largest,
+        within_lit: reference_first
+            .map(|_| (lit, if lit == 0 { 1.0 } else { lit_within as f64 / lit as f64 })),
     }
 }
 
