@@ -335,7 +335,10 @@ fn reference_noise_and_the_three_sigma_share() {
         .count();
     let (n_lit, share) = n.within_lit.unwrap();
     assert_eq!(n_lit, lit, "{n:?}");
-    assert!(lit > 0 && close(share, lit_within as f64 / lit as f64, 1e-12), "{n:?}");
+    assert!(
+        lit > 0 && close(share, lit_within as f64 / lit as f64, 1e-12),
+        "{n:?}"
+    );
     // Texels the reference found unlit (0 ± 0): an exact 0 is within 3σ, anything else a
     // miss counted apart with its largest value.
     let (mut r0, mut se0, mut t0) = (reference.clone(), se.clone(), reference.clone());

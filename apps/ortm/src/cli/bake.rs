@@ -108,6 +108,14 @@ pub struct Args {
     /// above 0, at most 64 [default: 16].
     #[arg(long, value_name = "R")]
     pub near_gather_reach: Option<f32>,
+    /// With --tolerance: balance the skin weights' rows and columns in R rounds (0 = off, the
+    /// columns capped alone), so that what a texel gathers under a uniform irradiance is the
+    /// continuous surface's value (README, *The subsurface weights' rows*; as `ortm solve
+    /// --balance-subsurface`). Keeps every skin pair's raw weight while the transport is
+    /// built (16 bytes each, ~390 MB for the head at 256², checked against the memory limit
+    /// first).
+    #[arg(long, default_value_t = 0, value_name = "R")]
+    pub balance_subsurface: u32,
     /// Sharded bake, step 1: the plan (transport, offsets, work split) for `--shards N`.
     #[arg(
         long,
@@ -231,6 +239,7 @@ pub fn settings(a: &Args, size: (u32, u32)) -> Result<BakeSettings> {
         receiver_blocks,
         near_gather: (a.near_gather != 0).then_some(a.near_gather),
         near_gather_reach: a.near_gather_reach,
+        balance_subsurface: (a.balance_subsurface != 0).then_some(a.balance_subsurface),
         cell_rule,
         offsets: a.offsets,
         effects: parse_effects(&a.effects)?,

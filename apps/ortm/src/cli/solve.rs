@@ -54,7 +54,9 @@ use ortm::bake::report::save_solution_pngs;
 use ortm::bake::texels::TexelGrid;
 use ortm::bake::transport::dense::DenseTransport;
 use ortm::bake::transport::hier::{BuildError, Operator, Settings};
-use ortm::bake::transport::{Kernels, SetupProgress, balance_memory_bytes, texel_patches};
+use ortm::bake::transport::{
+    Kernels, MAX_BALANCE_ROUNDS, SetupProgress, check_balance, texel_patches,
+};
 use ortm::render::lightmap_exr::write_lightmap_exr;
 use ortm::scene::light::{LIGHT_SYNTAX, parse_light};
 
@@ -65,9 +67,6 @@ use ortm::bake::transport::dense::MAX_TEXELS as MAX_DENSE_TEXELS;
 /// The largest `--first-order-samples` (the sub-texel grid holds N² times the lightmap's
 /// texels).
 const MAX_FIRST_ORDER_SAMPLES: u32 = 7;
-
-/// The most rounds `--balance-subsurface` takes (each is two passes over the weights).
-const MAX_BALANCE_ROUNDS: u32 = 1000;
 
 /// `--first-order-samples` of `ortm solve` and `ortm render` (so `ortm demo`).
 pub use ortm::bake::lighting::DEFAULT_FIRST_ORDER_SAMPLES;
@@ -141,8 +140,8 @@ pub struct Args {
     /// continuous surface's value, whose footprints of unequal size leave the capped rows a
     /// few percent off (README, *The subsurface weights' rows*). 50 rounds hold the rows
     /// within ~0.2 %. Keeps every skin pair's raw weight (16 bytes each, ~390 MB for the head
-    /// at 256², checked against the memory limit first). Not with --near-field; the bake's
-    /// maps do not take it yet.
+    /// at 256², checked against the memory limit first). Not with --near-field; `ortm bake
+    /// --balance-subsurface` bakes it into the maps.
     #[arg(long, default_value_t = 0, value_name = "R")]
     balance_subsurface: u32,
 }
@@ -354,23 +353,14 @@ pub fn run(a: Args) -> Result<()> {
             );
         }
     }
-    if let (1.., Some(limit)) = (
+    check_balance(
+        &scene,
+        &grid,
+        effects,
         a.balance_subsurface,
         ortm::io::limits::memory_limit_bytes()?,
-    ) {
-        let need = balance_memory_bytes(&scene, &grid, effects);
-        if need > limit / 2 {
-            bail!(
-                "--balance-subsurface {}: the skin weights of {} covered texels need about {:.1} \
-                 MB to balance, more than half the memory limit ({:.1} MB: physical memory or \
-                 ORTM_MEMORY_LIMIT_BYTES); give a smaller --size, or 0 to keep the capped weights",
-                a.balance_subsurface,
-                grid.texels.len(),
-                need as f64 / 1e6,
-                limit as f64 / 1e6,
-            );
-        }
-    }
+    )
+    .map_err(|e| anyhow::anyhow!("--balance-subsurface {}: {e}", a.balance_subsurface))?;
     super::ensure_dir(&a.output)?;
     let cancel = Arc::new(AtomicBool::new(false));
     {

@@ -333,8 +333,16 @@ pub fn reference_noise(
         },
         unlit_misses,
         unlit_largest,
-        within_lit: reference_first
-            .map(|_| (lit, if lit == 0 { 1.0 } else { lit_within as f64 / lit as f64 })),
+        within_lit: reference_first.map(|_| {
+            (
+                lit,
+                if lit == 0 {
+                    1.0
+                } else {
+                    lit_within as f64 / lit as f64
+                },
+            )
+        }),
     }
 }
 

@@ -109,6 +109,12 @@ pub struct BakeSettings {
     /// [`crate::bake::near_gather::DEFAULT_REACH`]. Recorded only when set.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub near_gather_reach: Option<f32>,
+    /// With [`Self::tolerance`]: rounds of balancing of the subsurface weights' rows and
+    /// columns ([`crate::bake::transport::Kernels::balance_rounds`]; README, "The subsurface
+    /// weights' rows"); `None`: the columns capped alone. Recorded (and so in the bake's key)
+    /// only when set.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub balance_subsurface: Option<u32>,
     /// How the scene was named when baking (a built-in name or a scene-file path, as given), so
     /// that `ortm render DIR` can find it again; informational (the scene hash identifies it).
     pub scene: Option<String>,
@@ -135,6 +141,7 @@ impl Default for BakeSettings {
             receiver_blocks: false,
             near_gather: None,
             near_gather_reach: None,
+            balance_subsurface: None,
             scene: None,
         }
     }
@@ -701,6 +708,19 @@ impl Setup {
         crate::io::limits::check_lightmap_memory(w, h)
             .map_err(|e| BakeError::Settings(e.to_string()))?;
         let grid = TexelGrid::build_with_size(scene, w, h)?;
+        if let Some(rounds) = settings.balance_subsurface {
+            if settings.tolerance.is_none() {
+                return Err(BakeError::Settings(format!(
+                    "--balance-subsurface {rounds} needs the hierarchical transport, whose \
+                     subsurface walk takes the balanced weights: give --tolerance, or --levels \
+                     without --coarse-block"
+                )));
+            }
+            let limit = crate::io::limits::memory_limit_bytes()
+                .map_err(|e| BakeError::Settings(e.to_string()))?;
+            crate::bake::transport::check_balance(scene, &grid, settings.effects, rounds, limit)
+                .map_err(|e| BakeError::Settings(format!("--balance-subsurface {rounds}: {e}")))?;
+        }
         let block = match settings.coarse_block {
             0 => crate::bake::transport::coarse::auto_block(&grid),
             b => b,
@@ -789,6 +809,7 @@ impl Setup {
                     tolerance,
                     subsurface_tolerance: settings.subsurface_tolerance,
                     max_bytes,
+                    subsurface_balance_rounds: settings.balance_subsurface.unwrap_or(0),
                     ..hier::Settings::default()
                 };
                 // The slit texels for the multi-resolution rows; the offsets' cells take the
@@ -832,9 +853,10 @@ pub fn bake(
     cancel: &AtomicBool,
 ) -> Result<BakeSummary, BakeError> {
     let t0 = std::time::Instant::now();
+    // Settings checked before the directory is made: a refused bake leaves nothing behind.
+    let setup = Setup::new(scene, settings)?;
     // Held to the end: one writer per directory, and the stale-temp sweep only under it.
     let _lock = crate::io::DirLock::acquire(dir)?;
-    let setup = Setup::new(scene, settings)?;
     let transport = setup.transport(scene, settings, events, cancel)?;
     let t_transport = t0.elapsed().as_secs_f64();
     let Setup {

@@ -218,6 +218,42 @@ const SUPPORT_FRACTION: f64 = 1e-4;
 /// three `f32`.
 const BALANCE_PAIR_BYTES: u64 = 16;
 
+/// The most rounds of balancing ([`Kernels::balance_rounds`]) `ortm solve` and `ortm bake`
+/// take (each is two passes over the weights; 50 hold the rows within ~0.2 %).
+pub const MAX_BALANCE_ROUNDS: u32 = 1000;
+
+/// Checks `rounds` of balancing for `grid`'s texels in `scene` before anything is built: at
+/// most [`MAX_BALANCE_ROUNDS`], and the pairs' memory ([`balance_memory_bytes`]) within half
+/// of `limit` (bytes; `None`: no limit). `Err` with what is wrong and the fix, to follow the
+/// flag's name in a message.
+pub fn check_balance(
+    scene: &Scene,
+    grid: &TexelGrid,
+    effects: Effects,
+    rounds: u32,
+    limit: Option<u64>,
+) -> Result<(), String> {
+    if rounds > MAX_BALANCE_ROUNDS {
+        return Err(format!(
+            "at most {MAX_BALANCE_ROUNDS} rounds (50 hold the rows within ~0.2 %); 0 turns it off"
+        ));
+    }
+    if let (1.., Some(limit)) = (rounds, limit) {
+        let need = balance_memory_bytes(scene, grid, effects);
+        if need > limit / 2 {
+            return Err(format!(
+                "the skin weights of {} covered texels need about {:.1} MB to balance, more \
+                 than half the memory limit ({:.1} MB: physical memory or \
+                 ORTM_MEMORY_LIMIT_BYTES); give a smaller --size, or 0 to keep the capped weights",
+                grid.texels.len(),
+                need as f64 / 1e6,
+                limit as f64 / 1e6,
+            ));
+        }
+    }
+    Ok(())
+}
+
 /// The memory [`Kernels::balance_rounds`] keeps for `grid`'s texels in `scene`, estimated
 /// before anything is built: [`BALANCE_PAIR_BYTES`] per pair of texels of a translucent
 /// material within its profile's support, `π r² / A_j` receivers per sender as on a plane
@@ -282,10 +318,11 @@ pub struct Kernels {
     /// Rounds of balancing of the subsurface weights' rows and columns
     /// ([`Kernels::normalise_subsurface`], module docs "Subsurface weights"); 0 (the default):
     /// the columns capped alone. Honoured where the weights are normalised pair by pair (the
-    /// dense solve, the hierarchical solve's sparse operator, the pair evaluator); the bake's
-    /// subsurface walk ([`hier::subsurface::SubsurfaceWalk::normalise`]) caps the columns
-    /// whatever it says, and the near field's sub-texels ([`crate::bake::near_field`]) are
-    /// not balanced (`ortm solve` refuses the two together: measured worse than either alone).
+    /// dense solve, the hierarchical solve's sparse operator, the pair evaluator, and the
+    /// bake's subsurface walk, [`hier::subsurface::SubsurfaceWalk::normalise`], which then
+    /// balances from every pair as well); the near field's sub-texels
+    /// ([`crate::bake::near_field`]) are not balanced (`ortm solve` refuses the two together:
+    /// measured worse than either alone).
     pub balance_rounds: u32,
 }
 
@@ -1012,7 +1049,8 @@ impl Transport {
         progress: &SetupProgress,
     ) -> Result<Self, hier::BuildError> {
         let visibility = Arc::new(Visibility::new(&scene.mesh));
-        let kernels = Kernels::new(scene, effects, visibility);
+        let mut kernels = Kernels::new(scene, effects, visibility);
+        kernels.balance_rounds = settings.subsurface_balance_rounds;
         let op =
             hier::Operator::build_links_only(&texel_patches(grid), &kernels, settings, progress)?;
         let patches = op.patches().to_vec();

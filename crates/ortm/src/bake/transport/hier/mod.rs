@@ -104,6 +104,10 @@ pub struct Settings {
     /// Stop refining with [`BuildError::TooLarge`] once the links found and the pairs still to
     /// refine would take more bytes than this (`None`: no limit).
     pub max_bytes: Option<u64>,
+    /// Rounds of balancing of the subsurface weights ([`Kernels::balance_rounds`]) in the
+    /// kernels that [`crate::bake::transport::Transport::build_hierarchical`] makes (callers
+    /// of [`Operator::build`] set their kernels' own); 0: the columns capped alone.
+    pub subsurface_balance_rounds: u32,
 }
 
 /// Why [`Operator::build`] stopped.
@@ -145,6 +149,7 @@ impl Default for Settings {
             convergence: 1e-6,
             max_iterations: 1000,
             max_bytes: None,
+            subsurface_balance_rounds: 0,
         }
     }
 }
