@@ -26,6 +26,16 @@ fn refused_solve(d: &std::path::Path, extra: &[&str]) -> String {
     fails(ortm(&args, d))
 }
 
+/// `ortm solve` of the head at 24² with the first order at the texels' centres.
+const HEAD_24_CENTRES: [&str; 6] = [
+    "solve",
+    "head",
+    "--size",
+    "24",
+    "--first-order-samples",
+    "1",
+];
+
 /// Texels of `b` more than 1 % (or 10⁻⁵ absolute) off `a` in some channel, and the sums of
 /// all channels of `a` and of `b`.
 fn changed_and_sums(a: &[[f32; 3]], b: &[[f32; 3]]) -> (usize, f64, f64) {
@@ -286,14 +296,7 @@ fn balanced_subsurface_weights_through_the_cli() {
     let read = |n: &str, f: &str| read_lightmap_exr(&d.join(n).join(f)).unwrap().data;
     assert!(read("plain", "final.exr") == read("bal", "final.exr"));
 
-    let head = [
-        "solve",
-        "head",
-        "--size",
-        "24",
-        "--first-order-samples",
-        "1",
-    ];
+    let head = HEAD_24_CENTRES;
     ok(ortm(&[&head[..], &["-o", "hp"]].concat(), d));
     ok(ortm(
         &[&head[..], &["--balance-subsurface", "50", "-o", "hb"]].concat(),
@@ -382,16 +385,12 @@ fn the_bake_takes_the_balanced_weights() {
             .unwrap();
         ok(out);
         let solve = format!("s{r}");
-        let args = [
-            "solve",
-            "head",
-            "--size",
-            "24",
-            "--first-order-samples",
-            "1",
-        ];
         ok(ortm(
-            &[&args[..], &["--balance-subsurface", r, "-o", &solve]].concat(),
+            &[
+                &HEAD_24_CENTRES[..],
+                &["--balance-subsurface", r, "-o", &solve],
+            ]
+            .concat(),
             d,
         ));
     }
