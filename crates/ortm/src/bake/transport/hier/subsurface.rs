@@ -41,7 +41,11 @@
 //!   symmetric; only that weight is integrated). Then the same per-channel scale as
 //!   [`Kernels::normalise_subsurface`] ([`Kernels::scale_subsurface`]). The texel pairs it
 //!   integrated in polar form (the costly near ones, [`NearWeights`]) are kept, and later
-//!   walks read a single texel's weight from them instead of integrating it again.
+//!   walks read a single texel's weight from them instead of integrating it again. With
+//!   [`Kernels::balance_rounds`] > 0 the weights are balanced in rows and columns from every
+//!   pair instead ([`Kernels::normalise_subsurface_keeping_near`]; `n × support²` pairs, ~390
+//!   MB on the head at 256²), and each walk's row carries its receiver's factor `α_i`
+//!   ([`crate::bake::transport::Patch::subsurface_gather`]) besides the senders' `k_j`.
 //! - The bake's cell integration ([`crate::bake::cells`]): a visit adds
 //!   `R·W_s` to the receiver's transfer, `W_s = Σ_{j ∈ s} A_j k_j / ρ_j` per channel
 //!   ([`SubsurfaceWalk::weight`]; `k_j` the sender scale, `ρ_j` its albedo), and the self visit
