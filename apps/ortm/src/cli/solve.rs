@@ -54,9 +54,7 @@ use ortm::bake::report::save_solution_pngs;
 use ortm::bake::texels::TexelGrid;
 use ortm::bake::transport::dense::DenseTransport;
 use ortm::bake::transport::hier::{BuildError, Operator, Settings};
-use ortm::bake::transport::{
-    Kernels, MAX_BALANCE_ROUNDS, SetupProgress, check_balance, texel_patches,
-};
+use ortm::bake::transport::{Kernels, SetupProgress, check_balance, texel_patches};
 use ortm::render::lightmap_exr::write_lightmap_exr;
 use ortm::scene::light::{LIGHT_SYNTAX, parse_light};
 
@@ -292,13 +290,6 @@ pub fn run(a: Args) -> Result<()> {
              drop one",
             a.balance_subsurface,
             a.near_field
-        );
-    }
-    if a.balance_subsurface > MAX_BALANCE_ROUNDS {
-        bail!(
-            "--balance-subsurface {}: at most {MAX_BALANCE_ROUNDS} rounds (50 hold the rows \
-             within ~0.2 %); 0 turns it off",
-            a.balance_subsurface
         );
     }
     if let (0, Some(r)) = (a.near_gather, a.near_gather_reach) {

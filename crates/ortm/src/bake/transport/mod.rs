@@ -56,8 +56,8 @@
 //! (README, "The subsurface weights' rows"). [`Kernels::balance_rounds`] > 0 balances both:
 //! `S_ij = α_i raw_ij β_j` with a receiver factor ([`Patch::subsurface_gather`]) beside the
 //! sender's, rows and area-weighted columns scaled to `Q̂` in turn (Sinkhorn's iteration)
-//! from every pair's raw weight — for the solves (`ortm solve --balance-subsurface R`); off by
-//! default, and the bake's walk does not take it yet.
+//! from every pair's raw weight — for the solves (`ortm solve --balance-subsurface R`) and the
+//! bake's subsurface walk (`ortm bake --balance-subsurface R`); off by default.
 //!
 //! # Evaluating R for any pair
 //! The offset stage needs `R(t, t')` for arbitrary pairs of texels of lightmaps far too large to
@@ -681,20 +681,20 @@ impl Kernels {
         Ok((scaled, near))
     }
 
-    /// [`Kernels::normalise_subsurface_with`] that also returns the raw weights of the texel
-    /// pairs it integrated in polar form ([`NearWeights`]), the costly ones, for the cell
-    /// integration to reuse instead of integrating them again.
+    /// [`Kernels::normalise_subsurface_with`] (the number of patches scaled) that also returns
+    /// the raw weights of the texel pairs it integrated in polar form ([`NearWeights`]), the
+    /// costly ones, for the cell integration to reuse instead of integrating them again.
     pub fn normalise_subsurface_keeping_near(
         &self,
         patches: &mut [Patch],
         progress: &SetupProgress,
-    ) -> Result<NearWeights, Cancelled> {
+    ) -> Result<(usize, NearWeights), Cancelled> {
         if self.balance_rounds > 0 {
-            return Ok(self.balance_subsurface(patches, progress, true)?.1);
+            return self.balance_subsurface(patches, progress, true);
         }
         let (q, near) = self.reemission(patches, progress, true)?;
-        self.scale_subsurface_with(patches, &q, progress)?;
-        Ok(near)
+        let scaled = self.scale_subsurface_with(patches, &q, progress)?;
+        Ok((scaled, near))
     }
 
     /// Sets every patch's [`Patch::subsurface_scale`] to `min(1, Q̂_j / Q_j)` per channel from its
@@ -982,7 +982,7 @@ impl Transport {
         let visibility = Arc::new(Visibility::new(&scene.mesh));
         let kernels = Kernels::new(scene, effects, visibility);
         let mut patches = texel_patches(grid);
-        let near = kernels.normalise_subsurface_keeping_near(&mut patches, progress)?;
+        let (_, near) = kernels.normalise_subsurface_keeping_near(&mut patches, progress)?;
         let mut t = Self::with_remainder(grid, patches, kernels, block, (None, false), progress)?;
         t.near = near;
         Ok(t)

@@ -372,13 +372,10 @@ impl SubsurfaceWalk {
         progress: &SetupProgress,
     ) -> Result<usize, Cancelled> {
         if kernels.balance_rounds > 0 {
-            let near = kernels.normalise_subsurface_keeping_near(patches, progress)?;
+            let (scaled, near) = kernels.normalise_subsurface_keeping_near(patches, progress)?;
             self.set_weights(tree, patches);
             self.near = near;
-            return Ok(patches
-                .iter()
-                .filter(|p| p.subsurface_scale != Vec3::ONE || p.subsurface_gather != Vec3::ONE)
-                .count());
+            return Ok(scaled);
         }
         progress.phase("transport: subsurface weights", patches.len() as u64);
         type Near = Vec<(u32, [f32; 3])>;
