@@ -116,6 +116,18 @@ pub struct Args {
     /// first).
     #[arg(long, default_value_t = 0, value_name = "R")]
     pub balance_subsurface: u32,
+    /// With --levels and --tolerance: skin's near field at N×N sub-texels (odd, 3–7; 1 = off):
+    /// each skin texel's first scattering from the skin texels within --near-field-reach
+    /// texels takes the profile integrated over their sub-texels instead of the transport's
+    /// normalised texel weights (README, *The subsurface near field*; as `ortm solve
+    /// --near-field N --near-field-light input`). Nearer the path-traced reference on lit skin
+    /// and beside shadow edges; the rows and the maps keep their size.
+    #[arg(long, default_value_t = 1, value_name = "N")]
+    pub near_field: u32,
+    /// With --near-field: the senders within R texels of each skin texel (in x and in y), 0 to 8
+    /// [default: 2].
+    #[arg(long, value_name = "R")]
+    pub near_field_reach: Option<u32>,
     /// Sharded bake, step 1: the plan (transport, offsets, work split) for `--shards N`.
     #[arg(
         long,
@@ -240,6 +252,8 @@ pub fn settings(a: &Args, size: (u32, u32)) -> Result<BakeSettings> {
         near_gather: (a.near_gather != 0).then_some(a.near_gather),
         near_gather_reach: a.near_gather_reach,
         balance_subsurface: (a.balance_subsurface != 0).then_some(a.balance_subsurface),
+        near_field: (a.near_field != 1).then_some(a.near_field),
+        near_field_reach: a.near_field_reach,
         cell_rule,
         offsets: a.offsets,
         effects: parse_effects(&a.effects)?,

@@ -27,8 +27,11 @@
 //! `--near-field N` (odd, 3–7) adds [`near_field::correction`] to the solve's source: the
 //! first scattering of the direct light under the skin from each translucent texel's nearby
 //! senders, resolved at N×N sub-texels (README, *The subsurface near field*), emitted beside the
-//! texels' own first scattering so that its later bounces are solved as well. A bake's maps do
-//! not hold it, so `ortm render` of a bake equals the solve without it.
+//! texels' own first scattering so that its later bounces are solved as well. With
+//! `--near-field-light input` only the sub-texels' weights are resolved, the light on them
+//! being each sender's transfer input: the first scattering `ortm bake --near-field N` holds in
+//! its maps ([`near_field::near_rows`]); with the sub-texels' own light (the default) a bake's
+//! maps do not hold it.
 //!
 //! `--near-gather G` (2–64) adds [`near_gather::correction`]: the form factors to the texels
 //! within `--near-gather-reach` texel sizes gathered by `G × G` rays from each texel's centre
@@ -47,7 +50,7 @@ use anyhow::{Context, Result, bail};
 use ortm::accuracy::compare::power_w;
 use ortm::bake::BakeEvent;
 use ortm::bake::lighting;
-use ortm::bake::near_field::{self, NearField, NearFieldError};
+use ortm::bake::near_field::{self, NearField, NearFieldError, SubTexelLight};
 use ortm::bake::near_gather::{self, GatherError, NearGather};
 use ortm::bake::raycast::Visibility;
 use ortm::bake::report::save_solution_pngs;
@@ -120,6 +123,12 @@ pub struct Args {
     /// resolved at sub-texels, 0 to 8 [default: 2].
     #[arg(long, value_name = "R")]
     near_field_reach: Option<u32>,
+    /// With --near-field: the light the senders' sub-texels scatter — `sub-texels`, each its
+    /// own (the scene lit at N× the lightmap's size), or `input`, the sender's transfer input
+    /// on all of them (its mean over the texel with the averaged input): only the weights are
+    /// resolved, as `ortm bake --near-field` holds them in its maps.
+    #[arg(long, value_enum, default_value_t = NearFieldLight::SubTexels)]
+    near_field_light: NearFieldLight,
     /// Gather the interreflection's near field by G×G rays per texel (2–64; 0 = off): the form
     /// factors to the texels within --near-gather-reach texel sizes in 3D are taken from what
     /// the rays hit on the mesh itself, and the first bounce of the direct light from opaque
@@ -142,6 +151,13 @@ pub struct Args {
     /// --balance-subsurface` bakes it into the maps.
     #[arg(long, default_value_t = 0, value_name = "R")]
     balance_subsurface: u32,
+}
+
+/// `--near-field-light`.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+enum NearFieldLight {
+    SubTexels,
+    Input,
 }
 
 /// `--method`.
@@ -266,11 +282,18 @@ pub fn run(a: Args) -> Result<()> {
     if let (1, Some(r)) = (a.near_field, a.near_field_reach) {
         bail!("--near-field-reach {r}: applies to --near-field N (odd, 3–7), which is off");
     }
+    if a.near_field == 1 && a.near_field_light != NearFieldLight::SubTexels {
+        bail!("--near-field-light input: applies to --near-field N (odd, 3–7), which is off");
+    }
     let near = (a.near_field != 1)
         .then(|| {
             let defaults = NearField::new(a.near_field);
             let near = NearField {
                 reach: a.near_field_reach.unwrap_or(defaults.reach),
+                light: match a.near_field_light {
+                    NearFieldLight::SubTexels => SubTexelLight::SubTexels,
+                    NearFieldLight::Input => SubTexelLight::Input,
+                },
                 ..defaults
             };
             near.check().map(|_| near).map_err(|e| {
@@ -282,12 +305,12 @@ pub fn run(a: Args) -> Result<()> {
             })
         })
         .transpose()?;
-    if a.balance_subsurface > 0 && near.is_some() {
+    if a.balance_subsurface > 0 && near.is_some_and(|n| n.light == SubTexelLight::SubTexels) {
         bail!(
-            "--balance-subsurface {} with --near-field {}: not combined (the near field's \
-             sub-texels are not balanced, and the two together measured further from the \
-             path-traced reference than either alone; README, *The subsurface weights' rows*); \
-             drop one",
+            "--balance-subsurface {} with --near-field {}: not combined with the sub-texels' \
+             own light (the near field's sub-texels are not balanced, and the two together \
+             measured further from the path-traced reference than either alone; README, *The \
+             subsurface weights' rows*); drop one, or give --near-field-light input",
             a.balance_subsurface,
             a.near_field
         );

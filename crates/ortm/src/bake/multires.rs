@@ -40,6 +40,7 @@ use glam::IVec2;
 use rayon::prelude::*;
 
 use crate::Lightmap;
+use crate::bake::near_field::NearRows;
 use crate::bake::texels::TexelGrid;
 use crate::bake::transport::{Cancelled, SetupProgress, Transport};
 use crate::maps::levels::{add3, halve, level_count};
@@ -315,6 +316,18 @@ pub fn transport_row(tr: &Transport) -> impl Fn(u32, &mut [[f32; 3]]) + Sync + '
 /// profile value times its texels' weights, and the point mass `−1` at the receiver) and the
 /// coarse higher-order remainder by area. No visibility ray per pair: `O(n)` per row.
 pub fn hierarchical_row(tr: &Transport) -> Option<impl Fn(u32, &mut [[f32; 3]]) + Sync + '_> {
+    hierarchical_row_with(tr, None)
+}
+
+/// [`hierarchical_row`] with skin's near field when `near` is given (`ortm bake --near-field`,
+/// [`crate::bake::near_field::near_rows`]): the walk's first scattering from the senders in a
+/// receiver's window is left out and the near rows' sub-texel weights (`W_ij / ρ̄_j`, not
+/// normalised) are added in its place; the point mass `−1`, the links and the remainder stay.
+/// Receivers without near rows (opaque, or not asked for) keep the walk's.
+pub fn hierarchical_row_with<'a>(
+    tr: &'a Transport,
+    near: Option<&'a NearRows>,
+) -> Option<impl Fn(u32, &mut [[f32; 3]]) + Sync + 'a> {
     use crate::bake::transport::hier::tree::NO_PARENT;
     let op = tr.links.as_ref()?;
     let tree = op.tree();
@@ -354,9 +367,15 @@ pub fn hierarchical_row(tr: &Transport) -> Option<impl Fn(u32, &mut [[f32; 3]]) 
             }
             node = parent[node as usize];
         }
+        let near_row = near
+            .map(|n| (n, &n.rows[i as usize]))
+            .filter(|(_, r)| !r.is_empty());
         if let Some(walk) = op.subsurface_walk() {
             walk.walk(tree, &tr.patches, &tr.kernels, i as usize, |s, rd, me| {
                 for &j in tree.members(s) {
+                    if near_row.is_some_and(|(n, _)| n.in_window(i as usize, j as usize)) {
+                        continue;
+                    }
                     let w = walk.weight(tree.leaf_of[j as usize]);
                     for c in 0..3 {
                         out[j as usize][c] += (rd[c] * w[c] as f64) as f32;
@@ -368,6 +387,13 @@ pub fn hierarchical_row(tr: &Transport) -> Option<impl Fn(u32, &mut [[f32; 3]]) 
                     }
                 }
             });
+        }
+        if let Some((_, row)) = near_row {
+            for &(j, w) in row {
+                for (v, w) in out[j as usize].iter_mut().zip(w) {
+                    *v += w;
+                }
+            }
         }
     })
 }

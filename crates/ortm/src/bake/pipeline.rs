@@ -9,6 +9,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::Lightmap;
+use crate::bake::near_field::{NearField, NearRows, SubTexelLight};
 use crate::bake::near_gather::NearGather;
 use crate::bake::offsets::{self, ImportanceMetric, OffsetError, SelectionSettings};
 use crate::bake::texels::{TexelError, TexelGrid};
@@ -115,6 +116,18 @@ pub struct BakeSettings {
     /// only when set.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub balance_subsurface: Option<u32>,
+    /// With [`Self::levels`] and [`Self::tolerance`]: skin's near field, `N × N` sub-texels per
+    /// sender ([`crate::bake::near_field::near_rows`]): every translucent receiver's first
+    /// scattering from the senders within [`Self::near_field_reach`] texels takes the profile
+    /// integrated over their sub-texels (not normalised) instead of the transport's texel
+    /// weights ([`crate::bake::multires::hierarchical_row_with`]); `None`: off. Recorded (and so
+    /// in the bake's key) only when set.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub near_field: Option<u32>,
+    /// With [`Self::near_field`]: the window's reach in texels; `None`: the near field's
+    /// default ([`crate::bake::near_field::NearField::new`], 2). Recorded only when set.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub near_field_reach: Option<u32>,
     /// How the scene was named when baking (a built-in name or a scene-file path, as given), so
     /// that `ortm render DIR` can find it again; informational (the scene hash identifies it).
     pub scene: Option<String>,
@@ -142,6 +155,8 @@ impl Default for BakeSettings {
             near_gather: None,
             near_gather_reach: None,
             balance_subsurface: None,
+            near_field: None,
+            near_field_reach: None,
             scene: None,
         }
     }
@@ -188,6 +203,43 @@ impl BakeSettings {
             })
         })?;
         Ok(Some(gather))
+    }
+
+    /// Skin's near field these settings ask for (`None`: off), checked: it needs
+    /// multi-resolution maps on the hierarchical transport (their rows take it, as the
+    /// transport's subsurface walk's first scattering; the offsets' cells do not), an odd `N`
+    /// from 3 to 7 and a reach of at most 8 ([`NearField::check`]).
+    pub fn near_field(&self) -> Result<Option<NearField>, BakeError> {
+        let Some(n) = self.near_field else {
+            if let Some(r) = self.near_field_reach {
+                return Err(BakeError::Settings(format!(
+                    "--near-field-reach {r}: applies to --near-field N (odd, 3–7), which is off"
+                )));
+            }
+            return Ok(None);
+        };
+        if self.levels.is_none() || self.tolerance.is_none() {
+            return Err(BakeError::Settings(format!(
+                "--near-field {n} needs --levels ε on the hierarchical transport (--tolerance, \
+                 or --levels without --coarse-block): the near field goes into the \
+                 multi-resolution maps' rows from the transport's subsurface walk (the \
+                 offsets' cells do not take it)"
+            )));
+        }
+        let defaults = NearField::new(n);
+        let near = NearField {
+            reach: self.near_field_reach.unwrap_or(defaults.reach),
+            light: SubTexelLight::Input,
+            ..defaults
+        };
+        near.check().map_err(|e| {
+            BakeError::Settings(if (NearField { reach: 0, ..near }).check().is_ok() {
+                format!("--near-field-reach {}: {e}", near.reach)
+            } else {
+                format!("--near-field {n}: {e}; leave it out to turn it off")
+            })
+        })?;
+        Ok(Some(near))
     }
 
     /// The settings as the bake records them in `index.json` (and hashes into its
@@ -702,12 +754,30 @@ impl Setup {
             return Err(BakeError::Settings("--offsets must be at least 1".into()));
         }
         settings.near_gather()?;
+        let near = settings.near_field()?;
         let (w, h) = settings.size;
         crate::io::limits::check_bake_request(w, h, settings.offsets)
             .map_err(|e| BakeError::Settings(e.to_string()))?;
         crate::io::limits::check_lightmap_memory(w, h)
             .map_err(|e| BakeError::Settings(e.to_string()))?;
         let grid = TexelGrid::build_with_size(scene, w, h)?;
+        if let Some(near) = near {
+            let limit = crate::io::limits::memory_limit_bytes()
+                .map_err(|e| BakeError::Settings(e.to_string()))?;
+            let need = crate::bake::near_field::memory_bytes(&grid, near.subdivision);
+            if let Some(limit) = limit.filter(|&l| need > l / 4) {
+                let mb = |b: u64| b as f64 / 1e6;
+                return Err(BakeError::Settings(format!(
+                    "--near-field {n}: its {n}×{n} sub-texels of {} covered texels need about \
+                     {:.1} MB, more than a quarter of the memory limit ({:.1} MB: physical \
+                     memory or ORTM_MEMORY_LIMIT_BYTES); give a smaller N or a smaller --size",
+                    grid.texels.len(),
+                    mb(need),
+                    mb(limit),
+                    n = near.subdivision,
+                )));
+            }
+        }
         if let Some(rounds) = settings.balance_subsurface {
             if settings.tolerance.is_none() {
                 return Err(BakeError::Settings(format!(
@@ -880,16 +950,29 @@ pub fn bake(
             events,
             cancel,
         )?;
+        let near = near_field_rows(
+            scene,
+            &transport,
+            &grid,
+            settings,
+            all.clone(),
+            events,
+            cancel,
+        )?;
         let entries = level_rows_in(
             &transport,
             &grid,
             tolerance,
-            gathered.as_deref(),
+            NearFields {
+                gathered: gathered.as_deref(),
+                skin: near.as_ref(),
+            },
             all,
             events,
             cancel,
         )?;
         drop(gathered);
+        drop(near);
         drop(transport);
         let written = write_level_entries(
             dir,
@@ -1137,17 +1220,27 @@ fn write_each<'a>(
     gather_written(results, written.load(Ordering::Relaxed), total)
 }
 
+/// The near fields a bake's rows take besides the transport's ([`level_rows_in`]), each `None`
+/// when off.
+#[derive(Clone, Copy, Default)]
+pub(crate) struct NearFields<'a> {
+    /// The interreflection's gathered form factors `ΔF` per receiver ([`gathered_rows`]).
+    pub gathered: Option<&'a [Vec<(u32, f32)>]>,
+    /// Skin's near-field weights ([`near_field_rows`]).
+    pub skin: Option<&'a NearRows>,
+}
+
 /// Every receiver's kept blocks at `tolerance` ([`crate::bake::multires`]): its row from the
 /// hierarchical transport when the bake has one ([`crate::bake::multires::hierarchical_row`],
-/// `--tolerance`), with the gathered near field's first bounce when `gathered` holds its rows
-/// ([`gathered_rows`]), else from the pair evaluator ([`Transport::r`], `n²` evaluations with
-/// a visibility ray each), partitioned; `receivers` (texel indices), all of them for a
+/// `--tolerance`), with the gathered near field's first bounce and skin's near field when
+/// `near` holds them ([`NearFields`]), else from the pair evaluator ([`Transport::r`], `n²` evaluations
+/// with a visibility ray each), partitioned; `receivers` (texel indices), all of them for a
 /// single-process bake, a shard's share for a sharded one ([`crate::bake::shard`]).
 pub(crate) fn level_rows_in(
     transport: &Transport,
     grid: &TexelGrid,
     tolerance: f64,
-    gathered: Option<&[Vec<(u32, f32)>]>,
+    near: NearFields<'_>,
     receivers: std::ops::Range<u32>,
     events: &(dyn Fn(BakeEvent) + Sync),
     cancel: &AtomicBool,
@@ -1159,24 +1252,27 @@ pub(crate) fn level_rows_in(
         tolerance,
         ..MultiresSettings::default()
     };
-    Ok(match (multires::hierarchical_row(transport), gathered) {
-        (Some(row), Some(g)) => {
-            let row = multires::with_gathered_rows(transport, row, g);
-            multires::partition_rows_in(grid, row, &[settings], receivers, &progress)
+    let NearFields { gathered, skin } = near;
+    Ok(
+        match (multires::hierarchical_row_with(transport, skin), gathered) {
+            (Some(row), Some(g)) => {
+                let row = multires::with_gathered_rows(transport, row, g);
+                multires::partition_rows_in(grid, row, &[settings], receivers, &progress)
+            }
+            (Some(row), None) => {
+                multires::partition_rows_in(grid, row, &[settings], receivers, &progress)
+            }
+            (None, _) => multires::partition_rows_in(
+                grid,
+                multires::transport_row(transport),
+                &[settings],
+                receivers,
+                &progress,
+            ),
         }
-        (Some(row), None) => {
-            multires::partition_rows_in(grid, row, &[settings], receivers, &progress)
-        }
-        (None, _) => multires::partition_rows_in(
-            grid,
-            multires::transport_row(transport),
-            &[settings],
-            receivers,
-            &progress,
-        ),
-    }
-    .map_err(|_| BakeError::Interrupted { done: 0, total: 0 })?
-    .remove(0))
+        .map_err(|_| BakeError::Interrupted { done: 0, total: 0 })?
+        .remove(0),
+    )
 }
 
 /// The gathered form factors `ΔF` the settings ask for ([`BakeSettings::near_gather`],
@@ -1223,6 +1319,40 @@ pub(crate) fn gathered_rows(
         gather.reach,
         rows.iter().map(Vec::len).sum::<usize>(),
         t.elapsed().as_secs_f64()
+    )));
+    Ok(Some(rows))
+}
+
+/// Skin's near field the settings ask for ([`BakeSettings::near_field`],
+/// [`crate::bake::near_field::near_rows`]) for the receivers `receivers` (texel indices; the
+/// other rows empty), `None` when off.
+pub(crate) fn near_field_rows(
+    scene: &Scene,
+    transport: &Transport,
+    grid: &TexelGrid,
+    settings: &BakeSettings,
+    receivers: std::ops::Range<u32>,
+    events: &(dyn Fn(BakeEvent) + Sync),
+    cancel: &AtomicBool,
+) -> Result<Option<NearRows>, BakeError> {
+    use crate::bake::near_field::{self, NearFieldError};
+    let Some(near) = settings.near_field()? else {
+        return Ok(None);
+    };
+    let progress = SetupProgress::new(events, cancel);
+    let t = std::time::Instant::now();
+    let rows = near_field::near_rows(scene, grid, &transport.kernels, near, receivers, &progress)
+        .map_err(|e| match e {
+        NearFieldError::Cancelled => BakeError::Interrupted { done: 0, total: 0 },
+        NearFieldError::Texels(e) => BakeError::Texels(e),
+    })?;
+    events(BakeEvent::Message(format!(
+        "near field: {n}×{n} sub-texels per sender, senders within {} texels, {} skin pairs, in \
+         {:.2} s",
+        near.reach,
+        rows.rows.iter().map(Vec::len).sum::<usize>(),
+        t.elapsed().as_secs_f64(),
+        n = near.subdivision,
     )));
     Ok(Some(rows))
 }

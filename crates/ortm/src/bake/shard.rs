@@ -683,6 +683,12 @@ pub fn run_shard(
         }
         _ => None,
     };
+    let skin = match (&plan.work, mine.chunks.first(), mine.chunks.last()) {
+        (WorkKind::Rows, Some(&[a, _]), Some(&[_, b])) => {
+            pipeline::near_field_rows(scene, &transport, grid, settings, a..b, events, cancel)?
+        }
+        _ => None,
+    };
     let todo: u64 = (mine.chunks.iter().zip(&existing))
         .filter(|(_, e)| e.is_none())
         .map(|(&[a, b], _)| match &receivers {
@@ -735,7 +741,10 @@ pub fn run_shard(
                     &transport,
                     grid,
                     tolerance,
-                    gathered.as_deref(),
+                    pipeline::NearFields {
+                        gathered: gathered.as_deref(),
+                        skin: skin.as_ref(),
+                    },
                     a..b,
                     &quiet,
                     cancel,
