@@ -307,7 +307,8 @@ impl NearRows {
 /// ([`crate::bake::multires::hierarchical_row_with`]) takes these in place of its transport's
 /// first scattering from those senders, so that the maps scatter the renderer's input as
 /// [`correction`] with [`SubTexelLight::Input`] does (less the later bounces of that change,
-/// which the solve carries and the maps do not). Reports the phase "near field" and stops when cancelled.
+/// which the solve carries and the maps do not). Reports the phase "near field" and stops when
+/// cancelled.
 ///
 /// # Panics
 /// When `near` fails [`NearField::check`].

@@ -941,16 +941,7 @@ pub fn bake(
     if let Some(tolerance) = settings.levels {
         let t = std::time::Instant::now();
         let all = 0..grid.texels.len() as u32;
-        let gathered = gathered_rows(
-            scene,
-            &transport,
-            &grid,
-            settings,
-            all.clone(),
-            events,
-            cancel,
-        )?;
-        let near = near_field_rows(
+        let near = NearFieldRows::build(
             scene,
             &transport,
             &grid,
@@ -963,15 +954,11 @@ pub fn bake(
             &transport,
             &grid,
             tolerance,
-            NearFields {
-                gathered: gathered.as_deref(),
-                skin: near.as_ref(),
-            },
+            near.view(),
             all,
             events,
             cancel,
         )?;
-        drop(gathered);
         drop(near);
         drop(transport);
         let written = write_level_entries(
@@ -1230,12 +1217,112 @@ pub(crate) struct NearFields<'a> {
     pub skin: Option<&'a NearRows>,
 }
 
+/// The near fields the settings ask for, of the receivers `receivers` (texel indices; the
+/// other rows empty): the interreflection's gathered form factors and skin's near-field
+/// weights, each `None` when off.
+pub(crate) struct NearFieldRows {
+    /// `ΔF` per receiver.
+    pub gathered: Option<crate::bake::near_gather::FormFactorRows>,
+    /// Skin's near-field weights.
+    pub skin: Option<NearRows>,
+}
+
+impl NearFieldRows {
+    /// Both near fields for `receivers`: the gathered form factors the settings ask for
+    /// ([`BakeSettings::near_gather`], [`crate::bake::near_gather::form_factor_rows`]) and
+    /// skin's near-field weights ([`BakeSettings::near_field`],
+    /// [`crate::bake::near_field::near_rows`]).
+    pub(crate) fn build(
+        scene: &Scene,
+        transport: &Transport,
+        grid: &TexelGrid,
+        settings: &BakeSettings,
+        receivers: std::ops::Range<u32>,
+        events: &(dyn Fn(BakeEvent) + Sync),
+        cancel: &AtomicBool,
+    ) -> Result<Self, BakeError> {
+        let progress = SetupProgress::new(events, cancel);
+        let gathered = match settings.near_gather()? {
+            None => None,
+            Some(gather) => Some({
+                use crate::bake::near_gather::{self, GatherError};
+                let t = std::time::Instant::now();
+                let rows = near_gather::form_factor_rows(
+                    scene,
+                    grid,
+                    &transport.patches,
+                    &transport.kernels,
+                    &transport.kernels.visibility,
+                    gather,
+                    receivers.clone(),
+                    &progress,
+                )
+                .map_err(|e| match e {
+                    GatherError::Cancelled => BakeError::Interrupted { done: 0, total: 0 },
+                    e @ GatherError::TooLarge { .. } => BakeError::Settings(format!(
+                        "--near-gather {}: {e} (a quarter of the memory limit: physical memory \
+                         or ORTM_MEMORY_LIMIT_BYTES); give a smaller --near-gather-reach",
+                        gather.rays_per_side
+                    )),
+                })?;
+                events(BakeEvent::Message(format!(
+                    "near gather: {}×{} rays per texel, near set within {} texel sizes, {} \
+                     form-factor corrections, in {:.2} s",
+                    gather.rays_per_side,
+                    gather.rays_per_side,
+                    gather.reach,
+                    rows.iter().map(Vec::len).sum::<usize>(),
+                    t.elapsed().as_secs_f64()
+                )));
+                rows
+            }),
+        };
+        let skin = match settings.near_field()? {
+            None => None,
+            Some(near) => Some({
+                use crate::bake::near_field::{self, NearFieldError};
+                let t = std::time::Instant::now();
+                let rows = near_field::near_rows(
+                    scene,
+                    grid,
+                    &transport.kernels,
+                    near,
+                    receivers,
+                    &progress,
+                )
+                .map_err(|e| match e {
+                    NearFieldError::Cancelled => BakeError::Interrupted { done: 0, total: 0 },
+                    NearFieldError::Texels(e) => BakeError::Texels(e),
+                })?;
+                events(BakeEvent::Message(format!(
+                    "near field: {n}×{n} sub-texels per sender, senders within {} texels, {} skin \
+                     pairs, in {:.2} s",
+                    near.reach,
+                    rows.rows.iter().map(Vec::len).sum::<usize>(),
+                    t.elapsed().as_secs_f64(),
+                    n = near.subdivision,
+                )));
+                rows
+            }),
+        };
+        Ok(Self { gathered, skin })
+    }
+
+    /// The rows as [`level_rows_in`] takes them.
+    pub(crate) fn view(&self) -> NearFields<'_> {
+        NearFields {
+            gathered: self.gathered.as_deref(),
+            skin: self.skin.as_ref(),
+        }
+    }
+}
+
 /// Every receiver's kept blocks at `tolerance` ([`crate::bake::multires`]): its row from the
 /// hierarchical transport when the bake has one ([`crate::bake::multires::hierarchical_row`],
 /// `--tolerance`), with the gathered near field's first bounce and skin's near field when
-/// `near` holds them ([`NearFields`]), else from the pair evaluator ([`Transport::r`], `n²` evaluations
-/// with a visibility ray each), partitioned; `receivers` (texel indices), all of them for a
-/// single-process bake, a shard's share for a sharded one ([`crate::bake::shard`]).
+/// `near` holds them ([`NearFieldRows`]), else from the pair evaluator ([`Transport::r`], `n²`
+/// evaluations with a visibility ray each), partitioned; `receivers` (texel indices), all of
+/// them for a single-process bake, a shard's share for a sharded one ([`crate::bake::shard`]).
 pub(crate) fn level_rows_in(
     transport: &Transport,
     grid: &TexelGrid,
@@ -1273,88 +1360,6 @@ pub(crate) fn level_rows_in(
         .map_err(|_| BakeError::Interrupted { done: 0, total: 0 })?
         .remove(0),
     )
-}
-
-/// The gathered form factors `ΔF` the settings ask for ([`BakeSettings::near_gather`],
-/// [`crate::bake::near_gather::form_factor_rows`]) of the receivers `receivers` (texel
-/// indices; the other rows empty), `None` when off.
-pub(crate) fn gathered_rows(
-    scene: &Scene,
-    transport: &Transport,
-    grid: &TexelGrid,
-    settings: &BakeSettings,
-    receivers: std::ops::Range<u32>,
-    events: &(dyn Fn(BakeEvent) + Sync),
-    cancel: &AtomicBool,
-) -> Result<Option<crate::bake::near_gather::FormFactorRows>, BakeError> {
-    use crate::bake::near_gather::{self, GatherError};
-    let Some(gather) = settings.near_gather()? else {
-        return Ok(None);
-    };
-    let progress = SetupProgress::new(events, cancel);
-    let t = std::time::Instant::now();
-    let rows = near_gather::form_factor_rows(
-        scene,
-        grid,
-        &transport.patches,
-        &transport.kernels,
-        &transport.kernels.visibility,
-        gather,
-        receivers,
-        &progress,
-    )
-    .map_err(|e| match e {
-        GatherError::Cancelled => BakeError::Interrupted { done: 0, total: 0 },
-        e @ GatherError::TooLarge { .. } => BakeError::Settings(format!(
-            "--near-gather {}: {e} (a quarter of the memory limit: physical memory or \
-             ORTM_MEMORY_LIMIT_BYTES); give a smaller --near-gather-reach",
-            gather.rays_per_side
-        )),
-    })?;
-    events(BakeEvent::Message(format!(
-        "near gather: {}×{} rays per texel, near set within {} texel sizes, {} form-factor \
-         corrections, in {:.2} s",
-        gather.rays_per_side,
-        gather.rays_per_side,
-        gather.reach,
-        rows.iter().map(Vec::len).sum::<usize>(),
-        t.elapsed().as_secs_f64()
-    )));
-    Ok(Some(rows))
-}
-
-/// Skin's near field the settings ask for ([`BakeSettings::near_field`],
-/// [`crate::bake::near_field::near_rows`]) for the receivers `receivers` (texel indices; the
-/// other rows empty), `None` when off.
-pub(crate) fn near_field_rows(
-    scene: &Scene,
-    transport: &Transport,
-    grid: &TexelGrid,
-    settings: &BakeSettings,
-    receivers: std::ops::Range<u32>,
-    events: &(dyn Fn(BakeEvent) + Sync),
-    cancel: &AtomicBool,
-) -> Result<Option<NearRows>, BakeError> {
-    use crate::bake::near_field::{self, NearFieldError};
-    let Some(near) = settings.near_field()? else {
-        return Ok(None);
-    };
-    let progress = SetupProgress::new(events, cancel);
-    let t = std::time::Instant::now();
-    let rows = near_field::near_rows(scene, grid, &transport.kernels, near, receivers, &progress)
-        .map_err(|e| match e {
-        NearFieldError::Cancelled => BakeError::Interrupted { done: 0, total: 0 },
-        NearFieldError::Texels(e) => BakeError::Texels(e),
-    })?;
-    events(BakeEvent::Message(format!(
-        "near field: {n}×{n} sub-texels per sender, senders within {} texels, {} skin pairs, in \
-         {:.2} s",
-        near.reach,
-        rows.rows.iter().map(Vec::len).sum::<usize>(),
-        t.elapsed().as_secs_f64(),
-        n = near.subdivision,
-    )));
-    Ok(Some(rows))
 }
 
 /// Refuses a `--levels` tolerance that is not a number ≥ 0.

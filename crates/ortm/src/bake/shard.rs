@@ -675,18 +675,18 @@ pub fn run_shard(
         .as_ref()
         .map(|c| Integrator::new(&transport, grid, &offsets, c));
     let receivers = integrator.as_ref().map(Integrator::receivers_by_cluster);
-    // The gathered near field (rows of multi-resolution maps) of this shard's receivers: the
-    // chunks are contiguous ranges of texel indices, in order.
-    let gathered = match (&plan.work, mine.chunks.first(), mine.chunks.last()) {
-        (WorkKind::Rows, Some(&[a, _]), Some(&[_, b])) => {
-            pipeline::gathered_rows(scene, &transport, grid, settings, a..b, events, cancel)?
-        }
-        _ => None,
-    };
-    let skin = match (&plan.work, mine.chunks.first(), mine.chunks.last()) {
-        (WorkKind::Rows, Some(&[a, _]), Some(&[_, b])) => {
-            pipeline::near_field_rows(scene, &transport, grid, settings, a..b, events, cancel)?
-        }
+    // The near fields (rows of multi-resolution maps) of this shard's receivers: the chunks are
+    // contiguous ranges of texel indices, in order.
+    let near = match (&plan.work, mine.chunks.first(), mine.chunks.last()) {
+        (WorkKind::Rows, Some(&[a, _]), Some(&[_, b])) => Some(pipeline::NearFieldRows::build(
+            scene,
+            &transport,
+            grid,
+            settings,
+            a..b,
+            events,
+            cancel,
+        )?),
         _ => None,
     };
     let todo: u64 = (mine.chunks.iter().zip(&existing))
@@ -741,10 +741,9 @@ pub fn run_shard(
                     &transport,
                     grid,
                     tolerance,
-                    pipeline::NearFields {
-                        gathered: gathered.as_deref(),
-                        skin: skin.as_ref(),
-                    },
+                    near.as_ref()
+                        .map(pipeline::NearFieldRows::view)
+                        .unwrap_or_default(),
                     a..b,
                     &quiet,
                     cancel,
