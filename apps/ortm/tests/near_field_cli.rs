@@ -538,6 +538,15 @@ fn the_bake_takes_the_skin_near_field() {
             "--near-field-reach 1: applies to --near-field N",
         ),
         (
+            &[
+                &levels[..],
+                &["--near-field", "3", "--effects", "radiosity"],
+            ]
+            .concat()[..],
+            None,
+            "--near-field 3 is skin's near field, and --effects leaves out the subsurface term",
+        ),
+        (
             &[&levels[..], &["--near-field", "7"]].concat()[..],
             Some("20000000"),
             "--near-field 7: its 7×7 sub-texels of 534 covered texels need about",

@@ -116,10 +116,11 @@ pub struct Args {
     /// first).
     #[arg(long, default_value_t = 0, value_name = "R")]
     pub balance_subsurface: u32,
-    /// With --levels and --tolerance: skin's near field at N×N sub-texels (odd, 3–7; 1 = off):
+    /// With --levels on the hierarchical transport (--tolerance, or no --coarse-block): skin's
+    /// near field at N×N sub-texels (odd, 3–7; 1 = off):
     /// each skin texel's first scattering from the skin texels within --near-field-reach
     /// texels takes the profile integrated over their sub-texels instead of the transport's
-    /// normalised texel weights (README, *The subsurface near field*; as `ortm solve
+    /// normalised texel weights (README, *In a bake: the near field's weights*; as `ortm solve
     /// --near-field N --near-field-light input`). Nearer the path-traced reference on lit skin
     /// and beside shadow edges; the rows and the maps keep their size.
     #[arg(long, default_value_t = 1, value_name = "N")]

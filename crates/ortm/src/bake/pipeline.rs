@@ -207,8 +207,8 @@ impl BakeSettings {
 
     /// Skin's near field these settings ask for (`None`: off), checked: it needs
     /// multi-resolution maps on the hierarchical transport (their rows take it, as the
-    /// transport's subsurface walk's first scattering; the offsets' cells do not), an odd `N`
-    /// from 3 to 7 and a reach of at most 8 ([`NearField::check`]).
+    /// transport's subsurface walk's first scattering; the offsets' cells do not), the
+    /// subsurface effect, an odd `N` from 3 to 7 and a reach of at most 8 ([`NearField::check`]).
     pub fn near_field(&self) -> Result<Option<NearField>, BakeError> {
         let Some(n) = self.near_field else {
             if let Some(r) = self.near_field_reach {
@@ -224,6 +224,12 @@ impl BakeSettings {
                  or --levels without --coarse-block): the near field goes into the \
                  multi-resolution maps' rows from the transport's subsurface walk (the \
                  offsets' cells do not take it)"
+            )));
+        }
+        if !self.effects.subsurface {
+            return Err(BakeError::Settings(format!(
+                "--near-field {n} is skin's near field, and --effects leaves out the subsurface \
+                 term (sss): add sss to --effects, or leave --near-field out"
             )));
         }
         let defaults = NearField::new(n);
