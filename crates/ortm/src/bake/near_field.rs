@@ -58,8 +58,8 @@
 //! default) 2.64 %; at 256² 2.38 %, 1.81 % and 1.76 %.
 //!
 //! Much of what `δ` changes on the head is the weights rather than where the light falls: on
-//! lit skin the indirect light is 0.6–1.7 % of the first order, so a weight 0.1 % off moves
-//! it by a tenth, and the sub-texels' unnormalised weights are nearer the path-traced
+//! lit skin away from shadow edges the indirect light is a percent or two of the first order,
+//! so a weight 0.1 % off moves it by a tenth or more, and the sub-texels' unnormalised weights are nearer the path-traced
 //! reference than the capped or balanced texel weights. With the senders' own input on their
 //! sub-texels ([`SubTexelLight::Input`]) the head's 256² solve goes from 18.2 % to 13.7 %
 //! (indirect, against an 8,192-path reference), with the sub-texels' own light to 12.4 %
