@@ -285,26 +285,14 @@ pub fn run(a: Args) -> Result<()> {
     if a.near_field == 1 && a.near_field_light != NearFieldLight::SubTexels {
         bail!("--near-field-light input: applies to --near-field N (odd, 3–7), which is off");
     }
+    let light = match a.near_field_light {
+        NearFieldLight::SubTexels => SubTexelLight::SubTexels,
+        NearFieldLight::Input => SubTexelLight::Input,
+    };
     let near = (a.near_field != 1)
-        .then(|| {
-            let defaults = NearField::new(a.near_field);
-            let near = NearField {
-                reach: a.near_field_reach.unwrap_or(defaults.reach),
-                light: match a.near_field_light {
-                    NearFieldLight::SubTexels => SubTexelLight::SubTexels,
-                    NearFieldLight::Input => SubTexelLight::Input,
-                },
-                ..defaults
-            };
-            near.check().map(|_| near).map_err(|e| {
-                if (NearField { reach: 0, ..near }).check().is_ok() {
-                    anyhow::anyhow!("--near-field-reach {}: {e}", near.reach)
-                } else {
-                    anyhow::anyhow!("--near-field {}: {e}; 1 turns it off", a.near_field)
-                }
-            })
-        })
-        .transpose()?;
+        .then(|| NearField::from_flags(a.near_field, a.near_field_reach, light))
+        .transpose()
+        .map_err(anyhow::Error::msg)?;
     if a.balance_subsurface > 0 && near.is_some_and(|n| n.light == SubTexelLight::SubTexels) {
         bail!(
             "--balance-subsurface {} with --near-field {}: not combined with the sub-texels' \
@@ -352,20 +340,9 @@ pub fn run(a: Args) -> Result<()> {
             a.tolerance
         );
     }
-    if let (Some(near), Some(limit)) = (near, ortm::io::limits::memory_limit_bytes()?) {
-        let need = near_field::memory_bytes(&grid, near.subdivision);
-        if need > limit / 2 {
-            let mb = |b: u64| b as f64 / 1e6;
-            bail!(
-                "--near-field {n}: its {n}×{n} sub-texels of {} covered texels need about {:.1} \
-                 MB, more than half the memory limit ({:.1} MB: physical memory or \
-                 ORTM_MEMORY_LIMIT_BYTES); give a smaller N or a smaller --size",
-                grid.texels.len(),
-                mb(need),
-                mb(limit),
-                n = near.subdivision,
-            );
-        }
+    if let Some(near) = near {
+        near.check_memory(&grid, ortm::io::limits::memory_limit_bytes()?, (2, "half"))
+            .map_err(anyhow::Error::msg)?;
     }
     check_balance(
         &scene,

@@ -155,6 +155,52 @@ impl NearField {
         }
     }
 
+    /// The near field `--near-field n [--near-field-reach reach]` asks for, scattering `light`,
+    /// checked ([`NearField::check`]); the error names the flag at fault and how to turn the
+    /// near field off (`--near-field 1`).
+    pub fn from_flags(n: u32, reach: Option<u32>, light: SubTexelLight) -> Result<Self, String> {
+        let defaults = Self::new(n);
+        let near = Self {
+            reach: reach.unwrap_or(defaults.reach),
+            light,
+            ..defaults
+        };
+        near.check().map(|_| near).map_err(|e| {
+            if (Self { reach: 0, ..near }).check().is_ok() {
+                format!("--near-field-reach {}: {e}", near.reach)
+            } else {
+                format!("--near-field {n}: {e}; 1 turns it off")
+            }
+        })
+    }
+
+    /// `Err` naming the need and the fix when this near field's sub-texels for `grid`
+    /// ([`memory_bytes`]) take more than `limit / divisor` bytes (`share` says that fraction in
+    /// words, e.g. "half"); `Ok` without a limit.
+    pub fn check_memory(
+        &self,
+        grid: &TexelGrid,
+        limit: Option<u64>,
+        (divisor, share): (u64, &str),
+    ) -> Result<(), String> {
+        let need = memory_bytes(grid, self.subdivision);
+        match limit.filter(|&l| need > l / divisor) {
+            None => Ok(()),
+            Some(limit) => {
+                let mb = |b: u64| b as f64 / 1e6;
+                Err(format!(
+                    "--near-field {n}: its {n}×{n} sub-texels of {} covered texels need about \
+                     {:.1} MB, more than {share} the memory limit ({:.1} MB: physical memory or \
+                     ORTM_MEMORY_LIMIT_BYTES); give a smaller N or a smaller --size",
+                    grid.texels.len(),
+                    mb(need),
+                    mb(limit),
+                    n = self.subdivision,
+                ))
+            }
+        }
+    }
+
     /// `Err` with the rule when `subdivision` is even, below 3 or above [`MAX_SUBDIVISION`], or
     /// `reach` above [`MAX_REACH`].
     pub fn check(&self) -> Result<(), String> {

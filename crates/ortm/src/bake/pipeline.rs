@@ -232,19 +232,8 @@ impl BakeSettings {
                  term (sss): add sss to --effects, or leave --near-field out"
             )));
         }
-        let defaults = NearField::new(n);
-        let near = NearField {
-            reach: self.near_field_reach.unwrap_or(defaults.reach),
-            light: SubTexelLight::Input,
-            ..defaults
-        };
-        near.check().map_err(|e| {
-            BakeError::Settings(if (NearField { reach: 0, ..near }).check().is_ok() {
-                format!("--near-field-reach {}: {e}", near.reach)
-            } else {
-                format!("--near-field {n}: {e}; leave it out to turn it off")
-            })
-        })?;
+        let near = NearField::from_flags(n, self.near_field_reach, SubTexelLight::Input)
+            .map_err(BakeError::Settings)?;
         Ok(Some(near))
     }
 
@@ -770,19 +759,8 @@ impl Setup {
         if let Some(near) = near {
             let limit = crate::io::limits::memory_limit_bytes()
                 .map_err(|e| BakeError::Settings(e.to_string()))?;
-            let need = crate::bake::near_field::memory_bytes(&grid, near.subdivision);
-            if let Some(limit) = limit.filter(|&l| need > l / 4) {
-                let mb = |b: u64| b as f64 / 1e6;
-                return Err(BakeError::Settings(format!(
-                    "--near-field {n}: its {n}×{n} sub-texels of {} covered texels need about \
-                     {:.1} MB, more than a quarter of the memory limit ({:.1} MB: physical \
-                     memory or ORTM_MEMORY_LIMIT_BYTES); give a smaller N or a smaller --size",
-                    grid.texels.len(),
-                    mb(need),
-                    mb(limit),
-                    n = near.subdivision,
-                )));
-            }
+            near.check_memory(&grid, limit, (4, "a quarter of"))
+                .map_err(BakeError::Settings)?;
         }
         if let Some(rounds) = settings.balance_subsurface {
             if settings.tolerance.is_none() {
@@ -960,7 +938,7 @@ pub fn bake(
             &transport,
             &grid,
             tolerance,
-            near.view(),
+            Some(&near),
             all,
             events,
             cancel,
@@ -1213,16 +1191,6 @@ fn write_each<'a>(
     gather_written(results, written.load(Ordering::Relaxed), total)
 }
 
-/// The near fields a bake's rows take besides the transport's ([`level_rows_in`]), each `None`
-/// when off.
-#[derive(Clone, Copy, Default)]
-pub(crate) struct NearFields<'a> {
-    /// The interreflection's gathered form factors `ΔF` per receiver ([`gathered_rows`]).
-    pub gathered: Option<&'a [Vec<(u32, f32)>]>,
-    /// Skin's near-field weights ([`near_field_rows`]).
-    pub skin: Option<&'a NearRows>,
-}
-
 /// The near fields the settings ask for, of the receivers `receivers` (texel indices; the
 /// other rows empty): the interreflection's gathered form factors and skin's near-field
 /// weights, each `None` when off.
@@ -1313,27 +1281,19 @@ impl NearFieldRows {
         };
         Ok(Self { gathered, skin })
     }
-
-    /// The rows as [`level_rows_in`] takes them.
-    pub(crate) fn view(&self) -> NearFields<'_> {
-        NearFields {
-            gathered: self.gathered.as_deref(),
-            skin: self.skin.as_ref(),
-        }
-    }
 }
 
 /// Every receiver's kept blocks at `tolerance` ([`crate::bake::multires`]): its row from the
 /// hierarchical transport when the bake has one ([`crate::bake::multires::hierarchical_row`],
 /// `--tolerance`), with the gathered near field's first bounce and skin's near field when
-/// `near` holds them ([`NearFieldRows`]), else from the pair evaluator ([`Transport::r`], `n²`
+/// `near` holds them, else from the pair evaluator ([`Transport::r`], `n²`
 /// evaluations with a visibility ray each), partitioned; `receivers` (texel indices), all of
 /// them for a single-process bake, a shard's share for a sharded one ([`crate::bake::shard`]).
 pub(crate) fn level_rows_in(
     transport: &Transport,
     grid: &TexelGrid,
     tolerance: f64,
-    near: NearFields<'_>,
+    near: Option<&NearFieldRows>,
     receivers: std::ops::Range<u32>,
     events: &(dyn Fn(BakeEvent) + Sync),
     cancel: &AtomicBool,
@@ -1345,7 +1305,8 @@ pub(crate) fn level_rows_in(
         tolerance,
         ..MultiresSettings::default()
     };
-    let NearFields { gathered, skin } = near;
+    let gathered = near.and_then(|n| n.gathered.as_deref());
+    let skin = near.and_then(|n| n.skin.as_ref());
     Ok(
         match (multires::hierarchical_row_with(transport, skin), gathered) {
             (Some(row), Some(g)) => {

@@ -741,9 +741,7 @@ pub fn run_shard(
                     &transport,
                     grid,
                     tolerance,
-                    near.as_ref()
-                        .map(pipeline::NearFieldRows::view)
-                        .unwrap_or_default(),
+                    near.as_ref(),
                     a..b,
                     &quiet,
                     cancel,
