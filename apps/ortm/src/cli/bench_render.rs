@@ -34,6 +34,7 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use ortm::atlas::AtlasSet;
 use ortm::bake::texels::TexelGrid;
+use ortm::bake::transport::Effects;
 use ortm::render;
 use ortm::scene::Scene;
 use passes::Gpu;
@@ -275,7 +276,7 @@ fn jobs(a: &Args) -> Vec<Job> {
 
 /// The scene, its texel grid and the atlas set of a job: synthetic maps (jittered-grid
 /// offsets, [`crate::bench::synthetic::synthetic_transfer_maps`]) or a bake's atlases.
-fn load_job(a: &Args, job: &Job) -> Result<(Scene, TexelGrid, AtlasSet)> {
+fn load_job(a: &Args, job: &Job) -> Result<(Scene, TexelGrid, AtlasSet, Effects)> {
     let Some(dir) = &job.bake else {
         let size = job.size;
         let mut scene = super::load_scene(&a.scene, Some(size))?;
@@ -287,7 +288,7 @@ fn load_job(a: &Args, job: &Job) -> Result<(Scene, TexelGrid, AtlasSet)> {
         let offsets = ortm::bake::offsets::select_jittered_grid(sub, sub, job.offsets, a.seed)?;
         let maps = crate::bench::synthetic::synthetic_transfer_maps(&grid, &offsets)?;
         let set = ortm::atlas::build_atlas_set(&maps, 1024, 1024)?;
-        return Ok((scene, grid, set));
+        return Ok((scene, grid, set, Effects::default()));
     };
     let (index, set, _) = render::load_bake_atlases(dir, render::DEFAULT_ATLAS_SIDE)
         .with_context(|| format!("reading bake directory '{}'", dir.display()))?;
@@ -302,7 +303,7 @@ fn load_job(a: &Args, job: &Job) -> Result<(Scene, TexelGrid, AtlasSet)> {
         render::check_scene(dir, index, &scene, &arg)?;
     }
     let grid = TexelGrid::build_with_size(&scene, w, h)?;
-    Ok((scene, grid, set))
+    Ok((scene, grid, set, render::effects_of(index.as_ref())))
 }
 
 /// The renderer of one timed path: `--shadow-size`, `--texel-reads`, the display at
@@ -354,7 +355,7 @@ fn renderer_options(
 /// Loads a job and times the transfer paths `--paths` and `--pair` select.
 fn bench_job(a: &Args, gpu: &Gpu, (img_w, img_h): (u32, u32), job: Job) -> Result<Row> {
     let t0 = Instant::now();
-    let (scene, grid, set) = load_job(a, &job)?;
+    let (scene, grid, set, effects) = load_job(a, &job)?;
     let (w, h) = set.lightmap_size;
     let stats = set.stats();
     eprintln!(
@@ -381,7 +382,7 @@ fn bench_job(a: &Args, gpu: &Gpu, (img_w, img_h): (u32, u32), job: Job) -> Resul
         Stat::Median => Statistic::Median,
         Stat::Min => Statistic::Min,
     };
-    let diffusion = super::render::diffusion_lengths(&scene, &grid);
+    let diffusion = super::render::diffusion_lengths(&scene, &grid, effects);
     let time_path = |path: TransferPath, pair_pieces: bool| -> Result<BenchReport> {
         let options = renderer_options(a, gpu, &scene, (img_w, img_h), path, pair_pieces);
         let renderer = Renderer::new(gpu, &options)?;

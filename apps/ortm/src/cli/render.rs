@@ -106,8 +106,18 @@ pub struct DisplayArgs {
 /// Diffusion length per lightmap texel (metres, row-major, 0 on diffuse materials): for a
 /// subsurface material the longest of its channels' `1/σ_tr`, the distance over which the
 /// dipole profile falls by `e` — the display keeps the lightmap's diffused light where it
-/// exceeds a pixel's footprint (`passes::display`). `None` when no texel is subsurface.
-pub fn diffusion_lengths(scene: &ortm::scene::Scene, grid: &TexelGrid) -> Option<Vec<f32>> {
+/// exceeds a pixel's footprint (`passes::display`). `None` when no texel is subsurface, or when
+/// the bake's maps do not hold the subsurface term (`effects`, [`ortm::render::effects_of`]):
+/// the texels are then opaque, their first order the centre's and their light the maps'
+/// interreflection alone, as `ortm solve --effects radiosity` gives it.
+pub fn diffusion_lengths(
+    scene: &ortm::scene::Scene,
+    grid: &TexelGrid,
+    effects: ortm::bake::transport::Effects,
+) -> Option<Vec<f32>> {
+    if !effects.subsurface {
+        return None;
+    }
     let per_material: Vec<f32> = scene
         .materials
         .iter()
@@ -283,9 +293,11 @@ pub fn run(a: Args) -> Result<()> {
         super::solve::check_first_order_samples(n)?;
     }
     let (img_w, img_h) = render::parse_size(&a.size)?;
+    let opened = a.bake.open(a.atlas_size)?;
+    let effects = opened.effects();
     let BakeAndScene {
         set, source, scene, ..
-    } = a.bake.open(a.atlas_size)?;
+    } = opened;
     let (w, h) = set.lightmap_size;
     let grid = TexelGrid::build_with_size(&scene, w, h)?;
     let lights = if a.bake.lights.is_empty() {
@@ -311,6 +323,7 @@ pub fn run(a: Args) -> Result<()> {
                 grid: &grid,
                 mesh: &scene.mesh,
                 scene: &scene,
+                effects,
                 first_order_samples: super::solve::first_order_samples(
                     a.first_order_samples,
                     (w, h),
@@ -349,7 +362,7 @@ pub fn run(a: Args) -> Result<()> {
         &pieces,
         Some(&render::texel_weights(&grid)),
     )?;
-    if let Some(lengths) = diffusion_lengths(&scene, &grid) {
+    if let Some(lengths) = diffusion_lengths(&scene, &grid, effects) {
         renderer.set_diffusion_lengths(&gpu, &mut rscene, &lengths)?;
     }
     let t1 = Instant::now();

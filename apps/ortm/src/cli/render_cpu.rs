@@ -22,6 +22,7 @@ use image::RgbaImage;
 use ortm::atlas::{AtlasSet, apply_atlas_pieces};
 use ortm::bake::raycast::Visibility;
 use ortm::bake::texels::TexelGrid;
+use ortm::bake::transport::Effects;
 use ortm::scene::{Light, Mesh};
 use passes::TexelImage;
 use passes::dilate::{DilateOptions, DilatePlan};
@@ -42,19 +43,21 @@ pub struct CpuLightmaps {
 /// First-order and final lightmaps of `lights` on the CPU (see the module docs), the
 /// transfer's input averaged over `samples × samples` sub-texels per texel (odd; 1: the
 /// centres) as `--first-order-samples` makes the GPU's (translucent texels: those of a
-/// subsurface material, as the display's diffusion lengths say).
+/// subsurface material when the maps hold the subsurface term, `effects`, as the display's
+/// diffusion lengths say).
 pub fn lightmaps(
     scene: &ortm::scene::Scene,
     grid: &TexelGrid,
     set: &AtlasSet,
     lights: &[Light],
     samples: u32,
+    effects: Effects,
 ) -> Result<CpuLightmaps> {
     use ortm::bake::lighting;
     let vis = Visibility::new(&scene.mesh);
     let (values, input) =
         lighting::first_order_and_input(scene, grid, lights, &vis, samples, |m| {
-            scene.is_translucent(m)
+            effects.subsurface && scene.is_translucent(m)
         })?;
     let first = lighting::to_lightmap(grid, &values);
     let input_map = lighting::to_lightmap(grid, &input);
@@ -177,6 +180,8 @@ pub struct CpuRender<'a> {
     pub mesh: &'a Mesh,
     /// The scene (materials: which texels are translucent).
     pub scene: &'a ortm::scene::Scene,
+    /// The effects the bake's maps hold (translucent texels only with the subsurface term).
+    pub effects: Effects,
     /// `--first-order-samples`.
     pub first_order_samples: u32,
     /// The bake's atlases (from `atlases.json` or packed in memory).
@@ -210,7 +215,14 @@ pub fn run(r: &CpuRender, why: &passes::PassError) -> Result<()> {
          --path blend or --path compute requires a GPU"
     );
     let t = std::time::Instant::now();
-    let maps = lightmaps(r.scene, r.grid, r.set, r.lights, r.first_order_samples)?;
+    let maps = lightmaps(
+        r.scene,
+        r.grid,
+        r.set,
+        r.lights,
+        r.first_order_samples,
+        r.effects,
+    )?;
     let exposure = r
         .exposure
         .unwrap_or_else(|| ortm::render::auto_exposure(&maps.final_map));

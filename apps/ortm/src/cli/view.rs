@@ -7,7 +7,6 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result, bail};
 use ortm::bake::texels::TexelGrid;
-use ortm::bake::transport::Effects;
 use ortm::render::{self, BakeAndScene, DEFAULT_ATLAS_SIDE};
 use ortm::scene::Light;
 
@@ -223,17 +222,7 @@ fn load_input(a: &Args) -> Result<ViewerInput> {
     let (atlases, _pieces) = render::transfer_inputs(&set, (w, h))?;
     let map_order = importance_order(&set, index.as_ref());
     // The bake's effects, which the reference includes (all of them for a bake without index).
-    let recorded = index.as_ref().and_then(|ix| ix.settings.get("effects"));
-    let flag = |name: &str| {
-        recorded
-            .and_then(|e| e.get(name))
-            .and_then(|v| v.as_bool())
-            .unwrap_or(true)
-    };
-    let effects = Effects {
-        radiosity: flag("radiosity"),
-        subsurface: flag("subsurface"),
-    };
+    let effects = render::effects_of(index.as_ref());
     Ok(ViewerInput {
         title: format!("{} — {}", scene.name, a.bake.dir.display()),
         scene,

@@ -28,6 +28,7 @@ use glam::Vec3;
 use ortm::atlas::{AtlasPiece, AtlasSet, apply_atlas_pieces};
 use ortm::bake::raycast::Visibility;
 use ortm::bake::texels::{NO_TEXEL, TexelGrid};
+use ortm::bake::transport::Effects;
 use ortm::lightmap::Lightmap;
 use ortm::scene::Light;
 use passes::TexelImage;
@@ -174,9 +175,11 @@ pub struct CpuMirror {
 
 /// Computes the [`CpuMirror`] (see the module docs) of `scene`'s texels `grid`, the transfer's
 /// input averaged over `samples × samples` sub-texels per texel as the GPU's first-order pass
-/// averages it (translucent texels: those of a subsurface material).
+/// averages it (translucent texels: those of a subsurface material when the bake's `effects`
+/// hold the subsurface term, as `ortm render` takes them).
 pub fn cpu_mirror(
     (scene, grid): (&ortm::scene::Scene, &TexelGrid),
+    effects: Effects,
     vis: &Visibility,
     set: &AtlasSet,
     (lights, samples): (&[Light], u32),
@@ -185,7 +188,7 @@ pub fn cpu_mirror(
     use ortm::bake::lighting;
     let (values, input) =
         lighting::first_order_and_input(scene, grid, lights, vis, samples, |m| {
-            scene.is_translucent(m)
+            effects.subsurface && scene.is_translucent(m)
         })?;
     let first_order = lighting::to_lightmap(grid, &values);
     let applied = apply_atlas_pieces(

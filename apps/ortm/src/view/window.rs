@@ -743,6 +743,7 @@ impl Running {
         let keep = self.data.first_maps(self.app.k);
         debug::cpu_mirror(
             (&self.data.scene, &self.data.grid),
+            self.data.effects,
             vis,
             &self.data.set,
             (&self.app.lights, self.data.first_order_samples),
@@ -883,7 +884,9 @@ fn view_renderer(gpu: Gpu, data: &ViewerInput) -> Result<ViewRenderer> {
         data.atlases.clone(),
         &all_pieces,
     )?;
-    if let Some(lengths) = crate::cli::render::diffusion_lengths(&data.scene, &data.grid) {
+    if let Some(lengths) =
+        crate::cli::render::diffusion_lengths(&data.scene, &data.grid, data.effects)
+    {
         r.set_diffusion_lengths(&lengths)?;
     }
     Ok(r)

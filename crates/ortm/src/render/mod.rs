@@ -53,8 +53,8 @@ pub use convert::{
 pub use exposure::{auto_exposure, parse_exposure};
 pub use lightmap_exr::{read_lightmap_exr, write_lightmap_exr};
 pub use open::{
-    AtlasSource, BakeAndScene, DEFAULT_ATLAS_SIDE, check_scene, load_bake_atlases, open_bake,
-    scene_arg_from_settings,
+    AtlasSource, BakeAndScene, DEFAULT_ATLAS_SIDE, check_scene, effects_of, load_bake_atlases,
+    open_bake, scene_arg_from_settings,
 };
 
 /// Everything that can go wrong in the render glue.

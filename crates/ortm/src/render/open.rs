@@ -14,6 +14,7 @@ use std::path::Path;
 
 use super::RenderError;
 use crate::atlas::{ATLAS_INDEX_FILE_NAME, AtlasSet};
+use crate::bake::transport::Effects;
 use crate::bake_dir::{BakeIndex, INDEX_FILE_NAME};
 use crate::scene::Scene;
 
@@ -107,6 +108,31 @@ pub struct BakeAndScene {
     pub source: AtlasSource,
     /// The scene at the bake's lightmap size.
     pub scene: Scene,
+}
+
+impl BakeAndScene {
+    /// The effects the bake's maps hold ([`effects_of`]).
+    pub fn effects(&self) -> Effects {
+        effects_of(self.index.as_ref())
+    }
+}
+
+/// The effects a bake's maps hold, from its settings (`settings.effects`); all of them for a
+/// bake without an index or settings that do not record them. A renderer needs them: a
+/// subsurface material's texels are translucent (their first order the scattered average,
+/// their light diffused on screen) only when the maps hold the subsurface term.
+pub fn effects_of(index: Option<&BakeIndex>) -> Effects {
+    let recorded = index.and_then(|ix| ix.settings.get("effects"));
+    let flag = |name: &str| {
+        recorded
+            .and_then(|e| e.get(name))
+            .and_then(|v| v.as_bool())
+            .unwrap_or(true)
+    };
+    Effects {
+        radiosity: flag("radiosity"),
+        subsurface: flag("subsurface"),
+    }
 }
 
 /// Opens a bake directory for `ortm render` and `ortm view`: its atlases
