@@ -107,35 +107,12 @@ fn prepare(
             pieces,
         )
         .unwrap();
-    if let Some(lengths) = diffusion_lengths(scene, grid).filter(|_| split) {
+    if let Some(lengths) =
+        render::diffusion_lengths(scene, grid, Effects::default()).filter(|_| split)
+    {
         r.set_diffusion_lengths(gpu, &mut rs, &lengths).unwrap();
     }
     rs
-}
-
-/// `ortm render`'s diffusion lengths (longest `1/σ_tr` of a subsurface material, per texel;
-/// the same rule as `cli::render::diffusion_lengths`, which lives in the binary).
-fn diffusion_lengths(scene: &Scene, grid: &TexelGrid) -> Option<Vec<f32>> {
-    let per_material: Vec<f32> = scene
-        .materials
-        .iter()
-        .map(|m| {
-            m.subsurface.as_ref().map_or(0.0, |s| {
-                let p = ortm::scene::subsurface::Profile::new(s);
-                p.channels
-                    .iter()
-                    .map(|c| (1.0 / c.sigma_tr) as f32)
-                    .fold(0.0, f32::max)
-            })
-        })
-        .collect();
-    per_material.iter().any(|&l| l > 0.0).then(|| {
-        let mut out = vec![0.0; (grid.width * grid.height) as usize];
-        for t in &grid.texels {
-            out[(t.y * grid.width + t.x) as usize] = per_material[t.material as usize];
-        }
-        out
-    })
 }
 
 /// Renders one frame (the final view) and reads it back.
@@ -681,7 +658,7 @@ fn split_against_full_shader(
     // The classes the pass draws with, recomputed from the public pieces.
     let mesh = render::mesh_data(&scene.mesh);
     let split = DisplaySplit::build(&mesh);
-    let min_lengths = diffusion_lengths(scene, &grid).map(|lengths| {
+    let min_lengths = render::diffusion_lengths(scene, &grid, Effects::default()).map(|lengths| {
         let texels = passes::display::surface_texels(
             &render::albedo_map(&grid),
             Some(&lengths),

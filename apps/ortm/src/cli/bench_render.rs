@@ -382,7 +382,7 @@ fn bench_job(a: &Args, gpu: &Gpu, (img_w, img_h): (u32, u32), job: Job) -> Resul
         Stat::Median => Statistic::Median,
         Stat::Min => Statistic::Min,
     };
-    let diffusion = super::render::diffusion_lengths(&scene, &grid, effects);
+    let diffusion = render::diffusion_lengths(&scene, &grid, effects);
     let time_path = |path: TransferPath, pair_pieces: bool| -> Result<BenchReport> {
         let options = renderer_options(a, gpu, &scene, (img_w, img_h), path, pair_pieces);
         let renderer = Renderer::new(gpu, &options)?;

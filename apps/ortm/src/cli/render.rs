@@ -16,7 +16,7 @@
 //! - `--direct pixel` (default) evaluates direct light per pixel with the shadow maps and
 //!   takes the transferred light from the lightmap (subsurface materials keep the
 //!   lightmap's diffused light where their diffusion length exceeds a pixel's footprint:
-//!   [`diffusion_lengths`]); `--direct lightmap` displays the lightmaps as the paper does.
+//!   [`ortm::render::diffusion_lengths`]); `--direct lightmap` displays the lightmaps as the paper does.
 //! - `--filter bilinear|bicubic`: the lightmap filter (bicubic = cubic B-spline).
 
 use std::path::{Path, PathBuf};
@@ -101,47 +101,6 @@ pub struct DisplayArgs {
     /// Lightmap filter.
     #[arg(long, value_enum, default_value_t = FilterArg::Bilinear)]
     pub filter: FilterArg,
-}
-
-/// Diffusion length per lightmap texel (metres, row-major, 0 on diffuse materials): for a
-/// subsurface material the longest of its channels' `1/σ_tr`, the distance over which the
-/// dipole profile falls by `e` — the display keeps the lightmap's diffused light where it
-/// exceeds a pixel's footprint (`passes::display`). `None` when no texel is subsurface, or when
-/// the bake's maps do not hold the subsurface term (`effects`, [`ortm::render::effects_of`]):
-/// the texels are then opaque, their first order the centre's and their light the maps'
-/// interreflection alone, as `ortm solve --effects radiosity` gives it.
-pub fn diffusion_lengths(
-    scene: &ortm::scene::Scene,
-    grid: &TexelGrid,
-    effects: ortm::bake::transport::Effects,
-) -> Option<Vec<f32>> {
-    if !effects.subsurface {
-        return None;
-    }
-    let per_material: Vec<f32> = scene
-        .materials
-        .iter()
-        .map(|m| {
-            m.subsurface.as_ref().map_or(0.0, |s| {
-                let p = ortm::scene::subsurface::Profile::new(s);
-                p.channels
-                    .iter()
-                    .map(|c| (1.0 / c.sigma_tr.max(1e-12)) as f32)
-                    .fold(0.0, f32::max)
-            })
-        })
-        .collect();
-    if per_material.iter().all(|&l| l == 0.0) {
-        return None;
-    }
-    let mut out = vec![0.0; (grid.width * grid.height) as usize];
-    for t in &grid.texels {
-        out[(t.y * grid.width + t.x) as usize] = per_material
-            .get(t.material as usize)
-            .copied()
-            .unwrap_or(0.0);
-    }
-    Some(out)
 }
 
 /// The bake and the lights, the first arguments of `ortm render` and `ortm view`.
@@ -362,7 +321,7 @@ pub fn run(a: Args) -> Result<()> {
         &pieces,
         Some(&render::texel_weights(&grid)),
     )?;
-    if let Some(lengths) = diffusion_lengths(&scene, &grid, effects) {
+    if let Some(lengths) = render::diffusion_lengths(&scene, &grid, effects) {
         renderer.set_diffusion_lengths(&gpu, &mut rscene, &lengths)?;
     }
     let t1 = Instant::now();

@@ -884,9 +884,7 @@ fn view_renderer(gpu: Gpu, data: &ViewerInput) -> Result<ViewRenderer> {
         data.atlases.clone(),
         &all_pieces,
     )?;
-    if let Some(lengths) =
-        crate::cli::render::diffusion_lengths(&data.scene, &data.grid, data.effects)
-    {
+    if let Some(lengths) = ortm::render::diffusion_lengths(&data.scene, &data.grid, data.effects) {
         r.set_diffusion_lengths(&lengths)?;
     }
     Ok(r)

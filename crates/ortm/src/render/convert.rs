@@ -5,6 +5,7 @@
 //! ```text
 //! Scene.mesh ──mesh_data──▶ MeshData        (one GPU vertex per distinct position/UV/normal corner)
 //! TexelGrid ──albedo_map──▶ AlbedoMap       (ρ per texel; subsurface: effective albedo)
+//! Scene materials + TexelGrid + Effects ──diffusion_lengths──▶ metres per texel (translucency)
 //! Light ──light_desc──▶ LightDesc           (lights ──shadow_layers_for──▶ shadow-map layers)
 //! AtlasSet ──transfer_inputs──▶ (Vec<AtlasData>, Vec<TransferPiece>)
 //! TexelImage (read back) ──to_lightmap──▶ Lightmap
@@ -24,7 +25,8 @@ use super::RenderError;
 use crate::Lightmap;
 use crate::atlas::{AtlasPiece, AtlasSet};
 use crate::bake::texels::TexelGrid;
-use crate::scene::{Light, Mesh};
+use crate::bake::transport::Effects;
+use crate::scene::{Light, Mesh, Scene};
 
 /// Converts the scene mesh (per-corner position, UV and normal indices) into the passes'
 /// indexed vertex layout: one vertex per distinct `(position, uv, normal)` index triple, in
@@ -66,6 +68,45 @@ pub fn albedo_map(grid: &TexelGrid) -> AlbedoMap {
         height: m.height,
         rgb: m.data,
     }
+}
+
+/// Diffusion length per lightmap texel (metres, row-major, 0 on diffuse materials): for a
+/// subsurface material the longest of its channels' `1/σ_tr`, the distance over which the
+/// dipole profile falls by `e`. The renderer takes texels with a length as translucent (their
+/// first order the scattered average of the transfer's input, their diffused light kept on
+/// screen where it spreads over more than a pixel: `passes::frame::Renderer::set_diffusion_lengths`).
+/// `None` when no texel is subsurface, or when the bake's maps do not hold the subsurface term
+/// (`effects`, [`super::effects_of`]): the texels are then opaque, their first order the
+/// centre's and their light the maps' interreflection alone, as `ortm solve --effects
+/// radiosity` gives it.
+pub fn diffusion_lengths(scene: &Scene, grid: &TexelGrid, effects: Effects) -> Option<Vec<f32>> {
+    if !effects.subsurface {
+        return None;
+    }
+    let per_material: Vec<f32> = scene
+        .materials
+        .iter()
+        .map(|m| {
+            m.subsurface.as_ref().map_or(0.0, |s| {
+                let p = crate::scene::subsurface::Profile::new(s);
+                p.channels
+                    .iter()
+                    .map(|c| (1.0 / c.sigma_tr.max(1e-12)) as f32)
+                    .fold(0.0, f32::max)
+            })
+        })
+        .collect();
+    if per_material.iter().all(|&l| l == 0.0) {
+        return None;
+    }
+    let mut out = vec![0.0; (grid.width * grid.height) as usize];
+    for t in &grid.texels {
+        out[(t.y * grid.width + t.x) as usize] = per_material
+            .get(t.material as usize)
+            .copied()
+            .unwrap_or(0.0);
+    }
+    Some(out)
 }
 
 /// The texel areas of the grid (m², 0 on uncovered texels) as the weights of the first-order

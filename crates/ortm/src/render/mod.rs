@@ -47,8 +47,8 @@ use crate::scene::light::SpecError;
 
 pub use camera::{CAMERA_SYNTAX, SIZE_SYNTAX, default_camera, parse_camera, parse_size};
 pub use convert::{
-    albedo_map, light_desc, mesh_data, shadow_layers_for, texel_weights, to_lightmap,
-    transfer_inputs, transfer_piece,
+    albedo_map, diffusion_lengths, light_desc, mesh_data, shadow_layers_for, texel_weights,
+    to_lightmap, transfer_inputs, transfer_piece,
 };
 pub use exposure::{auto_exposure, parse_exposure};
 pub use lightmap_exr::{read_lightmap_exr, write_lightmap_exr};
