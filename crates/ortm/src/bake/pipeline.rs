@@ -128,6 +128,12 @@ pub struct BakeSettings {
     /// default ([`crate::bake::near_field::NearField::new`], 2). Recorded only when set.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub near_field_reach: Option<u32>,
+    /// With [`Self::levels`] and [`Self::tolerance`]: the most texels that stay clusters of
+    /// their own in the coarse remainder ([`crate::bake::transport::coarse::slit_texels`]);
+    /// `None`: [`crate::bake::transport::coarse::MAX_SLIT_TEXELS`]. Recorded (and so in the
+    /// bake's key) only when set.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub slit_texels: Option<u32>,
     /// How the scene was named when baking (a built-in name or a scene-file path, as given), so
     /// that `ortm render DIR` can find it again; informational (the scene hash identifies it).
     pub scene: Option<String>,
@@ -157,6 +163,7 @@ impl Default for BakeSettings {
             balance_subsurface: None,
             near_field: None,
             near_field_reach: None,
+            slit_texels: None,
             scene: None,
         }
     }
@@ -235,6 +242,31 @@ impl BakeSettings {
         let near = NearField::from_flags(n, self.near_field_reach, SubTexelLight::Input)
             .map_err(BakeError::Settings)?;
         Ok(Some(near))
+    }
+
+    /// The cap on the coarse remainder's slit texels these settings ask for, checked: a cap
+    /// other than the default needs multi-resolution maps on the hierarchical transport (the
+    /// only bakes that keep slit texels) and at most [`MAX_SLIT_TEXELS_FLAG`] (the coarse
+    /// solve is dense: 32,768 clusters are 4 GiB per channel and hours of LU).
+    pub fn slit_texels(&self) -> Result<usize, BakeError> {
+        let Some(n) = self.slit_texels else {
+            return Ok(crate::bake::transport::coarse::MAX_SLIT_TEXELS);
+        };
+        if self.levels.is_none() || self.tolerance.is_none() {
+            return Err(BakeError::Settings(format!(
+                "--slit-texels {n} needs --levels ε and --tolerance: only the multi-resolution \
+                 maps' rows of the hierarchical transport keep slit texels in the coarse \
+                 remainder"
+            )));
+        }
+        if n > MAX_SLIT_TEXELS_FLAG {
+            return Err(BakeError::Settings(format!(
+                "--slit-texels {n}: at most {MAX_SLIT_TEXELS_FLAG} (the coarse solve is dense, \
+                 its time grows as the cube of the clusters); the default is {}",
+                crate::bake::transport::coarse::MAX_SLIT_TEXELS
+            )));
+        }
+        Ok(n as usize)
     }
 
     /// The settings as the bake records them in `index.json` (and hashes into its
@@ -781,12 +813,13 @@ impl Setup {
         };
         // With the hierarchical operator the multi-resolution rows' coarse solve also keeps
         // slit texels alone (`Transport::build_hierarchical_with_slits`).
+        let max_slits = settings.slit_texels()?;
         let slits = if settings.tolerance.is_some()
             && settings.levels.is_some()
             && settings.effects.radiosity
             && block > 1
         {
-            crate::bake::transport::coarse::MAX_SLIT_TEXELS.min(grid.texels.len())
+            max_slits.min(grid.texels.len())
         } else {
             0
         };
@@ -873,7 +906,10 @@ impl Setup {
                     grid,
                     settings.effects,
                     block,
-                    settings.levels.is_some(),
+                    match settings.levels {
+                        Some(_) => Some(settings.slit_texels()?),
+                        None => None,
+                    },
                     &hs,
                     &progress,
                 )
@@ -1328,6 +1364,9 @@ pub(crate) fn level_rows_in(
         .remove(0),
     )
 }
+
+/// The largest `--slit-texels` a bake takes ([`BakeSettings::slit_texels`]).
+pub const MAX_SLIT_TEXELS_FLAG: u32 = 32_768;
 
 /// Refuses a `--levels` tolerance that is not a number ≥ 0.
 pub(crate) fn check_level_tolerance(tolerance: f64) -> Result<(), BakeError> {

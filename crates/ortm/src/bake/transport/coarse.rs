@@ -93,7 +93,8 @@ pub fn auto_block(grid: &TexelGrid) -> u32 {
     block
 }
 
-/// At most this many texels are clusters of their own ([`slit_texels`]): with the
+/// At most this many texels are clusters of their own by default ([`slit_texels`]; `ortm bake
+/// --slit-texels N` sets another cap): with the
 /// [`AUTO_MAX_CLUSTERS`] tiles at most 5,120 clusters, whose single-precision solve took 9.2 s
 /// on the head at 256² (5,084 clusters; the double-precision one of 4,072 clusters 11.0 s).
 pub const MAX_SLIT_TEXELS: usize = 4096;
@@ -114,9 +115,10 @@ pub const SLIT_COUPLING: f32 = 0.005;
 /// its normal faces neither side), and the remainder would then spread what is left over the
 /// whole tile. A texel's coupling is its unoccluded form factor to the surface within `block`
 /// texel sizes of it, sampled at every `s`-th texel in x and y (`s = ⌈block / 4⌉`, each sample
-/// standing for `s²` texels); the [`MAX_SLIT_TEXELS`] most coupled above [`SLIT_COUPLING`] are
-/// kept (ties by index). Nothing at `block` ≤ 1 (every texel is its own cluster already).
-pub fn slit_texels(grid: &TexelGrid, patches: &[Patch], block: u32) -> Vec<bool> {
+/// standing for `s²` texels); the `max` most coupled above [`SLIT_COUPLING`] are kept (ties by
+/// index; [`MAX_SLIT_TEXELS`] by default). Nothing at `block` ≤ 1 (every texel is its own
+/// cluster already).
+pub fn slit_texels(grid: &TexelGrid, patches: &[Patch], block: u32, max: usize) -> Vec<bool> {
     let n = patches.len();
     let mut slit = vec![false; n];
     if block <= 1 || n == 0 || n != grid.texels.len() {
@@ -163,7 +165,7 @@ pub fn slit_texels(grid: &TexelGrid, patches: &[Patch], block: u32) -> Vec<bool>
     order.sort_unstable_by(|&a, &b| {
         (coupling[b as usize].total_cmp(&coupling[a as usize])).then(a.cmp(&b))
     });
-    for &i in order.iter().take(MAX_SLIT_TEXELS) {
+    for &i in order.iter().take(max) {
         slit[i as usize] = true;
     }
     slit
@@ -356,34 +358,33 @@ impl Remainder {
     /// clusters' subsurface weights are normalised over the clusters
     /// ([`Kernels::normalise_subsurface`]) for both, as the dense solve does.
     pub fn new(grid: &TexelGrid, patches: &[Patch], kernels: &Kernels, block: u32) -> Self {
-        Self::build(grid, patches, kernels, block, false, &SetupProgress::none())
+        Self::build(grid, patches, kernels, block, None, &SetupProgress::none())
             .unwrap_or_else(|_| unreachable!("never cancelled"))
     }
 
     /// [`Remainder::new`] with progress and cancellation: the clusters' form factors
     /// ([`DenseTransport::build`]) and the solve ([`DenseTransport::transfer_with`]). With
-    /// `slits` (the hierarchical operator's bakes, whose first bounce is the links' texel by
-    /// texel, never the clusters'), the slit texels are clusters of their own
-    /// ([`slit_texels`]) and near cluster pairs take their members' form factor
+    /// `slits` = `Some(max)` (the hierarchical operator's bakes, whose first bounce is the
+    /// links' texel by texel, never the clusters'), at most `max` slit texels are clusters of
+    /// their own ([`slit_texels`]) and near cluster pairs take their members' form factor
     /// ([`near_form_factors`]).
     pub fn build(
         grid: &TexelGrid,
         patches: &[Patch],
         kernels: &Kernels,
         block: u32,
-        slits: bool,
+        slits: Option<usize>,
         progress: &SetupProgress,
     ) -> Result<Self, Cancelled> {
-        let single = if slits && kernels.effects.radiosity {
-            slit_texels(grid, patches, block)
-        } else {
-            Vec::new()
+        let single = match slits {
+            Some(max) if kernels.effects.radiosity => slit_texels(grid, patches, block, max),
+            _ => Vec::new(),
         };
         let (cluster_of, mut clusters) = cluster_texels(grid, patches, block, &single);
         kernels.normalise_subsurface_with(&mut clusters, progress)?;
         let n = clusters.len();
         let mut dense = DenseTransport::build(&clusters, kernels, progress)?;
-        if slits && block > 1 {
+        if slits.is_some() && block > 1 {
             near_form_factors(
                 &mut dense,
                 &cluster_of,
@@ -395,7 +396,7 @@ impl Remainder {
         }
         // With the slit texels the coarse solve's transfer is kept in single precision (its
         // remainder is an approximation by area already; half the memory for the larger system).
-        let (full64, full32) = if slits && block > 1 {
+        let (full64, full32) = if slits.is_some() && block > 1 {
             (None, Some(dense.transfer_f32_with(progress)?))
         } else {
             (Some(dense.transfer_with(progress)?), None)
@@ -416,7 +417,7 @@ impl Remainder {
                 (0..n)
                     .map(|j| {
                         let (a, b) = (&clusters[i], &clusters[j]);
-                        if !slits {
+                        if slits.is_none() {
                             return kernels.r_fine(a, b, i == j);
                         }
                         let s = kernels.r_subsurface(a, b, i == j);

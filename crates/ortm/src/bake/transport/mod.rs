@@ -983,7 +983,7 @@ impl Transport {
         let kernels = Kernels::new(scene, effects, visibility);
         let mut patches = texel_patches(grid);
         let (_, near) = kernels.normalise_subsurface_keeping_near(&mut patches, progress)?;
-        let mut t = Self::with_remainder(grid, patches, kernels, block, (None, false), progress)?;
+        let mut t = Self::with_remainder(grid, patches, kernels, block, (None, None), progress)?;
         t.near = near;
         Ok(t)
     }
@@ -996,7 +996,7 @@ impl Transport {
         patches: Vec<Patch>,
         kernels: Kernels,
         block: u32,
-        (links, slits): (Option<hier::Operator>, bool),
+        (links, slits): (Option<hier::Operator>, Option<usize>),
         progress: &SetupProgress,
     ) -> Result<Self, Cancelled> {
         let block = if block == 0 {
@@ -1032,19 +1032,21 @@ impl Transport {
         settings: &hier::Settings,
         progress: &SetupProgress,
     ) -> Result<Self, hier::BuildError> {
-        Self::build_hierarchical_with_slits(scene, grid, effects, block, true, settings, progress)
+        let slits = Some(coarse::MAX_SLIT_TEXELS);
+        Self::build_hierarchical_with_slits(scene, grid, effects, block, slits, settings, progress)
     }
 
-    /// [`Transport::build_hierarchical`] with the coarse remainder's slit texels
-    /// ([`coarse::slit_texels`]) or without them (`slits` false: the clusters are the tiles
-    /// alone, as the offsets' cell integration takes them — its far field visits every sender
-    /// cluster per receiver, so 3,072 more clusters cost the head's 1024² bake 85 s).
+    /// [`Transport::build_hierarchical`] with at most `Some(max)` of the coarse remainder's
+    /// slit texels ([`coarse::slit_texels`]; [`coarse::MAX_SLIT_TEXELS`] by default, `ortm bake
+    /// --slit-texels N`) or without them (`None`: the clusters are the tiles alone, as the
+    /// offsets' cell integration takes them — its far field visits every sender cluster per
+    /// receiver, so 3,072 more clusters cost the head's 1024² bake 85 s).
     pub fn build_hierarchical_with_slits(
         scene: &Scene,
         grid: &TexelGrid,
         effects: Effects,
         block: u32,
-        slits: bool,
+        slits: Option<usize>,
         settings: &hier::Settings,
         progress: &SetupProgress,
     ) -> Result<Self, hier::BuildError> {
