@@ -156,7 +156,7 @@ fn the_bake_takes_a_cap_on_the_slit_texels() {
     for (extra, want) in [
         (
             &["--levels", "3e-3"][..],
-            "--slit-texels 10 needs --levels ε and --tolerance",
+            "--slit-texels 10 needs --levels ε on the hierarchical transport",
         ),
         (
             &["--levels", "3e-3", "--tolerance", "1e-4"][..],

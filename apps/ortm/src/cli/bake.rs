@@ -129,7 +129,8 @@ pub struct Args {
     /// [default: 2].
     #[arg(long, value_name = "R")]
     pub near_field_reach: Option<u32>,
-    /// With --levels and --tolerance: the most texels that stay clusters of their own in the
+    /// With --levels on the hierarchical transport (--tolerance, or no --coarse-block): the
+    /// most texels that stay clusters of their own in the
     /// coarse solve of the higher bounces — those facing the surface beside them (lips,
     /// eyelids, ears, a room's corners), whose bounces tiles would average away (README,
     /// *Slits in the remainder*). The solve is dense: more costs time as the cube of the

@@ -247,16 +247,17 @@ impl BakeSettings {
     /// The cap on the coarse remainder's slit texels these settings ask for, checked: a cap
     /// other than the default needs multi-resolution maps on the hierarchical transport (the
     /// only bakes that keep slit texels) and at most [`MAX_SLIT_TEXELS_FLAG`] (the coarse
-    /// solve is dense: 32,768 clusters are 4 GiB per channel and hours of LU).
+    /// solve is dense: 32,768 clusters take 8 GiB per matrix of doubles and hours of LU; the
+    /// bake's memory check sizes it first).
     pub fn slit_texels(&self) -> Result<usize, BakeError> {
         let Some(n) = self.slit_texels else {
             return Ok(crate::bake::transport::coarse::MAX_SLIT_TEXELS);
         };
         if self.levels.is_none() || self.tolerance.is_none() {
             return Err(BakeError::Settings(format!(
-                "--slit-texels {n} needs --levels ε and --tolerance: only the multi-resolution \
-                 maps' rows of the hierarchical transport keep slit texels in the coarse \
-                 remainder"
+                "--slit-texels {n} needs --levels ε on the hierarchical transport (--tolerance, \
+                 or --levels without --coarse-block): only its multi-resolution maps' rows keep \
+                 slit texels in the coarse remainder"
             )));
         }
         if n > MAX_SLIT_TEXELS_FLAG {
