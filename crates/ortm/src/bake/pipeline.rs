@@ -765,6 +765,9 @@ pub(crate) struct Setup {
     pub clusters: usize,
     /// The lightmap tiles among [`Self::clusters`].
     pub tiles: usize,
+    /// The cap on the slit texels the multi-resolution rows' coarse solve keeps alone
+    /// ([`BakeSettings::slit_texels`], checked).
+    pub max_slits: usize,
     /// Integrated cell values the bake will hold (memory estimate).
     pub cell_values: u64,
     /// The scene's hash.
@@ -845,6 +848,7 @@ impl Setup {
             block,
             clusters,
             tiles,
+            max_slits,
             cell_values,
             hash,
             settings_json,
@@ -907,10 +911,7 @@ impl Setup {
                     grid,
                     settings.effects,
                     block,
-                    match settings.levels {
-                        Some(_) => Some(settings.slit_texels()?),
-                        None => None,
-                    },
+                    settings.levels.map(|_| self.max_slits),
                     &hs,
                     &progress,
                 )
