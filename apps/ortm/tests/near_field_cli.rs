@@ -383,6 +383,9 @@ fn the_bake_takes_the_balanced_weights() {
                 "3e-3",
                 "--balance-subsurface",
                 r,
+                // The solve below balances without the near field (on by default for skin).
+                "--near-field",
+                "1",
                 "-o",
                 &bake,
             ],
@@ -419,7 +422,16 @@ fn the_bake_takes_the_balanced_weights() {
     assert!(crossed > 0.05, "{crossed}");
 
     let head = |size: &'static str, rounds: &'static str| {
-        let args = ["bake", "head", "--size", size, "--levels", "3e-3"];
+        let args = [
+            "bake",
+            "head",
+            "--size",
+            size,
+            "--levels",
+            "3e-3",
+            "--near-field",
+            "1",
+        ];
         [&args[..], &["--balance-subsurface", rounds, "-o", "x"]].concat()
     };
     let room = [
@@ -462,14 +474,18 @@ fn the_bake_takes_the_balanced_weights() {
 /// rows take skin's near field, rendered (CPU mirrors, the renderer's averaged input) they
 /// agree with `ortm solve --near-field N --near-field-light input` — which adds the same
 /// first scattering as a source, and also its later bounces, which the maps leave out — and
-/// not with either run without it; the setting is recorded only when given, and settings it
-/// cannot take are refused before any work, leaving no folder.
+/// not with either run without it; the setting is recorded only when on, 3 being the default
+/// of a skin scene's levels bake (`--near-field 1` turns it off), and settings it cannot take
+/// are refused before any work, leaving no folder.
 #[test]
 fn the_bake_takes_the_skin_near_field() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let read = |p: &str| read_lightmap_exr(&d.join(p)).unwrap().data;
-    for (name, extra) in [("plain", &[][..]), ("near", &["--near-field", "3"][..])] {
+    for (name, extra) in [
+        ("plain", &["--near-field", "1"][..]),
+        ("near", &["--near-field", "3"][..]),
+    ] {
         let bake = format!("b{name}");
         let args = ["bake", "head", "--size", "24", "--levels", "0"];
         ok(ortm(&[&args[..], extra, &["-o", &bake]].concat(), d));
@@ -482,7 +498,7 @@ fn the_bake_takes_the_skin_near_field() {
             .unwrap();
         ok(out);
         let solve = ["solve", "head", "--size", "24"];
-        let light: &[&str] = if extra.is_empty() {
+        let light: &[&str] = if name == "plain" {
             &[]
         } else {
             &["--near-field-light", "input"]
@@ -492,11 +508,24 @@ fn the_bake_takes_the_skin_near_field() {
             d,
         ));
     }
+    // The default: on at 3 for a levels bake of the head on the hierarchical transport (the
+    // same key as `--near-field 3`), off with the clusters' evaluator and without skin's term.
+    let default = |name: &str, extra: &[&str]| {
+        let args = ["bake", "head", "--size", "24", "--levels", "0"];
+        ok(ortm(&[&args[..], extra, &["-o", name]].concat(), d));
+    };
+    default("bdefault", &[]);
+    default("bclusters", &["--coarse-block", "4"]);
+    default("bradiosity", &["--effects", "radiosity"]);
     let index = |b: &str| ortm::bake_dir::BakeIndex::read(&d.join(b)).unwrap();
     let (plain, near) = (index("bplain"), index("bnear"));
     assert_eq!(near.settings["near_field"], 3, "{:?}", near.settings);
     assert!(plain.settings.get("near_field").is_none());
     assert_ne!(plain.bake_key, near.bake_key);
+    assert_eq!(index("bdefault").bake_key, near.bake_key);
+    for b in ["bclusters", "bradiosity"] {
+        assert!(index(b).settings.get("near_field").is_none(), "{b}");
+    }
     let (fp, fnear) = (read("fplain.exr"), read("fnear.exr"));
     let (sp, snear) = (read("splain/final.exr"), read("snear/final.exr"));
     let same = relative_rmse(&fnear, &snear);
@@ -533,7 +562,11 @@ fn the_bake_takes_the_skin_near_field() {
             "--near-field-reach 9: a reach of 9 texels: give 0 to 8",
         ),
         (
-            &[&levels[..], &["--near-field-reach", "1"]].concat()[..],
+            &[
+                &levels[..],
+                &["--near-field", "1", "--near-field-reach", "1"],
+            ]
+            .concat()[..],
             None,
             "--near-field-reach 1: applies to --near-field N",
         ),

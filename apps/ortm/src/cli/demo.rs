@@ -317,7 +317,9 @@ fn face(a: &Args) -> Result<()> {
     step(words(&["bin", &bake_dir, "--atlas", "1024"]))?;
     let maps = match a.levels {
         Some(l) => format!(
-            "multi-resolution maps at ε = {l} (hierarchical transport at {FACE_LEVELS_TOLERANCE})"
+            "multi-resolution maps at ε = {l} (hierarchical transport at \
+             {FACE_LEVELS_TOLERANCE}, skin's near field at {n}×{n} sub-texels)",
+            n = super::bake::DEFAULT_NEAR_FIELD
         ),
         None => format!("{} offsets", a.offsets),
     };

@@ -796,7 +796,12 @@ impl Setup {
             let limit = crate::io::limits::memory_limit_bytes()
                 .map_err(|e| BakeError::Settings(e.to_string()))?;
             near.check_memory(&grid, limit, (4, "a quarter of"))
-                .map_err(BakeError::Settings)?;
+                .map_err(|e| {
+                    BakeError::Settings(format!(
+                        "{e}, or turn the near field off (--near-field 1; `ortm bake` turns it \
+                         on for skin's levels bakes)"
+                    ))
+                })?;
         }
         if let Some(rounds) = settings.balance_subsurface {
             if settings.tolerance.is_none() {
