@@ -14,7 +14,9 @@
 //! partly lit are still reached (and the cosine-sampled bounce covers them too under multiple
 //! importance sampling).
 //!
-//! A point is drawn by the cell CDF (binary search), then uniformly inside the cell; its area
+//! A point is drawn by the cell CDF (its inverse found from a guide table, Chen and Asau's:
+//! the same cell as a binary search of the cumulative sums, in a step or two instead of ~17
+//! reads of a 1 MB array), then uniformly inside the cell; its area
 //! density (m⁻²) is `P(cell) / A_cell`, found again from any hit's barycentrics by
 //! [`FirstOrderLight::pdf_area`].
 
@@ -57,6 +59,9 @@ pub struct FirstOrderLight {
     /// Running sum of `probability`, ending at 1 (up to rounding; draws and densities use the
     /// last entry as the total).
     cdf: Vec<f64>,
+    /// `guide[k]`: the first slot whose `cdf` passes `k / G` of the total (`G` = the number of
+    /// slots): where the search for a number in `[k/G, (k+1)/G)` starts.
+    guide: Vec<u32>,
 }
 
 /// A drawn point: its triangle and barycentrics.
@@ -99,23 +104,22 @@ impl FirstOrderLight {
                 *run += *p as f64;
                 Some(*run)
             })
-            .collect();
+            .collect::<Vec<f64>>();
+        let guide = guide_table(&cdf);
         Some(Self {
             triangles,
             owners,
             probability,
             cdf,
+            guide,
         })
     }
 
     /// A point drawn by the density, from three numbers of `u` (the cell, the point in it).
     pub fn sample(&self, rng: &mut PathSampler) -> LightSample {
         let total = *self.cdf.last().expect("at least one cell");
-        let u: f64 = rng.uniform() * total;
-        let slot = self
-            .cdf
-            .partition_point(|&c| c <= u)
-            .min(self.cdf.len() - 1);
+        let slot =
+            inverse_cdf(&self.cdf, &self.guide, rng.uniform(), total).min(self.cdf.len() - 1);
         // Skip zero-probability slots a rounding edge could land on.
         let slot = (slot..self.cdf.len())
             .find(|&s| self.probability[s] > 0.0)
@@ -161,6 +165,30 @@ impl FirstOrderLight {
         let total = *self.cdf.last().expect("at least one cell") as f32;
         self.probability[(c.first + local) as usize] / (total * c.cell_area_m2)
     }
+}
+
+/// The guide table of the running sums `cdf` (Chen and Asau's): entry `k` of `G + 1` (`G` the
+/// number of sums) is the first index whose sum passes `k / G` of the last.
+fn guide_table(cdf: &[f64]) -> Vec<u32> {
+    let (g, total) = (cdf.len(), cdf.last().copied().unwrap_or(0.0));
+    (0..=g)
+        .map(|k| cdf.partition_point(|&c| c <= k as f64 / g as f64 * total) as u32)
+        .collect()
+}
+
+/// The first index whose running sum passes `x · total` (`x ∈ [0, 1)`), as
+/// `cdf.partition_point(|&c| c <= x · total)` finds it (`cdf.len()` past the end): from the
+/// guide's entry for `x`, stepped back where rounding put it past the answer, then forward.
+fn inverse_cdf(cdf: &[f64], guide: &[u32], x: f64, total: f64) -> usize {
+    let (g, u) = (cdf.len(), x * total);
+    let mut i = (guide[((x * g as f64) as usize).min(g)] as usize).min(g);
+    while i > 0 && cdf[i - 1] > u {
+        i -= 1;
+    }
+    while i < g && cdf[i] <= u {
+        i += 1;
+    }
+    i
 }
 
 /// Slot `local` of a triangle cut `k` times per edge: cell `(i, j)` and whether it is the
@@ -245,4 +273,47 @@ fn lit_per_slot(
             b_o.element_sum() as f64 / 3.0 * c.cell_area_m2 as f64
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{guide_table, inverse_cdf};
+
+    /// The guide table's search finds the index a binary search of the running sums finds, for
+    /// numbers on and beside every step of the sums (zero-probability runs included) and for
+    /// random ones.
+    #[test]
+    fn the_guide_finds_what_the_binary_search_finds() {
+        use rand::{RngExt, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        let weights: Vec<f32> = (0..1000)
+            .map(|i| match i % 7 {
+                0 | 1 => 0.0,
+                _ => rng.random::<f32>().powi(4),
+            })
+            .collect();
+        let cdf: Vec<f64> = weights
+            .iter()
+            .scan(0.0f64, |run, &w| {
+                *run += f64::from(w);
+                Some(*run)
+            })
+            .collect();
+        let total = *cdf.last().unwrap();
+        let guide = guide_table(&cdf);
+        let mut xs: Vec<f64> = (0..20_000).map(|_| rng.random::<f64>()).collect();
+        for &c in &cdf {
+            let x = c / total;
+            xs.extend(
+                [x, x.next_down(), x.next_up()]
+                    .into_iter()
+                    .filter(|x| (0.0..1.0).contains(x)),
+            );
+        }
+        xs.extend([0.0, 1.0f64.next_down()]);
+        for x in xs {
+            let want = cdf.partition_point(|&c| c <= x * total);
+            assert_eq!(inverse_cdf(&cdf, &guide, x, total), want, "x = {x}");
+        }
+    }
 }

@@ -44,6 +44,20 @@ use crate::scene::subsurface::Profile;
 /// lit skin across folds, and fewer tangent probes find it more rarely, with larger weights.
 pub const NORMAL_AXIS_PROBABILITY: f64 = 0.9;
 
+/// The point where `below` turns false in `[lo, hi]` (`below(lo)` true, `below(hi)` false), by
+/// 48 bisections.
+fn bisect(below: impl Fn(f64) -> bool, mut lo: f64, mut hi: f64) -> f64 {
+    for _ in 0..48 {
+        let mid = 0.5 * (lo + hi);
+        if below(mid) {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    0.5 * (lo + hi)
+}
+
 /// Probability of each probe axis: the normal, then its two tangents.
 const AXIS_PROBABILITIES: [f64; 3] = [
     NORMAL_AXIS_PROBABILITY,
@@ -64,7 +78,13 @@ pub struct ProfileSampler {
     pub support_m: f64,
     /// Per channel, `D_c = ∫₀^R R_d,c(r) 2πr dr`.
     norm: [f64; 3],
+    /// Per channel, the radii `r_k` at which the radius's distribution reaches `k / K`
+    /// (`K =` [`RADIUS_BRACKETS`]; `r_0 = 0`, `r_K = R`): the bracket a draw's root lies in.
+    brackets: [[f64; RADIUS_BRACKETS + 1]; 3],
 }
+
+/// Brackets per channel of [`ProfileSampler::sample_radius`]'s root finding.
+const RADIUS_BRACKETS: usize = 64;
 
 /// A sampled exit/entry point: the hit, and the per-channel weight `R_d(|x − y|) / pdf(y)`.
 #[derive(Clone, Copy, Debug)]
@@ -81,27 +101,62 @@ impl ProfileSampler {
     /// A sampler of `profile` truncated to its support (the transport's, `R_d < 10⁻⁴ R_d(0)`).
     pub fn new(profile: Profile) -> Self {
         let support_m = profile.support_radius(1e-4);
+        let norm = profile.disk_integral(support_m);
+        let brackets = std::array::from_fn(|c| {
+            let ch = &profile.channels[c];
+            std::array::from_fn(|k| match k {
+                0 => 0.0,
+                RADIUS_BRACKETS => support_m,
+                _ => {
+                    let target = k as f64 / RADIUS_BRACKETS as f64 * norm[c];
+                    bisect(|r| ch.disk_integral(r) < target, 0.0, support_m)
+                }
+            })
+        });
         Self {
             profile,
             support_m,
-            norm: profile.disk_integral(support_m),
+            norm,
+            brackets,
         }
     }
 
-    /// A radius in `[0, R]` with density `∝ R_d,c(r)·2πr` for channel `c`, from `u ∈ [0, 1)`.
+    /// A radius in `[0, R]` with density `∝ R_d,c(r)·2πr` for channel `c`, from `u ∈ [0, 1)`:
+    /// the root of `D_c(r) = u·D_c(R)` (`D_c` the closed-form disk integral), by Newton's method
+    /// on its derivative `R_d,c(r)·2πr`, kept inside the bracket of [`Self::brackets`] that
+    /// holds it and bisecting where a step would leave it, to a step of `10⁻¹³ R`: the same
+    /// root as 48 bisections of `[0, R]` (`R / 2⁴⁸ ≈ 3.6·10⁻¹⁵ R`) in a few evaluations
+    /// instead of 48, whose `exp`s were a fifth of the reference's time on the head (`ortm
+    /// reference head --size 256 --spp 256`: 34.2 → 20.1 s with the cells' guide table,
+    /// [`super::emitters`], the same values).
     pub fn sample_radius(&self, c: usize, u: f64) -> f64 {
         let ch = &self.profile.channels[c];
         let target = u * self.norm[c];
-        let (mut lo, mut hi) = (0.0f64, self.support_m);
-        for _ in 0..48 {
-            let mid = 0.5 * (lo + hi);
-            if ch.disk_integral(mid) < target {
-                lo = mid;
+        let k = ((u * RADIUS_BRACKETS as f64) as usize).min(RADIUS_BRACKETS - 1);
+        let (mut lo, mut hi) = (self.brackets[c][k], self.brackets[c][k + 1]);
+        let tolerance = 1e-13 * self.support_m;
+        let mut r = 0.5 * (lo + hi);
+        for _ in 0..64 {
+            let f = ch.disk_integral(r) - target;
+            if f < 0.0 {
+                lo = r;
             } else {
-                hi = mid;
+                hi = r;
+            }
+            let slope = ch.rd(r) * std::f64::consts::TAU * r;
+            let newton = r - f / slope;
+            let next = if newton > lo && newton < hi {
+                newton
+            } else {
+                0.5 * (lo + hi)
+            };
+            let step = (next - r).abs();
+            r = next;
+            if step <= tolerance || hi - lo <= tolerance {
+                break;
             }
         }
-        0.5 * (lo + hi)
+        r
     }
 
     /// The disc density (m⁻², averaged over the channels) of a point at radius `r`.
@@ -284,6 +339,44 @@ mod tests {
         let mean = sum.map(|x| x / nf);
         let se = [0, 1, 2].map(|c| ((sum2[c] / nf - mean[c] * mean[c]) / nf).max(0.0).sqrt());
         (mean, se, later)
+    }
+
+    /// The bracketed Newton iteration finds the radius 48 bisections of `[0, R]` find (the
+    /// root of the disk integral's equation) within 10⁻¹² R, in every channel of both
+    /// profiles, at the ends of the unit interval and at the brackets' edges; or, where the
+    /// disk integral's rounding blurs the root (radii of nanometres, `u` ≈ 10⁻¹²), a root as
+    /// good as the bisection's within 10⁻⁹ R.
+    #[test]
+    fn newton_radius_equals_the_bisection() {
+        for model in [SubsurfaceModel::Dipole, SubsurfaceModel::Exponential] {
+            let s = ProfileSampler::new(skin1(model));
+            for c in 0..3 {
+                let ch = &s.profile.channels[c];
+                let mut us: Vec<f64> = (0..4001).map(|k| k as f64 / 4001.0).collect();
+                us.extend([
+                    1e-12,
+                    0.5 / super::RADIUS_BRACKETS as f64,
+                    1.0f64.next_down(),
+                ]);
+                for k in 1..super::RADIUS_BRACKETS {
+                    let u = k as f64 / super::RADIUS_BRACKETS as f64;
+                    us.extend([u.next_down(), u, u.next_up()]);
+                }
+                for u in us {
+                    let target = u * s.norm[c];
+                    let want = super::bisect(|r| ch.disk_integral(r) < target, 0.0, s.support_m);
+                    let got = s.sample_radius(c, u);
+                    let residual = |r: f64| (ch.disk_integral(r) - target).abs();
+                    let close = (got - want).abs() <= 1e-12 * s.support_m;
+                    let as_good = (got - want).abs() <= 1e-9 * s.support_m
+                        && residual(got) <= residual(want).max(1e-15 * s.norm[c]);
+                    assert!(
+                        close || as_good,
+                        "{model:?} channel {c}, u = {u}: {got} against {want}"
+                    );
+                }
+            }
+        }
     }
 
     /// On a large flat plane, the estimator of `∫ R_d(|x−y|) dA(y)` (irradiance 1) must give
