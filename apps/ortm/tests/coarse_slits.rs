@@ -35,10 +35,11 @@ fn rows_indirect(tr: &Transport, b_o: &[Vec3]) -> Vec<Vec3> {
 
 /// Measured (head 64², its lamp, radiosity + subsurface, ε = 10⁻⁴, 4×4 tiles; 1,501 clusters
 /// of which 1,275 slit texels, coupling above `SLIT_COUPLING` = 0.005): indirect relative RMSE
-/// against the exact solve 0.0232 with the slit texels and the near tiles' member form factors,
-/// 0.2530 without either (rendered maps of `ortm bake head --size 64 --levels 0 --tolerance
-/// 1e-4 --coarse-block 4` against `ortm solve head --size 64 --method dense
-/// --first-order-samples 1`: 0.0232). With the coupling threshold at 0.05: 426 slit texels,
+/// against the exact solve 0.0210 with the slit texels, the near tiles' member form factors and
+/// the rows' receiver gather (`multires::RECEIVER_GATHER`; 0.0232 without it), 0.2530 without
+/// the first two (rendered maps of `ortm bake head --size 64 --levels 0 --tolerance 1e-4
+/// --coarse-block 4` against `ortm solve head --size 64 --method dense --first-order-samples
+/// 1`: 0.0232 before the gather). With the coupling threshold at 0.05: 426 slit texels,
 /// 0.0503. Bounds: measured + 25 %, and the slit texels must take at least half of the error
 /// away.
 #[test]
@@ -71,7 +72,7 @@ fn slit_texels_keep_the_higher_bounces_of_lips_and_eyelids() {
         "head 64², 4×4 tiles: {clusters} clusters of which {alone} slit texels; indirect \
          relative RMSE against the exact solve {with:.4} (tiles alone: {without:.4})"
     );
-    assert!(with < 0.029, "with the slit texels: {with:.4}");
+    assert!(with < 0.026, "with the slit texels: {with:.4}");
     assert!(
         with < 0.5 * without,
         "{with:.4} against {without:.4} without"
@@ -84,7 +85,8 @@ mod common;
 /// coarse solve, recorded only when given. On the head at 64² with 4×4 tiles the default keeps
 /// every texel above the coupling threshold (1,275), a cap of 100 keeps 100 and 0 none; rendered
 /// on the CPU mirrors against the exact solve, the maps' indirect light gets worse as the cap
-/// falls (measured over all covered texels, ε = 3·10⁻³: 3.1 %, 21.4 % and 24.6 %). Refused without the hierarchical transport's
+/// falls (measured over all covered texels, ε = 3·10⁻³: 2.9 %, 19.50 % and 19.59 %; 3.1 %, 21.4
+/// % and 24.6 % before the rows' receiver gather). Refused without the hierarchical transport's
 /// multi-resolution maps, and above the limit, before any folder is made.
 #[test]
 fn the_bake_takes_a_cap_on_the_slit_texels() {
@@ -152,7 +154,7 @@ fn the_bake_takes_a_cap_on_the_slit_texels() {
         errors.push((err / norm).sqrt());
     }
     eprintln!("head 64², 4×4 tiles, indirect against the exact solve by cap: {errors:?}");
-    assert!(errors[0] < 0.039, "{errors:?}");
+    assert!(errors[0] < 0.036, "{errors:?}");
     assert!(errors[0] < errors[1] && errors[1] < errors[2], "{errors:?}");
     for (extra, want) in [
         (

@@ -181,12 +181,12 @@ pub const CELL_VALUE_BYTES: u64 = 12;
 
 /// Bytes the bake's transport needs for `clusters` clusters of the coarse higher-order solve
 /// (`src/transport/coarse.rs`): per pair of clusters an f64 form factor, an f64 system matrix
-/// and its LU factors, three f64 transfer channels and three f32 remainders (`8+8+8+24+12 = 60`
-/// bytes), plus `per_texel` bytes for each covered texel (patches, BVH, grid), plus
+/// and its LU factors, three f64 transfer channels, three f32 remainders and the f32 form
+/// factor the multi-resolution rows' receiver gather reads (`8+8+8+24+12+4 = 64` bytes), plus `per_texel` bytes for each covered texel (patches, BVH, grid), plus
 /// [`CELL_VALUE_BYTES`] per cell value the integrated cell rule holds at once (`cell_values` =
 /// covered texels × maps; 0 for the sampled rule, which makes one map at a time).
 pub fn bake_memory_bytes(clusters: u64, covered_texels: u64, cell_values: u64) -> u64 {
-    const PER_CLUSTER_PAIR: u64 = 60;
+    const PER_CLUSTER_PAIR: u64 = 64;
     const PER_TEXEL: u64 = 512;
     clusters
         .saturating_mul(clusters)
@@ -393,7 +393,7 @@ mod tests {
 
     #[test]
     fn bake_memory_is_quadratic_in_clusters() {
-        assert_eq!(bake_memory_bytes(1000, 0, 0), 60_000_000);
+        assert_eq!(bake_memory_bytes(1000, 0, 0), 64_000_000);
         assert_eq!(bake_memory_bytes(0, 10, 0), 5120);
         assert_eq!(bake_memory_bytes(0, 0, 1000), 12_000);
         assert_eq!(bake_memory_bytes(u64::MAX, 1, 0), u64::MAX);

@@ -42,6 +42,11 @@ pub struct Remainder {
     /// The whole cluster transfer `R(I, J)` (fine + remainder) per channel, row-major
     /// `n_c × n_c`: the far field of the cell integration ([`crate::bake::cells`]).
     pub full: [Vec<f32>; 3],
+    /// The cluster system's form factors `F(I, J)`, row-major `n_c × n_c`, kept where the
+    /// slit texels are (the multi-resolution rows of the hierarchical transport, whose receiver
+    /// gather compares them with a texel's own: [`crate::bake::multires::RECEIVER_GATHER`]);
+    /// empty otherwise.
+    pub form_factors: Vec<f32>,
     /// Block size in texels.
     pub block: u32,
     /// Texels that are clusters of their own besides the tiles ([`slit_texels`]).
@@ -441,6 +446,11 @@ impl Remainder {
             v
         });
         drop(fine);
+        let form_factors = if slits.is_some() && block > 1 {
+            (0..n * n).map(|k| ff[(k / n, k % n)] as f32).collect()
+        } else {
+            Vec::new()
+        };
         let full = std::array::from_fn(|ch| {
             let mut v = vec![0.0f32; n * n];
             for i in 0..n {
@@ -455,6 +465,7 @@ impl Remainder {
             clusters,
             rem,
             full,
+            form_factors,
             block,
             alone: single.iter().filter(|&&a| a).count() as u32,
         })

@@ -942,7 +942,7 @@ impl SupportGrid {
 /// First bytes of [`Transport::to_bytes`].
 const TRANSPORT_MAGIC: &[u8; 8] = b"ORTMTRNS";
 /// Version of [`Transport::to_bytes`]'s layout (the serde form of its parts, postcard-encoded).
-const TRANSPORT_VERSION: u32 = 3;
+const TRANSPORT_VERSION: u32 = 4;
 
 /// Evaluates `R(t, t')` for any pair of covered texels of a lightmap (see the module docs).
 pub struct Transport {
