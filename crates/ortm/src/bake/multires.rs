@@ -346,7 +346,8 @@ pub fn hierarchical_row(tr: &Transport) -> Option<impl Fn(u32, &mut [[f32; 3]]) 
 /// On the head at 256² (`ortm bake head --size 256 --levels 3e-3`, rendered on the CPU
 /// mirrors) the maps went from 7.12 % to 6.08 % (indirect) off their solve (`ortm solve head
 /// --size 256 --near-field 3 --near-field-light input`) and from 16.69 % to 15.32 % off the
-/// 8,192-path reference; the rows took 27 → 36 s (README, *The receiver gather*).
+/// 8,192-path reference; the rows took 27 → 35 s (README, *Slits in the remainder*, "The
+/// receiver gather").
 pub const RECEIVER_GATHER: f32 = 1e-4;
 
 /// [`hierarchical_row`] with skin's near field when `near` is given (`ortm bake --near-field`,
