@@ -35,7 +35,7 @@ fn rows_indirect(tr: &Transport, b_o: &[Vec3]) -> Vec<Vec3> {
 
 /// Measured (head 64², its lamp, radiosity + subsurface, ε = 10⁻⁴, 4×4 tiles; 1,501 clusters
 /// of which 1,275 slit texels, coupling above `SLIT_COUPLING` = 0.005): indirect relative RMSE
-/// against the exact solve 0.0210 with the slit texels, the near tiles' member form factors and
+/// against the exact solve 0.0208 with the slit texels, the near tiles' member form factors and
 /// the rows' receiver gather (`multires::RECEIVER_GATHER`; 0.0232 without it), 0.2530 without
 /// the first two (rendered maps of `ortm bake head --size 64 --levels 0 --tolerance 1e-4
 /// --coarse-block 4` against `ortm solve head --size 64 --method dense --first-order-samples
@@ -85,7 +85,7 @@ mod common;
 /// coarse solve, recorded only when given. On the head at 64² with 4×4 tiles the default keeps
 /// every texel above the coupling threshold (1,275), a cap of 100 keeps 100 and 0 none; rendered
 /// on the CPU mirrors against the exact solve, the maps' indirect light gets worse as the cap
-/// falls (measured over all covered texels, ε = 3·10⁻³: 2.9 %, 19.50 % and 19.59 %; 3.1 %, 21.4
+/// falls (measured over all covered texels, ε = 3·10⁻³: 2.9 %, 19.49 % and 19.58 %; 3.1 %, 21.4
 /// % and 24.6 % before the rows' receiver gather). Refused without the hierarchical transport's
 /// multi-resolution maps, and above the limit, before any folder is made.
 #[test]
