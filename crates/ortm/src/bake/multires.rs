@@ -373,14 +373,9 @@ pub fn hierarchical_row_with<'a>(
         .collect();
     // The senders' areas, read `n` times per row (not the patches themselves).
     let area: Vec<f32> = tr.patches.iter().map(|p| p.area_m2).collect();
-    // The receiver gather needs the cluster system's form factors (kept with slit texels) and,
-    // on skin, every cluster's subsurface weights from the clusters within the profile's reach.
+    // The receiver gather reads the cluster system's form factors and subsurface weights, which
+    // the remainder keeps with its slit texels.
     let gather = !rem.form_factors.is_empty();
-    let cluster_subsurface: Vec<Vec<(u32, [f32; 3])>> = if gather {
-        cluster_subsurface_rows(tr)
-    } else {
-        Vec::new()
-    };
     Some(move |i: u32, out: &mut [[f32; 3]]| {
         let ci = rem.cluster_of[i as usize] as usize;
         let p = &tr.patches[i as usize];
@@ -470,7 +465,7 @@ pub fn hierarchical_row_with<'a>(
             }
         }
         if skin {
-            for &(m, s) in &cluster_subsurface[ci] {
+            for &(m, s) in &rem.subsurface[ci] {
                 for (c, v) in s.iter().enumerate() {
                     s_m[c][m as usize] -= v;
                 }
@@ -502,39 +497,6 @@ fn axpy(y: &mut [f32], a: f32, x: &[f32]) {
     for (y, x) in y.iter_mut().zip(x) {
         *y += a * x;
     }
-}
-
-/// Per translucent cluster `C` of `tr`'s coarse remainder, its subsurface weights `S(C, M)`
-/// (the cluster-level kernel, [`crate::bake::transport::Kernels::r_subsurface`], with its
-/// point mass `−1` at `M = C`) from every cluster `M` within the profile's support: what a
-/// texel's own weights are compared with in the receiver gather ([`RECEIVER_GATHER`]). Empty
-/// rows for opaque clusters.
-fn cluster_subsurface_rows(tr: &Transport) -> Vec<Vec<(u32, [f32; 3])>> {
-    let clusters = &tr.remainder.clusters;
-    let kernels = &tr.kernels;
-    let reach = kernels.support_m.iter().copied().fold(0.0f64, f64::max) as f32;
-    (0..clusters.len())
-        .into_par_iter()
-        .map(|a| {
-            let pa = &clusters[a];
-            if !kernels.is_translucent(pa.material) {
-                return Vec::new();
-            }
-            (0..clusters.len())
-                .filter_map(|b| {
-                    let pb = &clusters[b];
-                    let d = (pa.position_m - pb.position_m).length();
-                    // Beyond the support from any member (a cluster's members lie within
-                    // twice the square root of its area of its centroid): no weight.
-                    if d > reach + 2.0 * (pa.area_m2.sqrt() + pb.area_m2.sqrt()) {
-                        return None;
-                    }
-                    let v = kernels.r_subsurface(pa, pb, a == b);
-                    (v.iter().any(|&x| x != 0.0)).then(|| (b as u32, v.map(|x| x as f32)))
-                })
-                .collect()
-        })
-        .collect()
 }
 
 /// `row` with the gathered near field's first bounce added ([`crate::bake::near_gather`],

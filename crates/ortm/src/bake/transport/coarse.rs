@@ -47,11 +47,20 @@ pub struct Remainder {
     /// gather compares them with a texel's own: [`crate::bake::multires::RECEIVER_GATHER`]);
     /// empty otherwise.
     pub form_factors: Vec<f32>,
+    /// Where [`Self::form_factors`] is kept: per cluster `C`, its subsurface weights `S(C, M)`
+    /// (the cluster solve's own, [`Kernels::r_subsurface`], with its point mass `−1` at
+    /// `M = C`) from every cluster `M` that has one, in cluster order; empty rows for opaque
+    /// clusters, and no rows otherwise.
+    pub subsurface: Vec<SubsurfaceRow>,
     /// Block size in texels.
     pub block: u32,
     /// Texels that are clusters of their own besides the tiles ([`slit_texels`]).
     pub alone: u32,
 }
+
+/// One cluster's non-zero subsurface weights: `(sender cluster, weight per channel)`, in
+/// cluster order ([`Remainder::subsurface`]).
+pub type SubsurfaceRow = Vec<(u32, [f32; 3])>;
 
 /// The cluster a texel belongs to: its `block × block` tile, chart and material.
 fn cluster_key(t: &Texel, block: u32) -> (u32, u32, u32, u32) {
@@ -389,7 +398,10 @@ impl Remainder {
         kernels.normalise_subsurface_with(&mut clusters, progress)?;
         let n = clusters.len();
         let mut dense = DenseTransport::build(&clusters, kernels, progress)?;
-        if slits.is_some() && block > 1 {
+        // Slit texels beside tiles: the near tiles' member form factors, the single-precision
+        // transfer, and the form factors and subsurface weights the rows' receiver gather reads.
+        let tiled_slits = slits.is_some() && block > 1;
+        if tiled_slits {
             near_form_factors(
                 &mut dense,
                 &cluster_of,
@@ -401,7 +413,7 @@ impl Remainder {
         }
         // With the slit texels the coarse solve's transfer is kept in single precision (its
         // remainder is an approximation by area already; half the memory for the larger system).
-        let (full64, full32) = if slits.is_some() && block > 1 {
+        let (full64, full32) = if tiled_slits {
             (None, Some(dense.transfer_f32_with(progress)?))
         } else {
             (Some(dense.transfer_with(progress)?), None)
@@ -414,23 +426,30 @@ impl Remainder {
             }
         };
         // R_fine per cluster pair (one visibility ray each; with `slits`, the system's own form
-        // factors, so the remainder holds no first bounce), rows in parallel.
+        // factors, so the remainder holds no first bounce), rows in parallel; with the tiled
+        // slits also each row's non-zero subsurface weights.
         let ff = &dense.form_factors;
-        let fine: Vec<Vec<[f64; 3]>> = (0..n)
+        let (fine, subsurface): (Vec<Vec<[f64; 3]>>, Vec<SubsurfaceRow>) = (0..n)
             .into_par_iter()
             .map(|i| {
-                (0..n)
+                let mut weights = Vec::new();
+                let row = (0..n)
                     .map(|j| {
                         let (a, b) = (&clusters[i], &clusters[j]);
                         if slits.is_none() {
                             return kernels.r_fine(a, b, i == j);
                         }
                         let s = kernels.r_subsurface(a, b, i == j);
+                        if tiled_slits && s.iter().any(|&x| x != 0.0) {
+                            weights.push((j as u32, s.map(|x| x as f32)));
+                        }
                         [0, 1, 2].map(|c| s[c] + a.rho[c] as f64 * ff[(i, j)])
                     })
-                    .collect()
+                    .collect();
+                (row, weights)
             })
-            .collect();
+            .unzip();
+        let subsurface = if tiled_slits { subsurface } else { Vec::new() };
         let rem = std::array::from_fn(|ch| {
             let mut v = vec![0.0f32; n * n];
             for i in 0..n {
@@ -446,7 +465,7 @@ impl Remainder {
             v
         });
         drop(fine);
-        let form_factors = if slits.is_some() && block > 1 {
+        let form_factors = if tiled_slits {
             (0..n * n).map(|k| ff[(k / n, k % n)] as f32).collect()
         } else {
             Vec::new()
@@ -466,6 +485,7 @@ impl Remainder {
             rem,
             full,
             form_factors,
+            subsurface,
             block,
             alone: single.iter().filter(|&&a| a).count() as u32,
         })
